@@ -1,0 +1,52 @@
+"""The tracked humans as the cores see them: capsules with end-point velocities.
+
+A human body is a set of capsules (forearm, upper arm, torso, head ...). Each capsule carries the
+velocity of both end points; a point in between moves at the linear interpolation (a rigid segment's
+point velocities are affine along it), so the fastest approach of a capsule is at one of its ends.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class HumanCapsules:
+    """M human capsules in the robot base frame.
+
+    segments: (M, 2, 3) end points (m). radii: (M,) (m).
+    velocities: (M, 2, 3) end-point velocities (m/s); meaningful where velocity_known is True.
+    velocity_known: (M,) False where the tracker could not estimate a velocity: the SSM math then uses
+    the ISO 13855 approach speed instead.
+    """
+
+    segments: np.ndarray
+    radii: np.ndarray
+    velocities: np.ndarray
+    velocity_known: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.radii.shape[0])
+
+    @staticmethod
+    def empty() -> "HumanCapsules":
+        return HumanCapsules(np.zeros((0, 2, 3)), np.zeros(0), np.zeros((0, 2, 3)), np.zeros(0, dtype=bool))
+
+    @staticmethod
+    def from_arrays(segments, radii, velocities=None, velocity_known=None) -> "HumanCapsules":
+        """Build from array-likes; missing velocities mean 'unknown' (worst-case approach speed)."""
+        seg = np.asarray(segments, dtype=float).reshape(-1, 2, 3)
+        rad = np.asarray(radii, dtype=float).reshape(-1)
+        if velocities is None:
+            vel = np.zeros_like(seg)
+            known = np.zeros(seg.shape[0], dtype=bool)
+        else:
+            vel = np.asarray(velocities, dtype=float).reshape(-1, 2, 3)
+            known = (np.ones(seg.shape[0], dtype=bool) if velocity_known is None
+                     else np.asarray(velocity_known, dtype=bool).reshape(-1))
+        if not (seg.shape[0] == rad.shape[0] == vel.shape[0] == known.shape[0]):
+            raise ValueError("human capsule arrays disagree on the number of capsules")
+        return HumanCapsules(seg, rad, vel, known)

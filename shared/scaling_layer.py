@@ -1,0 +1,185 @@
+"""The trajectory scaling layer as a pure, stateful core: one ``step`` per control cycle.
+
+Each step takes the latest human capsules (and how old they are) and, optionally, the measured joint
+configuration; it solves the cycle's scaling problem (``shared.scaling``), advances the path parameter
+s by alpha * sdot_nominal * T, and returns the joint command q_c = q(s), qd_c = q'(s) sdot, with the
+replan request beta. No I/O and no clock: the caller passes ages; timing of the computation itself is
+reported for benchmarks (Ruckig's pattern: the control call never raises, it returns a status).
+
+Safety rules kept here:
+* no human data yet, or data older than ``human_timeout``: alpha = 0 (stop), whatever the solver says;
+* the SSM rows are hard; acceleration limits take a slack;
+* beta (replan request) follows the *safe* bound on alpha, not alpha itself, so the acceleration ramp
+  after a stop never asks for a replan; it rises at bound <= alpha_min and falls at bound >= alpha_release
+  (hysteresis), and is never raised while stopped for missing data (a new plan cannot fix that).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import time
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from shared.errors import ConfigError
+from shared.humans import HumanCapsules
+from shared.robot_model import RobotModel
+from shared.scaling import PiqpScalingSolver, build_rows, solve
+from shared.ssm import SsmParameters
+from shared.trajectory import Trajectory
+
+SOLVERS = ("piqp", "closed_form")
+
+
+@dataclass(frozen=True)
+class ScalingParameters:
+    """period (s): control period. alpha_min / alpha_release: beta hysteresis thresholds on the safe bound.
+    human_timeout (s): human data older than this stops the robot (5 periods at 100 Hz).
+    acceleration_weight: price of one unit of acceleration slack (in units of the limit) against alpha.
+    solver: 'piqp' (closed form as fallback) or 'closed_form'."""
+
+    period: float = 0.01
+    alpha_min: float = 0.2
+    alpha_release: float = 0.3
+    human_timeout: float = 0.05
+    acceleration_weight: float = 100.0
+    solver: str = "piqp"
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name == "solver":
+                continue
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"scaling.{f.name}: expected a finite number, got {value!r}")
+        if not 0.0 < self.period <= 1.0:
+            raise ConfigError(f"scaling.period: must be in (0, 1] s, got {self.period}")
+        if not 0.0 <= self.alpha_min < self.alpha_release <= 1.0:
+            raise ConfigError("scaling: need 0 <= alpha_min < alpha_release <= 1, got "
+                              f"{self.alpha_min} and {self.alpha_release}")
+        if self.human_timeout <= 0.0:
+            raise ConfigError(f"scaling.human_timeout: must be positive, got {self.human_timeout}")
+        if self.acceleration_weight <= 0.0:
+            raise ConfigError(f"scaling.acceleration_weight: must be positive, got {self.acceleration_weight}")
+        if self.solver not in SOLVERS:
+            raise ConfigError(f"scaling.solver: expected one of {SOLVERS}, got {self.solver!r}")
+
+    @classmethod
+    def from_mapping(cls, raw: object) -> "ScalingParameters":
+        if raw is None:
+            return cls()
+        if not isinstance(raw, dict):
+            raise ConfigError(f"scaling: expected a mapping, got {type(raw).__name__}")
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(map(str, raw)) - known)
+        if unknown:
+            raise ConfigError(f"scaling: unknown key(s) {unknown}; known: {sorted(known)}")
+        return cls(**raw)
+
+
+class StepStatus(str, enum.Enum):
+    """What a step did. Every status but RUNNING and FINISHED means the robot was told to stop."""
+
+    RUNNING = "running"
+    FINISHED = "finished"
+    NO_TRAJECTORY = "no_trajectory"
+    NO_HUMAN_DATA = "no_human_data"
+    STALE_HUMAN_DATA = "stale_human_data"
+
+
+@dataclass(frozen=True)
+class ScalingStep:
+    """One cycle's result. alpha: path speed scaling in [0, 1]; safe_alpha: the largest alpha the hard
+    rows allow; beta: replan request; s: path parameter after the step; q_command, qd_command: joint
+    position (rad) and velocity (rad/s) to send; min_separation (m) and min_margin (m/s, limit minus
+    approach speed, over all pairs, at the commanded alpha); compute_us: time spent in the step."""
+
+    alpha: float
+    safe_alpha: float
+    beta: bool
+    s: float
+    sdot: float
+    q_command: np.ndarray
+    qd_command: np.ndarray
+    status: StepStatus
+    method: str
+    trajectory_version: int
+    min_separation: float
+    min_margin: float
+    compute_us: float
+
+
+class ScalingLayer:
+    """Follows one trajectory at the largest safe speed. Not thread-safe; one per control loop."""
+
+    def __init__(self, robot: RobotModel, ssm: SsmParameters | None = None,
+                 params: ScalingParameters | None = None) -> None:
+        self.robot = robot
+        self.ssm = ssm or SsmParameters()
+        self.params = params or ScalingParameters()
+        self._piqp = PiqpScalingSolver(self.params.acceleration_weight, robot.nq) \
+            if self.params.solver == "piqp" else None
+        self.trajectory: Trajectory | None = None
+        self.s = 0.0
+        self.sdot = 0.0
+        self.beta = False
+
+    def set_trajectory(self, trajectory: Trajectory, s: float = 0.0) -> None:
+        """Follow a new trajectory from its path parameter s (the junction, for a merged trajectory).
+
+        The path speed sdot is kept, so a merged trajectory that continues the motion is followed without a
+        jump in commanded velocity; beta is cleared (the request has been answered).
+        """
+        self.trajectory = trajectory
+        self.s = float(min(max(s, 0.0), trajectory.duration))
+        self.beta = False
+
+    def hold(self, q: np.ndarray, version: int = -1) -> None:
+        """Stand still at q (a one-knot-interval trajectory of zero motion)."""
+        q = np.asarray(q, dtype=float)
+        self.set_trajectory(Trajectory(np.array([0.0, self.params.period]), np.vstack([q, q]),
+                                       np.zeros((2, q.size)), version))
+        self.sdot = 0.0
+
+    def step(self, humans: HumanCapsules | None, human_age: float,
+             q_measured: np.ndarray | None = None) -> ScalingStep:
+        """One control cycle. humans=None means no human data has ever arrived; human_age in seconds."""
+        start = time.perf_counter()
+        traj = self.trajectory
+        if traj is None:
+            zero = np.zeros(self.robot.nq)
+            return ScalingStep(0.0, 0.0, False, 0.0, 0.0, zero if q_measured is None else np.asarray(q_measured),
+                               zero, StepStatus.NO_TRAJECTORY, "none", -1, math.inf, math.inf, 0.0)
+        q_nom, dq, ddq = traj.sample(self.s)
+        finished = self.s >= traj.duration
+        sdot_nominal = 0.0 if finished else 1.0
+        status = StepStatus.FINISHED if finished else StepStatus.RUNNING
+        method = "none"
+        min_sep = min_margin = math.inf
+        if humans is None:
+            alpha, safe_alpha, status = 0.0, 0.0, StepStatus.NO_HUMAN_DATA
+        elif not (human_age <= self.params.human_timeout):          # also catches NaN
+            alpha, safe_alpha, status = 0.0, 0.0, StepStatus.STALE_HUMAN_DATA
+        else:
+            q_kin = q_nom if q_measured is None else np.asarray(q_measured, dtype=float)
+            rows = build_rows(self.robot, q_kin, dq, ddq, sdot_nominal, self.sdot, humans, self.ssm,
+                              self.params.period)
+            solution = solve(rows, self.params.acceleration_weight, self._piqp)
+            alpha, safe_alpha, method = solution.alpha, rows.upper, solution.method
+            if rows.ssm is not None and rows.ssm.distance.size:
+                min_sep = float(rows.ssm.distance.min())
+                min_margin = float((np.maximum(rows.ssm.limit, 0.0) - rows.ssm.robot_speed * alpha).min())
+        if status is StepStatus.RUNNING:
+            if safe_alpha <= self.params.alpha_min:
+                self.beta = True
+            elif safe_alpha >= self.params.alpha_release:
+                self.beta = False
+        else:
+            self.beta = False
+        self.sdot = alpha * sdot_nominal
+        self.s = min(self.s + self.sdot * self.params.period, traj.duration)
+        q_c, dq_c, _ = traj.sample(self.s)
+        return ScalingStep(alpha, safe_alpha, self.beta, self.s, self.sdot, q_c, dq_c * self.sdot, status, method,
+                           traj.version, min_sep, min_margin, (time.perf_counter() - start) * 1e6)
