@@ -39,8 +39,8 @@ from shared.ssm import PairSsm, SsmParameters, pair_ssm
 class ScalingRows:
     """One cycle's problem, all rows in terms of alpha.
 
-    hard_coef * alpha <= hard_bound: the SSM rows (one per link x human capsule pair, first) and the joint
-    velocity rows; every bound is >= 0, so alpha = 0 is always feasible.
+    hard_coef * alpha <= hard_bound: the joint velocity rows, then the SSM rows (one per link x human
+    capsule pair); every bound is >= 0, so alpha = 0 is always feasible.
     upper: the largest alpha in [0, 1] that every hard row allows (exact). With one decision variable,
     every hard row c alpha <= b (c > 0) says alpha <= b / c, so the tightest row implies all others:
     the solvers get the hard part as this single bound (an exact presolve; the tests check the result
@@ -77,13 +77,12 @@ def build_rows(robot: RobotModel, q: np.ndarray, dq_ds: np.ndarray, d2q_ds2: np.
     tangent = dq * sdot_nominal                                        # joint velocity at alpha = 1
     lim = robot.limits
     pairs = None
+    hard_coef, hard_bound = np.abs(tangent), lim.velocity
     if humans.count:
         points, jac = robot.capsule_kinematics(q)                       # (L,2,3), (L,2,3,6)
         pairs = pair_ssm(points, robot.radii, jac @ tangent, humans, ssm)
-        hard_coef = np.concatenate([pairs.robot_speed.ravel(), np.abs(tangent)])
-        hard_bound = np.concatenate([np.maximum(pairs.limit, 0.0).ravel(), lim.velocity])
-    else:
-        hard_coef, hard_bound = np.abs(tangent), lim.velocity
+        hard_coef = np.concatenate([hard_coef, pairs.robot_speed.ravel()])
+        hard_bound = np.concatenate([hard_bound, np.maximum(pairs.limit, 0.0).ravel()])
     # qdd(alpha) ~= d2q (2 sdot_prev sdot - sdot_prev^2) + dq (sdot - sdot_prev) / T, sdot = alpha sdot_nom
     g = (2.0 * d2q * sdot_prev + dq / period) * sdot_nominal / lim.acceleration
     h = (-d2q * sdot_prev ** 2 - dq * sdot_prev / period) / lim.acceleration
@@ -92,6 +91,16 @@ def build_rows(robot: RobotModel, q: np.ndarray, dq_ds: np.ndarray, d2q_ds2: np.
     keep = (soft_coef != 0.0) | (soft_bound < 0.0)
     return ScalingRows(hard_coef, hard_bound, _hard_upper(hard_coef, hard_bound), soft_coef[keep],
                        soft_bound[keep], pairs)
+
+
+def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray, humans: HumanCapsules,
+                    ssm: SsmParameters) -> float:
+    """The largest alpha in [0, 1] for which moving at alpha * joint_velocity from q meets every SSM row."""
+    if not humans.count:
+        return 1.0
+    points, jac = robot.capsule_kinematics(q)
+    pairs = pair_ssm(points, robot.radii, jac @ joint_velocity, humans, ssm)
+    return _hard_upper(pairs.robot_speed.ravel(), np.maximum(pairs.limit, 0.0).ravel())
 
 
 @numba.njit(cache=True)

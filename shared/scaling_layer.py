@@ -26,7 +26,7 @@ import numpy as np
 from shared.errors import ConfigError
 from shared.humans import HumanCapsules
 from shared.robot_model import RobotModel
-from shared.scaling import PiqpScalingSolver, build_rows, solve
+from shared.scaling import PiqpScalingSolver, build_rows, solve, ssm_alpha_bound
 from shared.ssm import SsmParameters
 from shared.trajectory import Trajectory
 
@@ -143,42 +143,64 @@ class ScalingLayer:
                                        np.zeros((2, q.size)), version))
         self.sdot = 0.0
 
+    def _verified(self, traj: Trajectory, alpha: float, humans: HumanCapsules, offset: np.ndarray) -> tuple[float, bool]:
+        """Lower alpha until the command it produces meets every SSM row; True when it had to.
+
+        The rows were written where the robot is; the command puts it at s' = s + alpha T moving at
+        q'(s') alpha, where a link may be closer to the human. That state is checked and alpha lowered to
+        its bound until it holds (3 tries, then alpha = 0, which always holds: at rest, no approach).
+        """
+        lowered = False
+        for _ in range(3):
+            if alpha <= 0.0:
+                return 0.0, lowered
+            q_next, dq_next, _ = traj.sample(self.s + alpha * self.params.period)
+            bound = ssm_alpha_bound(self.robot, q_next + offset, dq_next, humans, self.ssm)
+            if alpha <= bound:
+                return alpha, lowered
+            alpha, lowered = bound * (1.0 - 1e-9), True
+        return 0.0, True
+
     def step(self, humans: HumanCapsules | None, human_age: float,
              q_measured: np.ndarray | None = None) -> ScalingStep:
-        """One control cycle. humans=None means no human data has ever arrived; human_age in seconds."""
+        """One control cycle. humans=None means no human data has ever arrived; human_age in seconds.
+
+        q_measured: where the robot really is (the SSM rows are written there; its offset from the path
+        is carried to the commanded point); None means the robot is where the path says.
+        """
         start = time.perf_counter()
         traj = self.trajectory
         if traj is None:
-            zero = np.zeros(self.robot.nq)
-            return ScalingStep(0.0, 0.0, False, 0.0, 0.0, zero if q_measured is None else np.asarray(q_measured),
-                               zero, StepStatus.NO_TRAJECTORY, "none", -1, math.inf, math.inf, 0.0)
+            q_hold = np.zeros(self.robot.nq) if q_measured is None else np.asarray(q_measured, dtype=float)
+            return ScalingStep(0.0, 0.0, False, 0.0, 0.0, q_hold, np.zeros(self.robot.nq), StepStatus.NO_TRAJECTORY,
+                               "none", -1, math.inf, math.inf, 0.0)
         q_nom, dq, ddq = traj.sample(self.s)
-        finished = self.s >= traj.duration
-        sdot_nominal = 0.0 if finished else 1.0
-        status = StepStatus.FINISHED if finished else StepStatus.RUNNING
-        method = "none"
+        q_kin = q_nom if q_measured is None else np.asarray(q_measured, dtype=float)
+        running = self.s < traj.duration
+        alpha, safe_alpha, method = 0.0, 0.0, "none"
         min_sep = min_margin = math.inf
         if humans is None:
-            alpha, safe_alpha, status = 0.0, 0.0, StepStatus.NO_HUMAN_DATA
-        elif not (human_age <= self.params.human_timeout):          # also catches NaN
-            alpha, safe_alpha, status = 0.0, 0.0, StepStatus.STALE_HUMAN_DATA
+            status = StepStatus.NO_HUMAN_DATA
+        elif not human_age <= self.params.human_timeout:           # also catches NaN
+            status = StepStatus.STALE_HUMAN_DATA
+        elif not running:
+            status, alpha, safe_alpha = StepStatus.FINISHED, 1.0, 1.0
         else:
-            q_kin = q_nom if q_measured is None else np.asarray(q_measured, dtype=float)
-            rows = build_rows(self.robot, q_kin, dq, ddq, sdot_nominal, self.sdot, humans, self.ssm,
-                              self.params.period)
+            status = StepStatus.RUNNING
+            rows = build_rows(self.robot, q_kin, dq, ddq, 1.0, self.sdot, humans, self.ssm, self.params.period)
             solution = solve(rows, self.params.acceleration_weight, self._piqp)
             alpha, safe_alpha, method = solution.alpha, rows.upper, solution.method
+            alpha, lowered = self._verified(traj, alpha, humans, q_kin - q_nom)
+            if lowered:
+                method += "+verified"
             if rows.ssm is not None and rows.ssm.distance.size:
                 min_sep = float(rows.ssm.distance.min())
-                min_margin = float((np.maximum(rows.ssm.limit, 0.0) - rows.ssm.robot_speed * alpha).min())
-        if status is StepStatus.RUNNING:
-            if safe_alpha <= self.params.alpha_min:
-                self.beta = True
-            elif safe_alpha >= self.params.alpha_release:
-                self.beta = False
-        else:
+                min_margin = float(rows.ssm.margin_at(alpha).min())
+        if status is StepStatus.RUNNING and safe_alpha <= self.params.alpha_min:
+            self.beta = True
+        elif status is not StepStatus.RUNNING or safe_alpha >= self.params.alpha_release:
             self.beta = False
-        self.sdot = alpha * sdot_nominal
+        self.sdot = alpha if running else 0.0
         self.s = min(self.s + self.sdot * self.params.period, traj.duration)
         q_c, dq_c, _ = traj.sample(self.s)
         return ScalingStep(alpha, safe_alpha, self.beta, self.s, self.sdot, q_c, dq_c * self.sdot, status, method,

@@ -134,7 +134,11 @@ class PairSsm:
     @property
     def margin(self) -> np.ndarray:
         """How far below its limit each pair is (m/s): max(limit, 0) - robot_speed; negative = violation."""
-        return np.maximum(self.limit, 0.0) - self.robot_speed
+        return self.margin_at(1.0)
+
+    def margin_at(self, alpha: float) -> np.ndarray:
+        """The margin when the robot velocities behind robot_speed are scaled by alpha."""
+        return np.maximum(self.limit, 0.0) - alpha * self.robot_speed
 
 
 @numba.njit(cache=True)

@@ -1,0 +1,67 @@
+"""The cell configuration: one YAML file, validated section by section.
+
+    cell:    {prefix: hrc/cell1}
+    ssm:     ISO/TS 15066 parameters (shared.ssm.SsmParameters)
+    scaling: control loop parameters (shared.scaling_layer.ScalingParameters)
+
+A missing file section takes the defaults; an unknown section or key, a wrong type, a negative time or a
+NaN raises ConfigError naming the field. ``deploy/cell.yaml`` is the shipped configuration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from shared.errors import ConfigError, KeyError_
+from shared.keys import KeySpace
+from shared.scaling_layer import ScalingParameters
+from shared.ssm import SsmParameters
+
+SECTIONS = ("cell", "ssm", "scaling")
+
+
+@dataclass(frozen=True)
+class CellConfig:
+    keys: KeySpace = field(default_factory=KeySpace)
+    ssm: SsmParameters = field(default_factory=SsmParameters)
+    scaling: ScalingParameters = field(default_factory=ScalingParameters)
+
+    @classmethod
+    def from_mapping(cls, doc: object, where: str = "config") -> "CellConfig":
+        if doc is None:
+            return cls()
+        if not isinstance(doc, dict):
+            raise ConfigError(f"{where}: expected a mapping of sections {SECTIONS}, got {type(doc).__name__}")
+        unknown = sorted(set(map(str, doc)) - set(SECTIONS))
+        if unknown:
+            raise ConfigError(f"{where}: unknown section(s) {unknown}; known: {list(SECTIONS)}")
+        cell = doc.get("cell") or {}
+        if not isinstance(cell, dict) or set(map(str, cell)) - {"prefix"}:
+            raise ConfigError(f"{where}: cell: expected a mapping with only 'prefix'")
+        try:
+            keys = KeySpace(cell.get("prefix", KeySpace.prefix))
+            return cls(keys, SsmParameters.from_mapping(doc.get("ssm")),
+                       ScalingParameters.from_mapping(doc.get("scaling")))
+        except (KeyError_, TypeError) as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+
+
+def load_config(path: str | Path | None) -> CellConfig:
+    """Read and validate a cell config file; None gives the built-in defaults."""
+    if path is None:
+        return CellConfig()
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read config: {exc.strerror or exc}") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+    return CellConfig.from_mapping(doc, str(path))

@@ -1,0 +1,112 @@
+"""Scripted humans: a simple body of capsules moved through keyframes.
+
+A body is a torso, a head and one reaching arm (upper arm + forearm with the hand), placed by the torso's
+floor position (x, y) and a reach fraction in [0, 1] that swings the arm from hanging down to pointing
+at a target. Keyframes are linearly interpolated in time; end-point velocities are the exact derivative
+of that motion (central difference over 1 ms), so a scripted human has "tracked" velocities.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.humans import HumanCapsules
+
+TORSO_RADIUS, HEAD_RADIUS, UPPER_ARM_RADIUS, FOREARM_RADIUS = 0.17, 0.12, 0.06, 0.05
+UPPER_ARM, FOREARM = 0.30, 0.35
+
+
+@dataclass(frozen=True)
+class Keyframe:
+    """At time t (s): torso floor position (m), reach fraction, reach target (m, base frame), label."""
+
+    t: float
+    x: float
+    y: float
+    reach: float = 0.0
+    target: tuple[float, float, float] = (0.0, 0.0, 0.5)
+    phase: str = ""
+
+
+def body_segments(x: float, y: float, reach: float, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Capsule end points (4, 2, 3) and radii (4,) of a standing human with one arm reaching."""
+    shoulder = np.array([x, y - 0.2, 1.45])
+    down = np.array([0.0, 0.0, -1.0])
+    to_target = np.asarray(target, dtype=float) - shoulder
+    norm = np.linalg.norm(to_target)
+    aim = to_target / norm if norm > 1e-9 else down
+    direction = (1.0 - reach) * down + reach * aim
+    direction /= max(np.linalg.norm(direction), 1e-9)
+    elbow = shoulder + UPPER_ARM * direction
+    hand = elbow + FOREARM * direction
+    segments = np.array([
+        [[x, y, 0.9], [x, y, 1.45]],                 # torso
+        [[x, y, 1.72], [x, y, 1.72]],                # head (a sphere)
+        [shoulder, elbow],                           # upper arm
+        [elbow, hand],                               # forearm and hand
+    ])
+    return segments, np.array([TORSO_RADIUS, HEAD_RADIUS, UPPER_ARM_RADIUS, FOREARM_RADIUS])
+
+
+class ScriptedHuman:
+    """A human following keyframes; ``at(t)`` gives the capsules and their velocities at time t."""
+
+    def __init__(self, keyframes: list[Keyframe]) -> None:
+        if not keyframes or any(b.t <= a.t for a, b in zip(keyframes, keyframes[1:])):
+            raise ValueError("keyframes need strictly increasing times")
+        self.keyframes = keyframes
+
+    def _pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        ks = self.keyframes
+        t = min(max(t, ks[0].t), ks[-1].t)
+        i = max(0, min(len(ks) - 2, int(np.searchsorted([k.t for k in ks], t, side="right")) - 1)) if len(ks) > 1 else 0
+        a = ks[i]
+        b = ks[i + 1] if len(ks) > 1 else a
+        w = 0.0 if b.t == a.t else (t - a.t) / (b.t - a.t)
+        mix = lambda u, v: (1 - w) * u + w * v
+        target = mix(np.asarray(a.target), np.asarray(b.target))
+        return body_segments(mix(a.x, b.x), mix(a.y, b.y), mix(a.reach, b.reach), target)
+
+    def phase(self, t: float) -> str:
+        """The label of the last keyframe at or before t."""
+        label = self.keyframes[0].phase
+        for k in self.keyframes:
+            if k.t <= t:
+                label = k.phase or label
+        return label
+
+    def at(self, t: float) -> HumanCapsules:
+        seg, radii = self._pose(t)
+        dt = 1e-3
+        vel = (self._pose(t + dt)[0] - self._pose(t - dt)[0]) / (2 * dt)
+        return HumanCapsules(seg, radii, vel, np.ones(radii.size, dtype=bool))
+
+
+# The paper's experiment, seen from the robot: the shuttle sweeps the flange over the -x side of the base.
+Q_START = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+Q_GOAL = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+IN_PATH = (-0.45, 0.0, 0.5)
+
+
+def paper_phases(period: float = 6.0) -> ScriptedHuman:
+    """The four phases of the paper's experiment, each `period` seconds long.
+
+    1 far away (full speed); 2 walking up to the cell and back (scaling down, then up again);
+    3 standing at the cell with the arm across the path (the planner's case); 4 very close, reaching
+    into the path (alpha falls below alpha_min: beta); then leaving.
+    """
+    p = period
+    return ScriptedHuman([
+        Keyframe(0.0, -2.8, 0.0, 0.0, IN_PATH, "1 far away"),
+        Keyframe(p, -2.8, 0.0, 0.0, IN_PATH, "2 approaching"),
+        Keyframe(p + 0.45 * p, -1.05, 0.0, 0.0, IN_PATH, "2 approaching"),
+        Keyframe(p + 0.55 * p, -1.05, 0.0, 0.0, IN_PATH, "2 moving away"),
+        Keyframe(2 * p, -2.0, 0.0, 0.0, IN_PATH, "3 arm in the path"),
+        Keyframe(2 * p + 0.3 * p, -1.0, 0.2, 0.9, IN_PATH, "3 arm in the path"),
+        Keyframe(3 * p, -1.0, 0.2, 0.9, IN_PATH, "4 very close"),
+        Keyframe(3 * p + 0.2 * p, -0.85, 0.1, 1.0, IN_PATH, "4 very close"),
+        Keyframe(3.8 * p, -0.85, 0.1, 1.0, IN_PATH, "leaving"),
+        Keyframe(4 * p, -2.8, 0.0, 0.0, IN_PATH, "leaving"),
+    ])
