@@ -64,8 +64,12 @@ class ScalingRows:
         return float(max(0.0, np.max(self.soft_coef * alpha - self.soft_bound)))
 
 
+_NEGLIGIBLE_SPEED = 1e-12   # m/s: a row coefficient below this counts as zero (no overflow in b / c)
+
+
 def _hard_upper(coef: np.ndarray, bound: np.ndarray) -> float:
-    ratio = np.divide(bound, coef, out=np.full(coef.shape, np.inf), where=coef > 0.0)
+    """min(1, min over rows with c > 0 of b / c): the largest alpha every hard row allows."""
+    ratio = np.divide(bound, coef, out=np.full(coef.shape, np.inf), where=coef > _NEGLIGIBLE_SPEED)
     return float(min(1.0, ratio.min())) if ratio.size else 1.0
 
 

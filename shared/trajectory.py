@@ -80,7 +80,7 @@ def straight_line_trajectory(q_start: np.ndarray, q_goal: np.ndarray, v_max: np.
 
     The path q_start + r (q_goal - q_start), r in [0, 1], gets a trapezoidal speed law in r whose limits
     are the tightest joint's: rdot <= min_j v_max_j / |dq_j|, rddot <= min_j a_max_j / |dq_j|. Knots every
-    knot_period seconds carry the exact position and velocity of that law.
+    knot_period seconds and at the two switch times carry the exact position and velocity of that law.
     """
     q_start = np.asarray(q_start, dtype=float)
     delta = np.asarray(q_goal, dtype=float) - q_start
@@ -93,8 +93,11 @@ def straight_line_trajectory(q_start: np.ndarray, q_goal: np.ndarray, v_max: np.
     r_amax = float(np.min(np.asarray(a_max)[moving] / span[moving]))
     duration, r_cruise, t_acc = trapezoid_profile(1.0, r_vmax, r_amax)
     n = max(2, int(np.ceil(duration / knot_period)) + 1)
-    t = np.linspace(0.0, duration, n)
     t_dec = duration - t_acc
+    # knots at the switches too: between knots the law is then a polynomial of degree <= 2, which the
+    # cubic Hermite interpolant reproduces exactly (no acceleration overshoot at the switches)
+    t = np.unique(np.concatenate([np.linspace(0.0, duration, n), [t_acc, t_dec]]))
+    t = t[np.concatenate([[True], np.diff(t) > 1e-9])]
     r = np.where(t < t_acc, 0.5 * r_amax * t ** 2,
                  np.where(t <= t_dec, 0.5 * r_amax * t_acc ** 2 + r_cruise * (t - t_acc),
                           1.0 - 0.5 * r_amax * (duration - t) ** 2))

@@ -1,0 +1,55 @@
+"""The hrc command line and the in-process demo of the paper's experiment."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from shared.config import CellConfig
+from shared.robot_model import default_robot
+from shared.scenarios import Q_GOAL, Q_START, paper_phases
+from shared.sim import run_shuttle
+
+
+def hrc(*args):
+    return subprocess.run([sys.executable, "-m", "services.cli", *args], capture_output=True, text=True, timeout=300)
+
+
+def test_demo_runs_and_prints_a_json_summary(tmp_path):
+    out = hrc("demo", "--duration", "3", "--quiet", "--out", str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout.strip().splitlines()[-1])
+    assert summary["violations"] == 0 and summary["cycles"] == 300
+    assert json.loads((tmp_path / "summary.json").read_text()) == summary
+
+
+@pytest.mark.parametrize("args, text", [
+    (["demo", "--duration", "-1"], "positive"),
+    (["demo", "--duration", "nan"], "positive"),
+    (["demo", "--duration", "soon"], "expected a number"),
+    (["demo", "--config", "/nonexistent/cell.yaml"], "cannot read"),
+    (["fly"], "invalid choice"),
+])
+def test_bad_arguments_exit_nonzero_with_a_clear_message(args, text):
+    out = hrc(*args)
+    assert out.returncode == 2
+    assert text in out.stderr and "Traceback" not in out.stderr
+
+
+def test_help_teaches_the_commands():
+    out = hrc("--help")
+    assert out.returncode == 0 and "hrc demo" in out.stdout
+
+
+def test_the_paper_phases_in_simulation():
+    result = run_shuttle(default_robot(), CellConfig(), paper_phases(6.0), Q_START, Q_GOAL, 24.0)
+    assert result.violations == 0
+    by_phase = {}
+    for r in result.records:
+        by_phase.setdefault(r.phase[0], []).append(r.step)
+    assert min(s.alpha for s in by_phase["1"]) == pytest.approx(1.0)           # far away: full speed
+    assert min(s.alpha for s in by_phase["2"]) < 0.8                            # approaching: scaled down
+    assert by_phase["2"][-1].alpha == pytest.approx(1.0)                         # moving away: back up
+    assert any(s.beta for s in by_phase["3"] + by_phase["4"])                    # in the path: replan request
+    assert result.beta_requests >= 1 and result.shuttles >= 4

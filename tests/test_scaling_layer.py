@@ -1,0 +1,119 @@
+"""The scaling layer's cycle: missing and stale data stop the robot, beta has hysteresis, s advances as in
+the paper, the path end is reached, and every command it sends meets the SSM limit."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from shared.humans import HumanCapsules
+from shared.robot_model import default_robot
+from shared.scaling_layer import ScalingLayer, ScalingParameters, StepStatus
+from shared.scenarios import Q_GOAL, Q_START, body_segments
+from shared.ssm import SsmParameters, pair_ssm
+from shared.trajectory import straight_line_trajectory
+
+ROBOT = default_robot()
+NOBODY = HumanCapsules.empty()
+
+
+def layer(**params):
+    lay = ScalingLayer(ROBOT, SsmParameters(), ScalingParameters(**params))
+    lay.set_trajectory(straight_line_trajectory(Q_START, Q_GOAL, ROBOT.limits.velocity, ROBOT.limits.acceleration))
+    return lay
+
+
+def test_no_human_data_stops_the_robot_where_it_is():
+    lay = layer()
+    for _ in range(50):
+        lay.step(NOBODY, 0.0)
+    s_before = lay.s
+    step = lay.step(None, math.inf)
+    assert step.status is StepStatus.NO_HUMAN_DATA and step.alpha == 0.0 and not step.beta
+    assert step.s == s_before and np.all(step.qd_command == 0)
+    assert np.allclose(step.q_command, lay.trajectory.sample(s_before)[0])
+
+
+@pytest.mark.parametrize("age", [0.051, 1.0, math.inf, math.nan])
+def test_stale_human_data_stops_the_robot(age):
+    lay = layer(human_timeout=0.05)
+    lay.step(NOBODY, 0.0)
+    step = lay.step(NOBODY, age)
+    assert step.status is StepStatus.STALE_HUMAN_DATA and step.alpha == 0.0 and step.sdot == 0.0
+
+
+def test_path_parameter_advances_by_alpha_times_the_period_and_the_goal_is_reached():
+    lay = layer()
+    step = lay.step(NOBODY, 0.0)
+    assert step.s == pytest.approx(step.alpha * 0.01)
+    for _ in range(1000):
+        step = lay.step(NOBODY, 0.0)
+        if step.status is StepStatus.FINISHED:
+            break
+    assert step.status is StepStatus.FINISHED
+    assert np.allclose(step.q_command, Q_GOAL) and np.all(step.qd_command == 0)
+
+
+def test_nominal_duration_is_kept_when_nobody_is_there():
+    lay = layer()
+    n = 0
+    while lay.step(NOBODY, 0.0).status is not StepStatus.FINISHED:
+        n += 1
+    assert n * 0.01 == pytest.approx(lay.trajectory.duration, abs=0.02)
+
+
+def _human_at(x):
+    seg, radii = body_segments(x, 0.0, 1.0, np.array([-0.45, 0.0, 0.5]))
+    return HumanCapsules.from_arrays(seg, radii, np.zeros_like(seg), np.ones(len(radii), bool))
+
+
+def test_beta_rises_at_alpha_min_and_falls_only_above_alpha_release():
+    lay = layer(alpha_min=0.2, alpha_release=0.3)
+    lay.s = 1.0
+    lay.sdot = 1.0
+    history = []
+    for x in list(np.linspace(-2.5, -0.7, 60)) + list(np.linspace(-0.7, -2.5, 60)):
+        lay.s = 1.0                       # keep the robot at the same point of its path
+        step = lay.step(_human_at(x), 0.0)
+        history.append((step.safe_alpha, step.beta))
+    beta = False
+    for safe, got in history:
+        beta = True if safe <= 0.2 else (False if safe >= 0.3 else beta)
+        assert got == beta
+    assert any(b for _, b in history) and not history[-1][1]
+    assert any(0.2 < s < 0.3 and b for s, b in history) or not any(0.2 < s < 0.3 for s, _ in history)
+
+
+def test_a_new_trajectory_keeps_the_path_speed_and_clears_beta():
+    lay = layer()
+    for _ in range(100):
+        lay.step(NOBODY, 0.0)
+    lay.beta = True
+    sdot = lay.sdot
+    lay.set_trajectory(lay.trajectory.with_version(7), s=lay.s)
+    assert lay.sdot == sdot and not lay.beta
+    assert lay.step(NOBODY, 0.0).trajectory_version == 7
+
+
+@given(st.integers(0, 2 ** 31 - 1), st.floats(0.0, 2.4))
+def test_every_command_meets_the_ssm_limit(seed, s):
+    rng = np.random.default_rng(seed)
+    lay = layer()
+    lay.s, lay.sdot = s, float(rng.uniform(0, 1))
+    m = int(rng.integers(1, 5))
+    humans = HumanCapsules.from_arrays(rng.uniform([-1.0, -1.0, 0.2], [0.2, 1.0, 1.2], (m, 1, 3))
+                                       + rng.normal(scale=0.15, size=(m, 2, 3)), rng.uniform(0.03, 0.15, m),
+                                       rng.normal(scale=0.8, size=(m, 2, 3)), rng.random(m) < 0.8)
+    step = lay.step(humans, 0.0)
+    points, jac = ROBOT.capsule_kinematics(step.q_command)
+    check = pair_ssm(points, ROBOT.radii, jac @ step.qd_command, humans, SsmParameters())
+    assert np.all(check.margin >= -1e-9)
+    assert 0.0 <= step.alpha <= 1.0
+
+
+def test_no_trajectory_commands_nothing():
+    lay = ScalingLayer(ROBOT)
+    step = lay.step(NOBODY, 0.0, q_measured=Q_START)
+    assert step.status is StepStatus.NO_TRAJECTORY and np.allclose(step.q_command, Q_START)

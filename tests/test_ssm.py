@@ -1,0 +1,98 @@
+"""ISO/TS 15066 SSM: hand-computed numbers with the default parameters, validation, per-pair speeds.
+
+Defaults: T_r = 0.1, T_s = 0.3 (horizon 0.4 s), a_max = 5, C = 0, Z_d = 0.05, Z_r = 0.02, so the fixed
+distance is 0.5 * 5 * 0.3^2 + 0.07 = 0.295 m.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from shared.errors import ConfigError
+from shared.humans import HumanCapsules
+from shared.ssm import (SsmParameters, default_human_speed, pair_ssm, protective_separation_distance,
+                        velocity_limit)
+
+P = SsmParameters()
+
+
+def test_fixed_terms_by_hand():
+    assert P.horizon == pytest.approx(0.4)
+    assert P.fixed_distance == pytest.approx(0.295)
+
+
+def test_velocity_limit_is_the_papers_formula_by_hand():
+    # (1.0 - 1.6*0.4 - 0.07)/0.4 - 5*0.09/(2*0.4) = 0.725 - 0.5625
+    assert velocity_limit(1.0, 1.6, P) == pytest.approx(0.1625)
+    assert velocity_limit(1.0, 0.0, P) == pytest.approx(1.7625)
+    assert velocity_limit(0.3, 1.6, P) < 0           # too close: may not approach at all
+
+
+def test_protective_distance_inverts_the_limit():
+    assert protective_separation_distance(0.5, 1.6, P) == pytest.approx(2.1 * 0.4 + 0.295)
+    for s in (0.4, 1.0, 2.5):
+        for vh in (0.0, 1.6, 2.0):
+            assert protective_separation_distance(velocity_limit(s, vh, P), vh, P) == pytest.approx(s)
+
+
+def test_iso_13855_default_speeds():
+    assert default_human_speed(np.array([0.2, 0.5, 0.51, 3.0]), P).tolist() == [2.0, 2.0, 1.6, 1.6]
+
+
+@pytest.mark.parametrize("bad", [{"reaction_time": -0.1}, {"stopping_time": float("nan")},
+                                 {"human_uncertainty": float("inf")}, {"reaction_time": "fast"},
+                                 {"reaction_time": True}, {"unknown_key": 1}])
+def test_bad_parameters_raise_a_clear_error(bad):
+    with pytest.raises(ConfigError, match=r"ssm"):
+        SsmParameters.from_mapping(bad)
+
+
+def _one_pair(human_velocity, known=True, distance_centres=1.0):
+    robot = np.array([[[0.0, 0, 0], [0.0, 0, 0]]])                  # a sphere of radius 0.1 at the origin
+    robot_vel = np.array([[[1.0, 0, 0], [1.0, 0, 0]]])              # moving towards +x at 1 m/s
+    humans = HumanCapsules.from_arrays([[[distance_centres, 0, 0], [distance_centres, 0, 0]]], [0.1],
+                                       [[human_velocity, human_velocity]], [known])
+    return pair_ssm(robot, np.array([0.1]), robot_vel, humans, P)
+
+
+def test_pair_speeds_and_limit_by_hand():
+    r = _one_pair([-0.5, 0, 0])                       # human walks towards the robot at 0.5 m/s
+    assert r.distance[0, 0] == pytest.approx(0.8)
+    assert r.robot_speed[0, 0] == pytest.approx(1.0)
+    assert r.human_speed[0, 0] == pytest.approx(0.5)
+    assert r.limit[0, 0] == pytest.approx((0.8 - 0.2 - 0.295) / 0.4)
+    assert r.margin[0, 0] == pytest.approx(0.7625 - 1.0)
+
+
+def test_human_walking_away_counts_as_zero_not_negative():
+    r = _one_pair([0.5, 0, 0])
+    assert r.human_speed[0, 0] == 0.0
+    assert r.limit[0, 0] == pytest.approx((0.8 - 0.295) / 0.4)
+
+
+def test_untracked_human_takes_the_iso_13855_speed():
+    assert _one_pair([0, 0, 0], known=False).human_speed[0, 0] == pytest.approx(1.6)
+    assert _one_pair([0, 0, 0], known=False, distance_centres=0.6).human_speed[0, 0] == pytest.approx(2.0)
+
+
+def test_sideways_motion_is_not_approach():
+    r = _one_pair([0, 3.0, 0])
+    assert r.human_speed[0, 0] == pytest.approx(0.0)
+
+
+def test_fastest_end_of_a_segment_counts():
+    robot = np.array([[[0.0, 0, 0], [0.0, 0, 1.0]]])                 # vertical link, rotating about its base
+    robot_vel = np.array([[[0.0, 0, 0], [2.0, 0, 0]]])               # top moves at 2 m/s towards +x
+    humans = HumanCapsules.from_arrays([[[1.0, 0, 0.0], [1.0, 0, 0.0]]], [0.0], np.zeros((1, 2, 3)), [True])
+    r = pair_ssm(robot, np.array([0.0]), robot_vel, humans, P)
+    assert r.distance[0, 0] == pytest.approx(1.0)      # closest point is the (still) base ...
+    assert r.robot_speed[0, 0] == pytest.approx(2.0)   # ... but the link's fastest point counts
+
+
+def test_touching_axes_count_full_speed():
+    robot = np.array([[[-1.0, 0, 0], [1.0, 0, 0]]])
+    humans = HumanCapsules.from_arrays([[[0, -1.0, 0], [0, 1.0, 0]]], [0.05], [[[0, 0, 0.3], [0, 0, 0.3]]], [True])
+    r = pair_ssm(robot, np.array([0.05]), np.array([[[0, 0.4, 0], [0, 0.4, 0]]]), humans, P)
+    assert r.robot_speed[0, 0] == pytest.approx(0.4) and r.human_speed[0, 0] == pytest.approx(0.3)
+    assert r.limit[0, 0] < 0 and math.isfinite(r.limit[0, 0])
