@@ -27,6 +27,12 @@ class HumanCapsules:
     velocities: np.ndarray
     velocity_known: np.ndarray
 
+    def __post_init__(self) -> None:
+        # the compiled kernels take these arrays as they are: make them contiguous float64 / bool once
+        for name, dtype in (("segments", np.float64), ("radii", np.float64), ("velocities", np.float64),
+                            ("velocity_known", np.bool_)):
+            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=dtype))
+
     @property
     def count(self) -> int:
         return int(self.radii.shape[0])

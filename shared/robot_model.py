@@ -116,6 +116,14 @@ class RobotModel:
                 self._ancestry[p, k - 1] = 1.0
         self.moving_links = self._ancestry.reshape(len(self.capsules), 2, self.nq)[:, 0].any(axis=1)
         self.flange_frame = self.model.getFrameId("prbt_flange")
+        # The hot path walks the chain itself (compiled): every actuated joint must be a revolute joint
+        # about its local z axis, which is what the URDF's <axis xyz="0 0 1"/> gives.
+        kinds = {self.model.joints[k].shortname() for k in range(1, self.model.njoints)}
+        if kinds != {"JointModelRZ"}:
+            raise ConfigError(f"{urdf_path}: the kinematics need revolute joints about z, got {sorted(kinds)}")
+        self._joint_placement = np.array([self.model.jointPlacements[k].homogeneous
+                                          for k in range(self.model.njoints)])
+        self._parent = np.array(list(self.model.parents), dtype=np.int64)
 
     def _load_limits(self, path: Path) -> JointLimits:
         try:
@@ -140,11 +148,6 @@ class RobotModel:
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return self.data.oMf[self.model.getFrameId(frame)].translation.copy()
 
-    def _joint_placements(self) -> np.ndarray:
-        """Homogeneous placements (njoints, 4, 4) of every joint, universe first (identity)."""
-        oMi = self.data.oMi
-        return np.array([oMi[k].homogeneous for k in range(self.model.njoints)])
-
     def capsule_segments(self, q: np.ndarray) -> np.ndarray:
         """End points of every link capsule in the base frame, shape (L, 2, 3)."""
         return self.capsule_kinematics(q)[0]
@@ -152,50 +155,58 @@ class RobotModel:
     def capsule_kinematics(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Capsule end points (L, 2, 3) and the linear Jacobians of those points (L, 2, 3, 6).
 
-        Uses the world-frame Jacobian of the whole chain: with the spatial velocity (v0, w) expressed at
-        the base origin, a point p moves at v0 + w x p, so J_p = J_lin - skew(p) J_ang restricted to the
-        joints that move p. One kinematics pass serves all 2L points.
+        One compiled pass along the chain (T_k = T_parent M_k Rz(q_k), the joint placements M_k taken from
+        the pinocchio model) places every joint; a point p carried by the chain then has the geometric
+        Jacobian column z_k x (p - o_k) for every joint k that moves it. pinocchio's own kinematics give
+        the same numbers (tests/test_robot_model.py); this path skips its per-object Python overhead.
         """
-        pin.computeJointJacobians(self.model, self.data, np.asarray(q, dtype=float))
-        n_points = self._point_local.shape[0]
-        points = np.empty((n_points, 3))
-        jac = np.empty((n_points, 3, self.nq))
-        _points_and_jacobians(self._joint_placements(), self.data.J, self._point_local, self._point_joint,
-                              self._ancestry, points, jac)
+        points, jac = _chain_points_and_jacobians(np.asarray(q, dtype=np.float64), self._joint_placement,
+                                                  self._parent, self._point_local, self._point_joint,
+                                                  self._ancestry)
         n = len(self.capsules)
         return points.reshape(n, 2, 3), jac.reshape(n, 2, 3, self.nq)
 
     def point_jacobian(self, q: np.ndarray, link: str, point_in_link: np.ndarray) -> np.ndarray:
         """Linear Jacobian (3, 6) of a point given in a link's frame: d(p)/dt = J q_dot."""
-        pin.computeJointJacobians(self.model, self.data, np.asarray(q, dtype=float))
         frame = self.model.frames[self.model.getFrameId(link)]
         local = frame.placement.act(np.asarray(point_in_link, dtype=float))[None, :]
-        joint = np.array([frame.parentJoint])
         ancestry = np.zeros((1, self.nq))
         for k in self.model.supports[frame.parentJoint][1:]:
             ancestry[0, k - 1] = 1.0
-        point, jac = np.empty((1, 3)), np.empty((1, 3, self.nq))
-        _points_and_jacobians(self._joint_placements(), self.data.J, local, joint, ancestry, point, jac)
+        _, jac = _chain_points_and_jacobians(np.asarray(q, dtype=np.float64), self._joint_placement, self._parent,
+                                             local, np.array([frame.parentJoint]), ancestry)
         return jac[0]
 
 
 @numba.njit(cache=True)
-def _points_and_jacobians(placements, world_jacobian, local, joint, ancestry, points, jac):
-    """Place points (P, 3) given in their joint's frame, and their linear Jacobians (P, 3, n).
-
-    J_p[:, k] = J_lin[:, k] + J_ang[:, k] x p for every joint k that moves p (world-frame Jacobian).
-    """
-    for p in range(local.shape[0]):
-        h = placements[joint[p]]
+def _chain_points_and_jacobians(q, joint_placement, parent, local, joint, ancestry):
+    """Points (P, 3) given in their joint's frame, placed in the base frame, and their Jacobians (P, 3, n)."""
+    n_joints = joint_placement.shape[0]
+    world = np.empty((n_joints, 4, 4))
+    world[0] = np.eye(4)
+    for k in range(1, n_joints):
+        c, s = np.cos(q[k - 1]), np.sin(q[k - 1])
+        rz = np.eye(4)
+        rz[0, 0], rz[0, 1], rz[1, 0], rz[1, 1] = c, -s, s, c
+        world[k] = world[parent[k]] @ joint_placement[k] @ rz
+    n_points, n_dof = local.shape[0], n_joints - 1
+    points = np.empty((n_points, 3))
+    jac = np.zeros((n_points, 3, n_dof))
+    for p in range(n_points):
+        h = world[joint[p]]
         for r in range(3):
             points[p, r] = h[r, 0] * local[p, 0] + h[r, 1] * local[p, 1] + h[r, 2] * local[p, 2] + h[r, 3]
-        px, py, pz = points[p, 0], points[p, 1], points[p, 2]
-        for k in range(world_jacobian.shape[1]):
-            m = ancestry[p, k]
-            wx, wy, wz = world_jacobian[3, k], world_jacobian[4, k], world_jacobian[5, k]
-            jac[p, 0, k] = m * (world_jacobian[0, k] + wy * pz - wz * py)
-            jac[p, 1, k] = m * (world_jacobian[1, k] + wz * px - wx * pz)
-            jac[p, 2, k] = m * (world_jacobian[2, k] + wx * py - wy * px)
+        for k in range(n_dof):
+            if ancestry[p, k] == 0.0:
+                continue
+            zx, zy, zz = world[k + 1, 0, 2], world[k + 1, 1, 2], world[k + 1, 2, 2]
+            dx = points[p, 0] - world[k + 1, 0, 3]
+            dy = points[p, 1] - world[k + 1, 1, 3]
+            dz = points[p, 2] - world[k + 1, 2, 3]
+            jac[p, 0, k] = zy * dz - zz * dy
+            jac[p, 1, k] = zz * dx - zx * dz
+            jac[p, 2, k] = zx * dy - zy * dx
+    return points, jac
 
 
 @lru_cache(maxsize=1)

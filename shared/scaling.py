@@ -35,27 +35,36 @@ from shared.robot_model import RobotModel
 from shared.ssm import PairSsm, SsmParameters, pair_ssm
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class ScalingRows:
     """One cycle's problem, all rows in terms of alpha.
 
-    hard_coef * alpha <= hard_bound: the joint velocity rows, then the SSM rows (one per link x human
-    capsule pair); every bound is >= 0, so alpha = 0 is always feasible.
-    upper: the largest alpha in [0, 1] that every hard row allows (exact). With one decision variable,
-    every hard row c alpha <= b (c > 0) says alpha <= b / c, so the tightest row implies all others:
-    the solvers get the hard part as this single bound (an exact presolve; the tests check the result
-    against every row).
-    soft_coef * alpha - sigma <= soft_bound: acceleration rows normalised by the limit, without the rows
-    that hold for every alpha (coefficient 0, bound >= 0).
+    Hard rows c alpha <= b: joint velocity, |q'_j sdot_nom| alpha <= v_max_j, and one SSM row per link x
+    human capsule pair, robot_speed alpha <= max(limit, 0). Every bound is >= 0, so alpha = 0 is always
+    feasible. With one decision variable each hard row says alpha <= b / c, so the tightest implies all
+    others: ``upper`` (exact) is all the solvers need of them (an exact presolve; the tests check the
+    solutions against every row, ``hard_coef`` / ``hard_bound``).
+    Soft rows soft_coef alpha - sigma <= soft_bound: acceleration limits normalised by the limit, without
+    the rows that hold for every alpha (coefficient 0, bound >= 0).
     ssm: per-pair SSM quantities at alpha = 1, or None when no human capsule is present.
     """
 
-    hard_coef: np.ndarray
-    hard_bound: np.ndarray
+    joint_speed: np.ndarray
+    joint_speed_limit: np.ndarray
     upper: float
     soft_coef: np.ndarray
     soft_bound: np.ndarray
     ssm: PairSsm | None
+
+    @property
+    def hard_coef(self) -> np.ndarray:
+        ssm = self.ssm.robot_speed.ravel() if self.ssm is not None else np.zeros(0)
+        return np.concatenate([self.joint_speed, ssm])
+
+    @property
+    def hard_bound(self) -> np.ndarray:
+        ssm = np.maximum(self.ssm.limit, 0.0).ravel() if self.ssm is not None else np.zeros(0)
+        return np.concatenate([self.joint_speed_limit, ssm])
 
     def slack(self, alpha: float) -> float:
         """sigma(alpha) = max(0, max_r soft_coef_r alpha - soft_bound_r): the least slack alpha needs."""
@@ -64,37 +73,61 @@ class ScalingRows:
         return float(max(0.0, np.max(self.soft_coef * alpha - self.soft_bound)))
 
 
-_NEGLIGIBLE_SPEED = 1e-12   # m/s: a row coefficient below this counts as zero (no overflow in b / c)
+NEGLIGIBLE_SPEED = 1e-12   # m/s: a hard-row coefficient below this counts as zero (no overflow in b / c)
 
 
-def _hard_upper(coef: np.ndarray, bound: np.ndarray) -> float:
-    """min(1, min over rows with c > 0 of b / c): the largest alpha every hard row allows."""
-    ratio = np.divide(bound, coef, out=np.full(coef.shape, np.inf), where=coef > _NEGLIGIBLE_SPEED)
-    return float(min(1.0, ratio.min())) if ratio.size else 1.0
+@numba.njit(cache=True)
+def _upper_bound(joint_speed, joint_speed_limit, robot_speed, limit):
+    """min(1, b / c over every hard row with c > NEGLIGIBLE_SPEED): the largest alpha they all allow."""
+    upper = 1.0
+    for j in range(joint_speed.shape[0]):
+        if joint_speed[j] > NEGLIGIBLE_SPEED:
+            upper = min(upper, joint_speed_limit[j] / joint_speed[j])
+    for i in range(robot_speed.shape[0]):
+        for k in range(robot_speed.shape[1]):
+            if robot_speed[i, k] > NEGLIGIBLE_SPEED:
+                upper = min(upper, max(limit[i, k], 0.0) / robot_speed[i, k])
+    return upper
+
+
+@numba.njit(cache=True)
+def _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration):
+    """qdd(alpha) ~= d2q (2 sdot_prev sdot - sdot_prev^2) + dq (sdot - sdot_prev) / T with sdot = alpha
+    sdot_nom (sdot^2 linearised at sdot_prev), written as g alpha + h and bounded by +-a_max: rows
+    (g / a) alpha - sigma <= 1 - h / a and (-g / a) alpha - sigma <= 1 + h / a, the always-true ones left out."""
+    n = dq.shape[0]
+    coef = np.empty(2 * n)
+    bound = np.empty(2 * n)
+    m = 0
+    for j in range(n):
+        g = (2.0 * d2q[j] * sdot_prev + dq[j] / period) * sdot_nominal / acceleration[j]
+        h = (-d2q[j] * sdot_prev * sdot_prev - dq[j] * sdot_prev / period) / acceleration[j]
+        for sign in (1.0, -1.0):
+            c, b = sign * g, 1.0 - sign * h
+            if c != 0.0 or b < 0.0:
+                coef[m], bound[m] = c, b
+                m += 1
+    return coef[:m], bound[:m]
+
+
+_NO_PAIRS = np.zeros((0, 0))
 
 
 def build_rows(robot: RobotModel, q: np.ndarray, dq_ds: np.ndarray, d2q_ds2: np.ndarray, sdot_nominal: float,
                sdot_prev: float, humans: HumanCapsules, ssm: SsmParameters, period: float) -> ScalingRows:
     """Assemble one cycle's problem at configuration q for the path tangent dq_ds (pure, no I/O)."""
-    dq = np.asarray(dq_ds, dtype=float)
-    d2q = np.asarray(d2q_ds2, dtype=float)
+    dq = np.asarray(dq_ds, dtype=np.float64)
     tangent = dq * sdot_nominal                                        # joint velocity at alpha = 1
     lim = robot.limits
     pairs = None
-    hard_coef, hard_bound = np.abs(tangent), lim.velocity
     if humans.count:
         points, jac = robot.capsule_kinematics(q)                       # (L,2,3), (L,2,3,6)
         pairs = pair_ssm(points, robot.radii, jac @ tangent, humans, ssm)
-        hard_coef = np.concatenate([hard_coef, pairs.robot_speed.ravel()])
-        hard_bound = np.concatenate([hard_bound, np.maximum(pairs.limit, 0.0).ravel()])
-    # qdd(alpha) ~= d2q (2 sdot_prev sdot - sdot_prev^2) + dq (sdot - sdot_prev) / T, sdot = alpha sdot_nom
-    g = (2.0 * d2q * sdot_prev + dq / period) * sdot_nominal / lim.acceleration
-    h = (-d2q * sdot_prev ** 2 - dq * sdot_prev / period) / lim.acceleration
-    soft_coef = np.concatenate([g, -g])
-    soft_bound = np.concatenate([1.0 - h, 1.0 + h])
-    keep = (soft_coef != 0.0) | (soft_bound < 0.0)
-    return ScalingRows(hard_coef, hard_bound, _hard_upper(hard_coef, hard_bound), soft_coef[keep],
-                       soft_bound[keep], pairs)
+    joint_speed = np.abs(tangent)
+    upper = _upper_bound(joint_speed, lim.velocity, *((pairs.robot_speed, pairs.limit) if pairs else (_NO_PAIRS, _NO_PAIRS)))
+    coef, bound = _acceleration_rows(dq, np.asarray(d2q_ds2, dtype=np.float64), float(sdot_nominal),
+                                     float(sdot_prev), float(period), lim.acceleration)
+    return ScalingRows(joint_speed, lim.velocity, upper, coef, bound, pairs)
 
 
 def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray, humans: HumanCapsules,
@@ -104,7 +137,10 @@ def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray
         return 1.0
     points, jac = robot.capsule_kinematics(q)
     pairs = pair_ssm(points, robot.radii, jac @ joint_velocity, humans, ssm)
-    return _hard_upper(pairs.robot_speed.ravel(), np.maximum(pairs.limit, 0.0).ravel())
+    return _upper_bound(_NO_ROWS, _NO_ROWS, pairs.robot_speed, pairs.limit)
+
+
+_NO_ROWS = np.zeros(0)
 
 
 @numba.njit(cache=True)
@@ -151,50 +187,61 @@ def solve_closed_form(rows: ScalingRows, weight: float) -> float:
 class PiqpScalingSolver:
     """The scaling LP  min -alpha + w sigma  in piqp's dense solver, x = (alpha, sigma).
 
-    Set up once and updated every cycle. The hard part enters as the bound alpha <= upper (see
-    ``ScalingRows``), so the problem has at most 2 dof soft rows whatever the number of humans; unused
-    rows are padded with 0 <= 1.
+    The hard part enters as the bound alpha <= upper (see ``ScalingRows``), so a problem has between 0
+    and 2 dof soft rows whatever the number of humans. piqp's time grows with the row count, so there is
+    one solver per row count, each set up once on first use and only updated after that: no padding.
     """
 
     def __init__(self, weight: float, dof: int = 6) -> None:
         self.weight = float(weight)
-        self._G = np.zeros((2 * dof, 2), order="F")
-        self._G[:, 1] = -1.0
-        self._h = np.ones(2 * dof)
-        self._xu = np.array([1.0, np.inf])
-        self._solver = piqp.DenseSolver()
-        self._solver.settings.verbose = False
-        self._solver.setup(np.zeros((2, 2), order="F"), np.array([-1.0, self.weight]), G=self._G, h_u=self._h,
-                           x_l=np.zeros(2), x_u=self._xu)
-        self.last_status = "none"
+        self.max_rows = 2 * dof
+        self._pool: dict[int, tuple[piqp.DenseSolver, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.last_status = None
         self.last_iterations = 0
+
+    def _solver(self, rows: int) -> tuple[piqp.DenseSolver, np.ndarray, np.ndarray, np.ndarray]:
+        entry = self._pool.get(rows)
+        if entry is None:
+            if rows > self.max_rows:
+                raise ValueError(f"{rows} soft rows do not fit a solver for {self.max_rows}")
+            G = np.zeros((rows, 2), order="F")
+            G[:, 1] = -1.0
+            h = np.ones(rows)
+            x_u = np.array([1.0, np.inf])
+            solver = piqp.DenseSolver()
+            solver.settings.verbose = False
+            if rows:
+                solver.setup(np.zeros((2, 2), order="F"), np.array([-1.0, self.weight]), G=G, h_u=h,
+                             x_l=np.zeros(2), x_u=x_u)
+            else:
+                solver.setup(np.zeros((2, 2), order="F"), np.array([-1.0, self.weight]), x_l=np.zeros(2), x_u=x_u)
+            entry = self._pool[rows] = (solver, G, h, x_u)
+        return entry
 
     def solve(self, rows: ScalingRows) -> float | None:
         """alpha from piqp, or None when piqp did not report an optimal solution."""
         n = rows.soft_coef.size
-        if n > self._h.size:
-            raise ValueError(f"{n} soft rows do not fit a solver set up for {self._h.size}")
-        self._G[:, 0] = 0.0
-        self._G[:n, 0] = rows.soft_coef
-        self._h[:] = 1.0
-        self._h[:n] = rows.soft_bound
-        self._xu[0] = rows.upper
-        self._solver.update(G=self._G, h_u=self._h, x_u=self._xu)
-        status = self._solver.solve()
-        self.last_status = status.name
-        self.last_iterations = int(self._solver.result.info.iter)
+        solver, G, h, x_u = self._solver(n)
+        x_u[0] = rows.upper
+        if n:
+            G[:, 0] = rows.soft_coef
+            h[:] = rows.soft_bound
+            solver.update(G=G, h_u=h, x_u=x_u)
+        else:
+            solver.update(x_u=x_u)
+        status = solver.solve()
+        self.last_status = status
         if status != piqp.PIQP_SOLVED:
             return None
-        return float(self._solver.result.x[0])
+        return float(solver.result.x[0])
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class Solution:
     """alpha and how it was found: 'piqp', 'closed_form', or 'closed_form_fallback' after a piqp failure."""
 
     alpha: float
     method: str
-    slack: float
 
 
 def solve(rows: ScalingRows, weight: float, piqp_solver: PiqpScalingSolver | None) -> Solution:
@@ -211,4 +258,4 @@ def solve(rows: ScalingRows, weight: float, piqp_solver: PiqpScalingSolver | Non
     if alpha is None:
         alpha = solve_closed_form(rows, weight)
     alpha = min(max(alpha, 0.0), rows.upper)
-    return Solution(alpha, method, rows.slack(alpha))
+    return Solution(alpha, method)

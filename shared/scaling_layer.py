@@ -89,7 +89,7 @@ class StepStatus(str, enum.Enum):
     STALE_HUMAN_DATA = "stale_human_data"
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class ScalingStep:
     """One cycle's result. alpha: path speed scaling in [0, 1]; safe_alpha: the largest alpha the hard
     rows allow; beta: replan request; s: path parameter after the step; q_command, qd_command: joint
@@ -193,9 +193,8 @@ class ScalingLayer:
             alpha, lowered = self._verified(traj, alpha, humans, q_kin - q_nom)
             if lowered:
                 method += "+verified"
-            if rows.ssm is not None and rows.ssm.distance.size:
-                min_sep = float(rows.ssm.distance.min())
-                min_margin = float(rows.ssm.margin_at(alpha).min())
+            if rows.ssm is not None:
+                min_sep, min_margin = rows.ssm.closest(alpha)
         if status is StepStatus.RUNNING and safe_alpha <= self.params.alpha_min:
             self.beta = True
         elif status is not StepStatus.RUNNING or safe_alpha >= self.params.alpha_release:

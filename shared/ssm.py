@@ -117,7 +117,7 @@ def velocity_limit(separation: np.ndarray, human_speed: np.ndarray, params: SsmP
     return (np.asarray(separation) - np.asarray(human_speed) * params.horizon - params.fixed_distance) / params.horizon
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class PairSsm:
     """SSM quantities for every robot capsule i and human capsule j, each shaped (L, M).
 
@@ -140,11 +140,27 @@ class PairSsm:
         """The margin when the robot velocities behind robot_speed are scaled by alpha."""
         return np.maximum(self.limit, 0.0) - alpha * self.robot_speed
 
+    def closest(self, alpha: float) -> tuple[float, float]:
+        """(smallest separation, smallest margin at alpha) over all pairs; (inf, inf) with no pairs."""
+        return _closest(self.distance, self.limit, self.robot_speed, float(alpha))
+
+
+@numba.njit(cache=True)
+def _closest(distance, limit, robot_speed, alpha):
+    sep, margin = np.inf, np.inf
+    for i in range(distance.shape[0]):
+        for j in range(distance.shape[1]):
+            sep = min(sep, distance[i, j])
+            margin = min(margin, max(limit[i, j], 0.0) - alpha * robot_speed[i, j])
+    return sep, margin
+
 
 @numba.njit(cache=True)
 def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, human_vel, human_known,
-                     horizon, fixed, near_d, v_near, v_far, dist, robot_speed, human_speed, limit):
+                     horizon, fixed, near_d, v_near, v_far):
     n_l, n_m = robot_seg.shape[0], human_seg.shape[0]
+    dist, robot_speed = np.empty((n_l, n_m)), np.empty((n_l, n_m))
+    human_speed, limit = np.empty((n_l, n_m)), np.empty((n_l, n_m))
     for i in range(n_l):
         p1, q1 = robot_seg[i, 0], robot_seg[i, 1]
         # fastest end-point speed of link i (for pairs with no defined direction)
@@ -179,6 +195,7 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
                 hs = v_near if d <= near_d else v_far
             human_speed[i, j] = hs
             limit[i, j] = (d - hs * horizon - fixed) / horizon
+    return dist, robot_speed, human_speed, limit
 
 
 def pair_ssm(robot_segments: np.ndarray, robot_radii: np.ndarray, robot_velocities: np.ndarray,
@@ -193,15 +210,8 @@ def pair_ssm(robot_segments: np.ndarray, robot_radii: np.ndarray, robot_velociti
     axes touch, no direction exists and full speeds count as approach. Both the scaling layer (velocities
     along the planned path) and the safety monitor (measured velocities) use this one computation.
     """
-    n_l, n_m = robot_segments.shape[0], humans.count
-    out = [np.empty((n_l, n_m)) for _ in range(4)]
-    _pair_ssm_kernel(np.ascontiguousarray(robot_segments, dtype=np.float64),
-                     np.ascontiguousarray(robot_radii, dtype=np.float64),
-                     np.ascontiguousarray(robot_velocities, dtype=np.float64),
-                     np.ascontiguousarray(humans.segments, dtype=np.float64),
-                     np.ascontiguousarray(humans.radii, dtype=np.float64),
-                     np.ascontiguousarray(humans.velocities, dtype=np.float64),
-                     np.ascontiguousarray(humans.velocity_known, dtype=np.bool_),
-                     params.horizon, params.fixed_distance, params.human_near_distance,
-                     params.human_speed_near, params.human_speed_far, *out)
+    out = _pair_ssm_kernel(robot_segments, robot_radii, np.ascontiguousarray(robot_velocities), humans.segments,
+                           humans.radii, humans.velocities, humans.velocity_known, params.horizon,
+                           params.fixed_distance, params.human_near_distance, params.human_speed_near,
+                           params.human_speed_far)
     return PairSsm(*out)

@@ -50,6 +50,8 @@ class Trajectory:
 
     def sample(self, s: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """q(s), q'(s), q''(s) at one s (each (dof,)) or at an array of s (each (K, dof)); s is clamped."""
+        if isinstance(s, (float, int)):
+            return _hermite_one(self.times, self.positions, self.velocities, float(s))
         scalar = np.ndim(s) == 0
         s_arr = np.atleast_1d(np.asarray(s, dtype=np.float64))
         out = np.empty((3, s_arr.size, self.positions.shape[1]))
@@ -123,3 +125,11 @@ def _hermite(times, positions, velocities, s_values, out):
             out[1, i, j] = ((6 * u2 - 6 * u) * q0 + (3 * u2 - 4 * u + 1) * m0 + (-6 * u2 + 6 * u) * q1
                             + (3 * u2 - 2 * u) * m1) / h
             out[2, i, j] = ((12 * u - 6) * q0 + (6 * u - 4) * m0 + (-12 * u + 6) * q1 + (6 * u - 2) * m1) / (h * h)
+
+
+@numba.njit(cache=True)
+def _hermite_one(times, positions, velocities, s):
+    """The same as _hermite at a single s: (q, q', q'') as three (dof,) arrays."""
+    out = np.empty((3, 1, positions.shape[1]))
+    _hermite(times, positions, velocities, np.array([s]), out)
+    return out[0, 0], out[1, 0], out[2, 0]

@@ -63,6 +63,20 @@ def test_point_jacobians_match_finite_differences(robot, rng):
         assert np.allclose(np.einsum("lpij,j->lpi", jac, qd), numeric, atol=1e-7)
 
 
+def test_compiled_chain_matches_pinocchio(robot, rng):
+    for _ in range(20):
+        q = rng.uniform(robot.limits.lower, robot.limits.upper)
+        pin.computeJointJacobians(robot.model, robot.data, q)
+        pin.updateFramePlacements(robot.model, robot.data)
+        seg = robot.capsule_segments(q)
+        for i, cap in enumerate(robot.capsules):
+            placement = robot.data.oMf[robot.model.getFrameId(cap.link)]
+            assert np.allclose(seg[i], [placement.act(cap.a), placement.act(cap.b)], atol=1e-12)
+        # the flange origin's Jacobian equals pinocchio's linear frame Jacobian
+        j_pin = pin.getFrameJacobian(robot.model, robot.data, robot.flange_frame, pin.LOCAL_WORLD_ALIGNED)[:3]
+        assert np.allclose(robot.point_jacobian(q, "prbt_flange", np.zeros(3)), j_pin, atol=1e-12)
+
+
 def test_point_jacobian_of_any_point_on_a_link(robot, rng):
     q = rng.uniform(robot.limits.lower, robot.limits.upper)
     local = np.array([0.05, -0.02, 0.1])
