@@ -124,6 +124,22 @@ class RobotModel:
         self._joint_placement = np.array([self.model.jointPlacements[k].homogeneous
                                           for k in range(self.model.njoints)])
         self._parent = np.array(list(self.model.parents), dtype=np.int64)
+        self.link_reach = self._link_reach()
+        self.joint_reach = self.link_reach.max(axis=0)
+
+    def _link_reach(self) -> np.ndarray:
+        """(L, 6): for link i and joint k, a bound (m) on the distance from joint k's axis to any capsule
+        end point of link i, valid in every configuration (0 where k does not move the link): the lengths
+        of the joint offsets from k out to the link's joint plus the point's offset there (triangle
+        inequality). A motion dq moves no point of link i by more than sum_k |dq_k| link_reach[i, k]."""
+        reach = np.zeros((len(self.capsules), self.nq))
+        offsets = np.linalg.norm(self._joint_placement[:, :3, 3], axis=1)
+        for p, joint in enumerate(self._point_joint):
+            chain = [int(j) for j in self.model.supports[int(joint)]][1:]        # actuated joints to the point
+            for pos, k in enumerate(chain):
+                lever = sum(offsets[j] for j in chain[pos + 1:]) + np.linalg.norm(self._point_local[p])
+                reach[p // 2, k - 1] = max(reach[p // 2, k - 1], lever)
+        return reach
 
     def _load_limits(self, path: Path) -> JointLimits:
         try:
@@ -150,7 +166,13 @@ class RobotModel:
 
     def capsule_segments(self, q: np.ndarray) -> np.ndarray:
         """End points of every link capsule in the base frame, shape (L, 2, 3)."""
-        return self.capsule_kinematics(q)[0]
+        world = chain_world(np.asarray(q, dtype=np.float64), self._joint_placement, self._parent)
+        return place_points(world, self._point_local, self._point_joint).reshape(len(self.capsules), 2, 3)
+
+    @property
+    def chain(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The arrays the compiled kinematics take: joint placements, parents, end points, their joints."""
+        return self._joint_placement, self._parent, self._point_local, self._point_joint
 
     def capsule_kinematics(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Capsule end points (L, 2, 3) and the linear Jacobians of those points (L, 2, 3, 6).
@@ -179,8 +201,8 @@ class RobotModel:
 
 
 @numba.njit(cache=True)
-def _chain_points_and_jacobians(q, joint_placement, parent, local, joint, ancestry):
-    """Points (P, 3) given in their joint's frame, placed in the base frame, and their Jacobians (P, 3, n)."""
+def chain_world(q, joint_placement, parent):
+    """Base-frame placement (n, 4, 4) of every joint of a chain of revolute-z joints (index 0: base)."""
     n_joints = joint_placement.shape[0]
     world = np.empty((n_joints, 4, 4))
     world[0] = np.eye(4)
@@ -189,13 +211,28 @@ def _chain_points_and_jacobians(q, joint_placement, parent, local, joint, ancest
         rz = np.eye(4)
         rz[0, 0], rz[0, 1], rz[1, 0], rz[1, 1] = c, -s, s, c
         world[k] = world[parent[k]] @ joint_placement[k] @ rz
-    n_points, n_dof = local.shape[0], n_joints - 1
-    points = np.empty((n_points, 3))
-    jac = np.zeros((n_points, 3, n_dof))
-    for p in range(n_points):
+    return world
+
+
+@numba.njit(cache=True)
+def place_points(world, local, joint):
+    """Points (P, 3) given in the frame of their joint, in the base frame."""
+    points = np.empty((local.shape[0], 3))
+    for p in range(local.shape[0]):
         h = world[joint[p]]
         for r in range(3):
             points[p, r] = h[r, 0] * local[p, 0] + h[r, 1] * local[p, 1] + h[r, 2] * local[p, 2] + h[r, 3]
+    return points
+
+
+@numba.njit(cache=True)
+def _chain_points_and_jacobians(q, joint_placement, parent, local, joint, ancestry):
+    """Points (P, 3) given in their joint's frame, placed in the base frame, and their Jacobians (P, 3, n)."""
+    world = chain_world(q, joint_placement, parent)
+    points = place_points(world, local, joint)
+    n_points, n_dof = local.shape[0], joint_placement.shape[0] - 1
+    jac = np.zeros((n_points, 3, n_dof))
+    for p in range(n_points):
         for k in range(n_dof):
             if ancestry[p, k] == 0.0:
                 continue

@@ -1,0 +1,245 @@
+"""The planning layer's online part: horizon check (Alg. 1), replan and merge (Alg. 2), beta replans.
+
+* ``horizon_check``: the next n configurations of the trajectory from the current path parameter (n and
+  spacing configurable), all checked at once against the latest human capsules; returns the first
+  infeasible one.
+* ``Replanner.replan``: keeps the old trajectory unchanged up to a junction s_j, and from there follows
+  the old path geometry to a branch point (the last feasible horizon configuration), then a new
+  RRT-Connect path to the goal. The new part is time-parameterised starting with the old nominal
+  velocity at s_j (its spline starts tangent to the old path), so position and velocity are continuous
+  at the junction; following the old geometry for a while gives toppra room to slow down before any turn.
+  Junctions further back are tried when a turn is too sharp. The result gets the next version number;
+  a follower anywhere before s_j continues at the same s.
+* ``Replanner.on_beta``: the scaling layer asked (alpha too low): plan against humans inflated by the
+  separation that would allow full speed, then by less, and keep the new trajectory only when its
+  predicted time to the goal, executed under the SSM limit with the humans where they are now, beats
+  the old one's by at least ``min_gain`` (10 %).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.collision import CollisionModel
+from shared.errors import HrcError
+from shared.humans import HumanCapsules
+from shared.planner import JointPlanner, PlanningError
+from shared.scaling import ssm_alpha_bound
+from shared.ssm import SsmParameters, protective_separation_distance
+from shared.timing import TimingError, parameterize
+from shared.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class HorizonOptions:
+    """samples: how many configurations ahead; spacing: nominal seconds between them."""
+
+    samples: int = 25
+    spacing: float = 0.04
+
+
+@dataclass(frozen=True)
+class HorizonResult:
+    s: np.ndarray                  # path parameters checked (nominal s)
+    clearance: np.ndarray          # clearance of each (m)
+    first_infeasible: int | None   # index into s, or None when all are feasible
+
+    @property
+    def last_feasible_s(self) -> float | None:
+        """s of the last feasible sample before the first infeasible one (None if the first is infeasible)."""
+        if self.first_infeasible is None:
+            return float(self.s[-1])
+        return None if self.first_infeasible == 0 else float(self.s[self.first_infeasible - 1])
+
+
+def horizon_check(trajectory: Trajectory, s: float, collision: CollisionModel, humans: HumanCapsules | None,
+                  options: HorizonOptions = HorizonOptions()) -> HorizonResult:
+    """Alg. 1: the first infeasible configuration among the next samples of the trajectory (one batch)."""
+    samples = np.minimum(s + options.spacing * np.arange(options.samples + 1), trajectory.duration)
+    samples = np.unique(samples)
+    q, _, _ = trajectory.sample(samples)
+    clearance = collision.clearances(q, humans)
+    bad = np.flatnonzero(clearance <= collision.margins.tolerance)
+    return HorizonResult(samples, clearance, int(bad[0]) if bad.size else None)
+
+
+def merge(old: Trajectory, s_junction: float, new_part: Trajectory, version: int) -> Trajectory:
+    """The old trajectory's knots up to s_junction (exactly, plus the junction itself), then new_part
+    shifted to start at s_junction. Continuity is the caller's: new_part must start at q(s_j), q'(s_j)."""
+    keep = old.times < s_junction - 1e-3    # a knot closer than 1 ms would make a needle-thin interval; the
+    # interval that replaces it, from exact values and tangents at both ends, is the same cubic
+    q_j, dq_j, _ = old.sample(float(s_junction))
+    times = np.concatenate([old.times[keep], [s_junction], s_junction + new_part.times[1:]])
+    positions = np.vstack([old.positions[keep], q_j, new_part.positions[1:]])
+    velocities = np.vstack([old.velocities[keep], dq_j, new_part.velocities[1:]])
+    return Trajectory(times, positions, velocities, version)
+
+
+@dataclass(frozen=True)
+class ReplanResult:
+    trajectory: Trajectory
+    junction: float       # s where the new trajectory starts to differ from the old one
+    reason: str           # 'horizon', 'beta' or 'goal'
+    plan_s: float         # wall time spent (s)
+    inflation: float      # extra clearance (m) the accepted plan kept from the humans
+    detail: str = ""
+
+
+class ReplanFailed(HrcError):
+    """No acceptable new trajectory; the old one stays (and the scaling layer keeps the robot safe)."""
+
+
+@dataclass(frozen=True)
+class ReplanOptions:
+    """lookback: nominal seconds of old path kept ahead of the branch point as room to slow down (and
+    tried further back when a turn is too sharp); lead: nominal seconds ahead of the current s that the
+    junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
+    beta replan must save; prediction_step: nominal seconds between the samples of that prediction."""
+
+    lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
+    lead: float = 0.1
+    min_gain: float = 0.10
+    prediction_step: float = 0.05
+    alpha_floor: float = 0.02
+
+
+class Replanner:
+    """Builds merged trajectories; pure apart from OMPL's random sampling (seed it for repeatability)."""
+
+    def __init__(self, collision: CollisionModel, planner: JointPlanner, ssm: SsmParameters,
+                 horizon: HorizonOptions = HorizonOptions(), options: ReplanOptions = ReplanOptions()) -> None:
+        self.collision = collision
+        self.planner = planner
+        self.ssm = ssm
+        self.horizon = horizon
+        self.options = options
+        self.limits = collision.robot.limits
+
+    # ----------------------------------------------------------------------------------------- plans
+    def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
+                   inflation: float = 0.0) -> Trajectory:
+        """A rest-to-rest trajectory to a new goal (raises PlanningError or TimingError)."""
+        waypoints = self.planner.plan(q_start, q_goal, humans, inflation)
+        return parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
+                            inflation=inflation, version=version)
+
+    def _capped(self, inflation: float, configs: np.ndarray, humans: HumanCapsules | None) -> float:
+        """The inflation, lowered to the clearance that the configurations a plan must start or end in
+        already have (so it may turn negative: a robot a person has walked up to is not refused a way
+        out). The plan then never comes closer to a human than it is now."""
+        if humans is None or humans.count == 0:
+            return max(0.0, inflation)
+        have = float(self.collision.clearances(configs, humans, inflation=0.0).min()) - 2 * self.collision.margins.tolerance
+        return min(inflation, have)
+
+    def _branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
+                humans: HumanCapsules | None, inflation: float, version: int) -> tuple[Trajectory, float, float]:
+        """Merge at a junction s_j before s_branch: from s_j the old geometry to the branch point, then a
+        new path to the goal. First continuously through the branch point (junctions further back give
+        more room to slow down before turning); else stop-and-go: decelerate along the old path to rest at
+        the branch point, then the new path from rest. Returns (merged, s_j, inflation kept)."""
+        s_first = min(s_now + self.options.lead, s_branch)     # never before the planning lead
+        junctions = sorted({max(s_first, s_branch - lb) for lb in self.options.lookback}, reverse=True)
+        q_branch = old.sample(float(s_branch))[0]
+        kept = self._capped(inflation, np.vstack([old.sample(np.linspace(s_first, s_branch, 8))[0], q_goal]), humans)
+        tail = self.planner.plan(q_branch, q_goal, humans, kept)
+        errors = []
+
+        def lead_in(s_j: float) -> np.ndarray:
+            return old.sample(np.linspace(s_j, s_branch, max(2, int(np.ceil((s_branch - s_j) / 0.05)) + 1)))[0]
+
+        for s_j in junctions:                       # continuous through the branch point
+            try:
+                part = parameterize(np.vstack([lead_in(s_j), tail[1:]]), self.limits,
+                                    start_velocity=old.sample(float(s_j))[1], collision=self.collision,
+                                    humans=humans, inflation=kept)
+                return merge(old, s_j, part, version), s_j, kept
+            except TimingError as exc:
+                errors.append(f"through at s={s_j:.2f}: {exc}")
+        s_j = junctions[-1]                          # stop-and-go, with the most room to stop
+        try:
+            stop = parameterize(lead_in(s_j), self.limits, start_velocity=old.sample(float(s_j))[1],
+                                collision=self.collision, humans=humans, inflation=kept)
+            go = parameterize(tail, self.limits, collision=self.collision, humans=humans, inflation=kept)
+        except TimingError as exc:
+            raise ReplanFailed("no junction allows a continuous merge: " + "; ".join(errors + [f"stop-and-go: {exc}"]))
+        return merge(merge(old, s_j, stop, version), s_j + stop.duration, go, version), s_j, kept
+
+    def replan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+               reason: str, inflation: float = 0.0, s_branch: float | None = None) -> ReplanResult:
+        """Alg. 2 from s_branch (default: the current s plus the lead)."""
+        started = time.perf_counter()
+        s_branch = min(old.duration, s_now + self.options.lead) if s_branch is None else s_branch
+        try:
+            if s_branch >= old.duration - 1e-9:          # at the end, at rest: a fresh plan from there
+                q_end = old.positions[-1]
+                kept = self._capped(inflation, np.vstack([q_end, q_goal]), humans)
+                merged = merge(old, old.duration, self.plan_fresh(q_end, q_goal, humans, 0, kept), old.version + 1)
+                s_j = old.duration
+            else:
+                merged, s_j, kept = self._branch(old, s_now, s_branch, q_goal, humans, inflation, old.version + 1)
+        except (PlanningError, TimingError) as exc:
+            raise ReplanFailed(f"{type(exc).__name__}: {exc}") from None
+        return ReplanResult(merged, s_j, reason, time.perf_counter() - started, kept)
+
+    def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray,
+                   humans: HumanCapsules | None) -> ReplanResult | None:
+        """Alg. 1 + 2: None when the horizon is clear; else a merged trajectory branching at the last
+        feasible horizon configuration (ReplanFailed when none can be built)."""
+        check = horizon_check(old, s_now, self.collision, humans, self.horizon)
+        if check.first_infeasible is None:
+            return None
+        s_branch = check.last_feasible_s
+        if s_branch is None or s_branch < s_now + self.options.lead:
+            # too close to branch in front of it: branch at the planning lead, and the new path may not
+            # come closer to the human than that point is (the scaling layer keeps the speed safe)
+            s_branch = min(old.duration, s_now + self.options.lead)
+        return self.replan(old, s_now, q_goal, humans, "horizon", s_branch=s_branch)
+
+    # ------------------------------------------------------------------------------------ beta replans
+    def full_speed_inflation(self, robot_speed: float = 1.0) -> float:
+        """Extra clearance (m) beyond the planner's own margin at which a human standing still allows a
+        link moving at robot_speed: S_p(robot_speed, 0) - d_min - human margin."""
+        sp = float(protective_separation_distance(robot_speed, 0.0, self.ssm))
+        return max(0.0, sp - self.collision.min_separation - self.collision.margins.human)
+
+    def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None) -> float:
+        """Nominal remaining time stretched by the SSM: sum over samples of ds / alpha(s), alpha the
+        safe bound with the humans frozen where they are now (floored at alpha_floor, so a blocked path
+        costs a lot but stays finite)."""
+        step = self.options.prediction_step
+        samples = np.arange(s_from, trajectory.duration, step)
+        if humans is None or samples.size == 0:
+            return max(0.0, trajectory.duration - s_from)
+        q, dq, _ = trajectory.sample(samples)
+        total = 0.0
+        for qk, dqk in zip(q, dq):
+            alpha = ssm_alpha_bound(self.collision.robot, qk, dqk, humans, self.ssm)
+            total += step / max(alpha, self.options.alpha_floor)
+        return total
+
+    def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                alpha_now: float = 0.0) -> ReplanResult:
+        """A replan that is worth it, or ReplanFailed saying why the old trajectory stays. The robot is
+        slow (alpha_now), so it branches about where it is: the lead shrinks with alpha_now."""
+        started = time.perf_counter()
+        s_branch = min(old.duration, s_now + self.options.lead * max(alpha_now, 0.05))
+        baseline = self.predicted_time(old, s_now, humans)
+        full = self.full_speed_inflation()
+        tried = []
+        for inflation in (full, full / 2, 0.0):
+            try:
+                result = self.replan(old, s_now, q_goal, humans, "beta", inflation=inflation, s_branch=s_branch)
+            except ReplanFailed as exc:
+                tried.append(f"inflation {inflation:.2f} m: {exc}")
+                continue
+            predicted = self.predicted_time(result.trajectory, result.junction, humans) + (result.junction - s_now)
+            if predicted <= (1.0 - self.options.min_gain) * baseline:
+                return ReplanResult(result.trajectory, result.junction, "beta", time.perf_counter() - started,
+                                    inflation, f"predicted {predicted:.2f} s instead of {baseline:.2f} s")
+            tried.append(f"inflation {inflation:.2f} m: predicted {predicted:.2f} s, not {100 * self.options.min_gain:.0f} % "
+                         f"better than {baseline:.2f} s")
+        raise ReplanFailed("kept the old trajectory; " + "; ".join(tried))
