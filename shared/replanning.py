@@ -97,13 +97,17 @@ class ReplanOptions:
     """lookback: nominal seconds of old path kept ahead of the branch point as room to slow down (and
     tried further back when a turn is too sharp); lead: nominal seconds ahead of the current s that the
     junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
-    beta replan must save; prediction_step: nominal seconds between the samples of that prediction."""
+    beta replan must save; prediction_step: nominal seconds between the samples of that prediction;
+    escape_*: how the escape waypoint is searched (random joint offsets of growing radius, seeded)."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
     lead: float = 0.1
     min_gain: float = 0.10
     prediction_step: float = 0.05
     alpha_floor: float = 0.02
+    escape_radii: tuple[float, ...] = (0.2, 0.4, 0.8)
+    escape_samples: int = 64
+    seed: int = 0
 
 
 class Replanner:
@@ -117,6 +121,20 @@ class Replanner:
         self.horizon = horizon
         self.options = options
         self.limits = collision.robot.limits
+        self._rng = np.random.default_rng(options.seed)
+
+    def _escape(self, q: np.ndarray, humans: HumanCapsules | None, inflation: float, kept: float) -> np.ndarray | None:
+        """A configuration near q with the full inflation's clearance that q reaches without coming closer
+        to a human than it is now (motion checked at the kept inflation); None if none is found. The
+        nearest such candidate (in joint distance) is taken."""
+        for radius in self.options.escape_radii:
+            cands = q + self._rng.uniform(-radius, radius, size=(self.options.escape_samples, q.size))
+            cands = cands[np.all((cands >= self.limits.lower) & (cands <= self.limits.upper), axis=1)]
+            ok = cands[self.collision.clearances(cands, humans, inflation) > self.collision.margins.tolerance]
+            for cand in ok[np.argsort(np.abs(ok - q).sum(axis=1))][:8]:
+                if self.collision.motion_free(q, cand, humans, kept)[0]:
+                    return cand
+        return None
 
     # ----------------------------------------------------------------------------------------- plans
     def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
@@ -145,7 +163,13 @@ class Replanner:
         junctions = sorted({max(s_first, s_branch - lb) for lb in self.options.lookback}, reverse=True)
         q_branch = old.sample(float(s_branch))[0]
         kept = self._capped(inflation, np.vstack([old.sample(np.linspace(s_first, s_branch, 8))[0], q_goal]), humans)
-        tail = self.planner.plan(q_branch, q_goal, humans, kept)
+        escape = self._escape(q_branch, humans, self._capped(inflation, q_goal[None, :], humans), kept) \
+            if kept < inflation else None
+        if escape is None:
+            tail = self.planner.plan(q_branch, q_goal, humans, kept)
+        else:       # leave the crowded start first, then keep the full inflation all the way
+            tail = np.vstack([q_branch, self.planner.plan(escape, q_goal, humans,
+                                                           self._capped(inflation, np.vstack([escape, q_goal]), humans))])
         errors = []
 
         def lead_in(s_j: float) -> np.ndarray:
@@ -221,12 +245,18 @@ class Replanner:
             total += step / max(alpha, self.options.alpha_floor)
         return total
 
-    def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-                alpha_now: float = 0.0) -> ReplanResult:
-        """A replan that is worth it, or ReplanFailed saying why the old trajectory stays. The robot is
-        slow (alpha_now), so it branches about where it is: the lead shrinks with alpha_now."""
+    def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None
+                ) -> ReplanResult:
+        """A replan that is worth it, or ReplanFailed saying why the old trajectory stays.
+
+        The merge is continuous in nominal time, so the new part must start with the old *nominal*
+        velocity even though the robot creeps (alpha is low): the branch point is put one nominal
+        stopping time ahead, so the old path gives room to come to rest (stop-and-go) before the new
+        path leaves it; that stretch is slow and safe under the scaling layer."""
         started = time.perf_counter()
-        s_branch = min(old.duration, s_now + self.options.lead * max(alpha_now, 0.05))
+        v_now = old.sample(float(s_now))[1]
+        stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
+        s_branch = min(old.duration, s_now + self.options.lead + stopping)
         baseline = self.predicted_time(old, s_now, humans)
         full = self.full_speed_inflation()
         tried = []

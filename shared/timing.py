@@ -28,11 +28,15 @@ from shared.robot_model import JointLimits
 from shared.trajectory import Trajectory
 
 logging.getLogger("toppra").setLevel(logging.ERROR)
-# toppra enforces the limits at its grid points only; between them the joint acceleration can exceed the
-# limit where the path bends. Kept in hand: 1 % of velocity, 5 % of acceleration (measured overshoot with a
-# 200-point grid on the paper's detours: under 5 %).
-VELOCITY_HEADROOM = 0.99
-ACCELERATION_HEADROOM = 0.95
+# toppra enforces the limits at its grid points only; between them, where the path bends, the joint
+# acceleration of its piecewise-constant-acceleration law can exceed the limit (measured on the paper's
+# detours with a 200-point grid: 2 to 6 %, not monotone in the grid size). 10 % of the acceleration limit
+# is kept in hand, so the nominal trajectory stays within the limit to a few percent (the tests allow 10 %;
+# the PRBT's controller tolerates 6.0 rad/s^2 against the 3.49 planned). Velocity is exact: a merged
+# trajectory may have to start at the full 1.57 rad/s.
+VELOCITY_HEADROOM = 1.0
+VELOCITY_TOLERANCE = 1.01     # the same grid effect on velocity; the scaling layer's hard joint-velocity
+ACCELERATION_HEADROOM = 0.9   # rows keep the *commanded* velocity within the limit in any case
 
 
 class TimingError(HrcError):
@@ -86,7 +90,7 @@ def parameterize(waypoints: np.ndarray, limits: JointLimits, start_velocity: np.
     q, qd = result(t), result(t, 1)
     q[0], q[-1] = pts[0], pts[-1]
     qd[0], qd[-1] = v0, 0.0
-    if np.any(np.abs(qd) > limits.velocity * (1 + 1e-6)):
+    if np.any(np.abs(qd) > limits.velocity * VELOCITY_TOLERANCE):
         raise TimingError("the sampled trajectory exceeds a joint velocity limit")
     if collision is not None:
         for a, b in zip(q[:-1], q[1:]):

@@ -1,0 +1,149 @@
+"""The planning layer: RRT-Connect around a human arm in the paper's experiment, typed errors, time
+parameterisation, horizon check, continuous merge, beta replans, and the trajectory message."""
+
+import numpy as np
+import pytest
+
+from shared.collision import CollisionModel
+from shared.convert import trajectory_from_msg, trajectory_to_msg
+from shared.scaling import ssm_alpha_bound
+from shared.humans import HumanCapsules
+from shared.messages import TrajectoryMsg, decode, encode
+from shared.planner import GoalInCollision, JointPlanner, NoPathFound, OutOfLimits, PlannerOptions, StartInCollision
+from shared.replanning import HorizonOptions, ReplanFailed, Replanner, horizon_check
+from shared.robot_model import default_robot
+from shared.scenarios import Q_GOAL, Q_START, body_segments
+from shared.scene import load_scene
+from shared.ssm import SsmParameters
+from shared.timing import TimingError, parameterize
+from shared.trajectory import straight_line_trajectory
+
+ROBOT = default_robot()
+LIM = ROBOT.limits
+CM = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
+PLANNER = JointPlanner(CM, PlannerOptions(seed=7))
+OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration)
+
+
+def known(segments, radii):
+    segments = np.asarray(segments, dtype=float)
+    return HumanCapsules.from_arrays(segments, radii, np.zeros_like(segments), np.ones(len(radii), bool))
+
+
+# a forearm held across the middle of the shuttle, the body behind it
+ARM_ACROSS = known([[[-0.75, -0.15, 0.55], [-0.35, 0.15, 0.55]], [[-1.0, -0.2, 0.9], [-1.0, -0.2, 1.45]]],
+                   [0.05, 0.17])
+ASIDE = known([[[-2.5, 1.5, 0.9], [-2.5, 1.5, 1.45]]], [0.17])
+
+
+def assert_trajectory_feasible(traj, humans, s_from=0.0):
+    q, _, _ = traj.sample(traj.times[traj.times >= s_from])
+    for a, b in zip(q[:-1], q[1:]):
+        assert CM.motion_free(a, b, humans)[0]
+
+
+def test_the_straight_shuttle_is_blocked_and_the_plan_goes_around_the_arm():
+    assert not CM.motion_free(Q_START, Q_GOAL, ARM_ACROSS)[0]
+    waypoints = PLANNER.plan(Q_START, Q_GOAL, ARM_ACROSS)
+    assert np.allclose(waypoints[0], Q_START) and np.allclose(waypoints[-1], Q_GOAL)
+    assert all(CM.feasible(q, ARM_ACROSS) for q in waypoints)
+    assert all(CM.motion_free(a, b, ARM_ACROSS)[0] for a, b in zip(waypoints[:-1], waypoints[1:]))
+    traj = parameterize(waypoints, LIM, collision=CM, humans=ARM_ACROSS)
+    assert_trajectory_feasible(traj, ARM_ACROSS)
+    s = np.linspace(0, traj.duration, 4000)
+    _, dq, ddq = traj.sample(s)
+    assert np.all(np.abs(dq) <= LIM.velocity * 1.01)             # toppra's grid; see shared/timing.py
+    assert np.all(np.abs(ddq) <= LIM.acceleration * 1.10)       # toppra's grid; see shared/timing.py
+
+
+def test_a_free_straight_motion_needs_no_search():
+    assert len(PLANNER.plan(Q_START, Q_GOAL, ASIDE)) == 2 and PLANNER.last_stats["planner"] == "direct"
+
+
+def test_bad_goals_give_typed_errors():
+    with pytest.raises(OutOfLimits, match="prbt_joint_1"):
+        PLANNER.plan(Q_START, np.array([3.0, 0, 0, 0, 0, 0]))
+    with pytest.raises(OutOfLimits):
+        PLANNER.plan(Q_START, np.array([0.0, np.nan, 0, 0, 0, 0]))
+    flange_goal = ROBOT.capsule_segments(Q_GOAL)[-1, 0]
+    on_goal = known([[flange_goal, flange_goal + [0, 0, 0.01]]], [0.05])
+    with pytest.raises(GoalInCollision, match="human"):
+        PLANNER.plan(Q_START, Q_GOAL, on_goal)
+    with pytest.raises(StartInCollision, match="human"):
+        PLANNER.plan(Q_GOAL, Q_START, on_goal)
+    with pytest.raises(NoPathFound):
+        PLANNER.plan(Q_START, Q_GOAL, ARM_ACROSS, time_budget=1e-6)
+
+
+def test_time_parameterisation_starts_with_the_given_velocity():
+    v0 = OLD.sample(0.5)[1]
+    lead = OLD.sample(np.linspace(0.5, 1.0, 11))[0]
+    traj = parameterize(np.vstack([lead, Q_GOAL]), LIM, start_velocity=v0)
+    assert np.allclose(traj.sample(0.0)[1], v0) and np.allclose(traj.velocities[-1], 0.0)
+    with pytest.raises(TimingError):
+        parameterize(lead[:1], LIM, start_velocity=v0)        # cannot stop in zero distance
+
+
+def test_horizon_check_finds_a_human_in_the_path_and_ignores_one_beside_it():
+    hit = horizon_check(OLD, 0.0, CM, ARM_ACROSS, HorizonOptions(samples=40, spacing=0.05))
+    assert hit.first_infeasible is not None and hit.first_infeasible > 0
+    assert np.all(hit.clearance[:hit.first_infeasible] > CM.margins.tolerance)
+    assert horizon_check(OLD, 0.0, CM, ASIDE, HorizonOptions(samples=40, spacing=0.05)).first_infeasible is None
+    # a human who steps in only later than the horizon reaches is not reported yet
+    assert horizon_check(OLD, 0.0, CM, ARM_ACROSS, HorizonOptions(samples=3, spacing=0.05)).first_infeasible is None
+
+
+def test_replan_and_merge_is_continuous_and_feasible():
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    result = replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS)
+    new, s_j = result.trajectory, result.junction
+    assert new.version == OLD.version + 1 and result.reason == "horizon"
+    # identical before the junction, continuous in position and velocity at it
+    s_before = np.linspace(0, s_j, 50)
+    assert np.allclose(new.sample(s_before)[0], OLD.sample(s_before)[0], atol=1e-9)
+    for k in range(2):
+        assert np.allclose(new.sample(s_j - 1e-6)[k], new.sample(s_j + 1e-6)[k], atol=1e-4)
+    # no acceleration spike at the junction
+    assert np.abs(new.sample(np.linspace(s_j - 0.05, s_j + 0.05, 101))[2]).max() < 4.0
+    assert_trajectory_feasible(new, ARM_ACROSS, s_j)
+    assert np.allclose(new.positions[-1], Q_GOAL)
+
+
+def test_replan_fails_cleanly_when_the_robot_cannot_turn_in_time():
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    with pytest.raises(ReplanFailed):
+        replanner.on_horizon(OLD, 0.6, Q_GOAL, ARM_ACROSS)
+
+
+def _mean_safe_alpha(traj, s_from, humans):
+    """Mean over the rest of the trajectory (by nominal time) of the largest alpha the SSM allows: the
+    clearance that matters for speed (distance and direction of motion together)."""
+    q, dq, _ = traj.sample(np.linspace(s_from, traj.duration, 300))
+    return float(np.mean([ssm_alpha_bound(ROBOT, qk, dqk, humans, SsmParameters()) for qk, dqk in zip(q, dq)]))
+
+
+def test_a_beta_replan_is_kept_only_when_worth_it_and_increases_the_clearance():
+    seg, radii = body_segments(-1.0, 0.0, 1.0, np.array([-0.4, 0.0, 0.8]))
+    standing = known(seg, radii)
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=3)), SsmParameters())
+    result = replanner.on_beta(OLD, 0.3, Q_GOAL, standing)
+    assert result.reason == "beta" and "instead of" in result.detail
+    predicted_new = replanner.predicted_time(result.trajectory, 0.3, standing)
+    assert predicted_new <= 0.9 * replanner.predicted_time(OLD, 0.3, standing)
+    assert _mean_safe_alpha(result.trajectory, result.junction, standing) > _mean_safe_alpha(OLD, result.junction, standing)
+    # a human who blocks every way equally: the old trajectory stays, and the error says why
+    seg, radii = body_segments(-0.8, 0.0, 1.0, np.array([-0.4, 0.0, 0.5]))
+    with pytest.raises(ReplanFailed, match="kept the old trajectory"):
+        replanner.on_beta(OLD, 0.3, Q_GOAL, known(seg, radii))
+
+
+def test_trajectory_message_roundtrip_gives_the_same_law():
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    result = replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS)
+    msg = decode(encode(trajectory_to_msg(result.trajectory, goal_id=4, reason="horizon", junction=result.junction,
+                                          base_version=OLD.version)), TrajectoryMsg)
+    back = trajectory_from_msg(msg)
+    s = np.linspace(0, back.duration, 777)
+    for k in range(3):
+        assert np.array_equal(back.sample(s)[k], result.trajectory.sample(s)[k])
+    assert back.version == result.trajectory.version and msg.junction == result.junction
