@@ -181,7 +181,8 @@ def _clearances(qs, placement, parent, local, joint, radii, static_link, self_pa
 def _motion_free(q0, q1, link_reach, pair_moves, tolerance, placement, parent, local, joint, radii, static_link,
                  self_pairs, lower, upper, floor_z, box_c, box_h, cap_seg, cap_rad, human_seg, human_rad,
                  human_req, static_req, self_req):
-    """(free, t): conservative advancement along q0 -> q1; t is where it stopped (1.0 when free).
+    """(free, t, evaluations): conservative advancement along q0 -> q1; t is where it stopped (1.0 when
+    free); evaluations counts the configurations checked.
 
     Per unit of t, link i moves at most D_i = sum_k |dq_k| link_reach[i, k] (m), and the two links of
     self pair p move relative to each other at most D_p = the same sum over the joints that move exactly
@@ -199,16 +200,18 @@ def _motion_free(q0, q1, link_reach, pair_moves, tolerance, placement, parent, l
     link_clear, pair_clear = np.empty(n_links), np.empty(n_pairs)
     q = q0.copy()
     t = 0.0
+    evaluations = 0
     while True:
+        evaluations += 1
         for k in range(n):
             q[k] = q0[k] + t * (q1[k] - q0[k])
         best = _evaluate(q, placement, parent, local, joint, radii, static_link, self_pairs, lower, upper,
                          floor_z, box_c, box_h, cap_seg, cap_rad, human_seg, human_rad, human_req, static_req,
                          self_req, link_clear, pair_clear)[0]
         if best <= tolerance:
-            return False, t
+            return False, t, evaluations
         if t >= 1.0:
-            return True, 1.0
+            return True, 1.0, evaluations
         step = np.inf
         for i in range(n_links):
             if d_link[i] > 0.0:
@@ -239,7 +242,7 @@ class CollisionModel:
         self._static = (s.floor_z, s.box_centers, s.box_half_sizes, s.capsule_segments, s.capsule_radii)
         self._fixed = (*robot.chain, robot.radii, self._static_link, self._self_pairs, robot.limits.lower,
                        robot.limits.upper, *self._static)
-        self.checks = 0
+        self.checks = 0          # configurations evaluated (motion checks count every step)
 
     def _human_args(self, humans: HumanCapsules | None, inflation: float):
         h = humans if humans is not None else HumanCapsules.empty()
@@ -283,8 +286,8 @@ class CollisionModel:
                     inflation: float = 0.0) -> tuple[bool, float]:
         """(free, t): whether the straight joint-space motion q0 -> q1 keeps clearance > 0 throughout
         (guaranteed, see the module docstring); t is the fraction reached when it is not."""
-        self.checks += 1
-        free, t = _motion_free(np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64),
+        free, t, evaluations = _motion_free(np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64),
                                self.robot.link_reach, self._pair_moves, self.margins.tolerance, *self._fixed,
                                *self._human_args(humans, inflation))
+        self.checks += evaluations
         return bool(free), float(t)

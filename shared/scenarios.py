@@ -1,8 +1,9 @@
 """Scripted humans: a simple body of capsules moved through keyframes.
 
 A body is a torso, a head and one reaching arm (upper arm + forearm with the hand), placed by the torso's
-floor position (x, y) and a reach fraction in [0, 1] that swings the arm from hanging down to pointing
-at a target. Keyframes are linearly interpolated in time; end-point velocities are the exact derivative
+floor position (x, y), a reach fraction in [0, 1] that swings the arm from hanging down to pointing at a
+target, and a lean in [0, 1] that bends the upper body towards the target (shoulders up to 0.35 m
+forward and 0.3 m lower), so that a person can put an arm across the robot's path. Keyframes are linearly interpolated in time; end-point velocities are the exact derivative
 of that motion (central difference over 1 ms), so a scripted human has "tracked" velocities.
 """
 
@@ -28,11 +29,17 @@ class Keyframe:
     reach: float = 0.0
     target: tuple[float, float, float] = (0.0, 0.0, 0.5)
     phase: str = ""
+    lean: float = 0.0
 
 
-def body_segments(x: float, y: float, reach: float, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def body_segments(x: float, y: float, reach: float, target: np.ndarray, lean: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Capsule end points (4, 2, 3) and radii (4,) of a standing human with one arm reaching."""
-    shoulder = np.array([x, y - 0.2, 1.45])
+    hip = np.array([x, y, 0.9])
+    toward = np.asarray(target, dtype=float)[:2] - hip[:2]
+    toward = toward / max(np.linalg.norm(toward), 1e-9)
+    neck = np.array([x + 0.35 * lean * toward[0], y + 0.35 * lean * toward[1], 1.45 - 0.3 * lean])
+    shoulder = neck + np.array([0.0, -0.2, 0.0])
     down = np.array([0.0, 0.0, -1.0])
     to_target = np.asarray(target, dtype=float) - shoulder
     norm = np.linalg.norm(to_target)
@@ -41,9 +48,10 @@ def body_segments(x: float, y: float, reach: float, target: np.ndarray) -> tuple
     direction /= max(np.linalg.norm(direction), 1e-9)
     elbow = shoulder + UPPER_ARM * direction
     hand = elbow + FOREARM * direction
+    head = neck + np.array([0.0, 0.0, 0.27])
     segments = np.array([
-        [[x, y, 0.9], [x, y, 1.45]],                 # torso
-        [[x, y, 1.72], [x, y, 1.72]],                # head (a sphere)
+        [hip, neck],                                 # torso
+        [head, head],                                # head (a sphere)
         [shoulder, elbow],                           # upper arm
         [elbow, hand],                               # forearm and hand
     ])
@@ -67,7 +75,7 @@ class ScriptedHuman:
         w = 0.0 if b.t == a.t else (t - a.t) / (b.t - a.t)
         mix = lambda u, v: (1 - w) * u + w * v
         target = mix(np.asarray(a.target), np.asarray(b.target))
-        return body_segments(mix(a.x, b.x), mix(a.y, b.y), mix(a.reach, b.reach), target)
+        return body_segments(mix(a.x, b.x), mix(a.y, b.y), mix(a.reach, b.reach), target, mix(a.lean, b.lean))
 
     def phase(self, t: float) -> str:
         """The label of the last keyframe at or before t."""
