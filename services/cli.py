@@ -19,7 +19,9 @@ monitoring). Subcommands:
 
   hrc demo        run the paper's experiment: the PRBT shuttles between two poses while a scripted
                   human goes through four phases (far, approaching, arm in the path, very close); the
-                  scaling layer keeps every link below its ISO/TS 15066 speed limit.
+                  scaling layer keeps every link below its ISO/TS 15066 speed limit and the planning
+                  layer replans around the arm (--no-beta: without the replan requests, as in the
+                  paper's ablation; --no-planner: scaling only).
 Run 'hrc <command> --help' for the options of one command."""
 
 
@@ -47,10 +49,31 @@ def build_parser() -> argparse.ArgumentParser:
                       help="length of each of the four human phases (default 6)")
     demo.add_argument("--config", type=Path, default=None, metavar="FILE",
                       help="cell configuration YAML (default: built-in, same as deploy/cell.yaml)")
+    demo.add_argument("--scene", type=Path, default=None, metavar="FILE",
+                      help="static cell (floor, table, fixtures) for the planner (default deploy/scene.yaml)")
+    demo.add_argument("--no-beta", action="store_true",
+                      help="do not replan when the scaling layer asks (alpha below alpha_min)")
+    demo.add_argument("--no-planner", action="store_true", help="scaling layer only: straight shuttles")
+    demo.add_argument("--seed", type=int, default=1, help="seed of the planner's random sampling (default 1)")
     demo.add_argument("--out", type=Path, default=None, metavar="DIR",
                       help="write summary.json into this folder")
     demo.add_argument("--quiet", action="store_true", help="print only the summary")
     return parser
+
+
+DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
+
+
+def _scene(path: Path | None):
+    """The given scene file, else the shipped deploy/scene.yaml, else a bare floor (said on stderr)."""
+    from shared.scene import Scene, load_scene
+
+    if path is not None:
+        return load_scene(path)
+    if DEFAULT_SCENE.exists():
+        return load_scene(DEFAULT_SCENE)
+    print(f"hrc: no {DEFAULT_SCENE}; planning with a bare floor at z = 0", file=sys.stderr)
+    return Scene(floor_z=0.0)
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -62,6 +85,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     robot = default_robot()
     human = paper_phases(args.phase_length)
+    replanner = None
+    if not args.no_planner:
+        from shared.collision import CollisionModel
+        from shared.planner import JointPlanner, PlannerOptions
+        from shared.replanning import Replanner
+
+        collision = CollisionModel(robot, _scene(args.scene), config.ssm.min_separation)
+        replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm)
     every = max(1, int(round(0.5 / config.scaling.period)))
     count = [0]
 
@@ -76,8 +107,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
               flush=True)
 
     if not args.quiet:
-        print("hrc demo: scaling layer on the built-in scenario (in-process, simulated clock)")
-    result = run_shuttle(robot, config, human, Q_START, Q_GOAL, args.duration, progress)
+        layers = "scaling layer only" if replanner is None else \
+            "scaling + planning layers" + (" (no beta replans)" if args.no_beta else "")
+        print(f"hrc demo: {layers} on the built-in scenario (in-process, simulated clock)")
+
+    replans_seen = [0]
+
+    def progress_and_replans(record) -> None:
+        progress(record)
+        while not args.quiet and replans_seen[0] < len(result_box[0].replans if result_box[0] else []):
+            e = result_box[0].replans[replans_seen[0]]
+            replans_seen[0] += 1
+            state = "replanned" if e.ok else "replan refused"
+            print(f"t={e.t:6.2f}s  {state} ({e.reason}) in {e.compute_ms:.0f} ms  {e.detail[:90]}", flush=True)
+
+    result_box = [None]
+    result = run_shuttle(robot, config, human, Q_START, Q_GOAL, args.duration, progress, replanner,
+                         beta_replans=not args.no_beta)
     summary = result.summary()
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

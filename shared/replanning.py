@@ -86,6 +86,8 @@ class ReplanResult:
     plan_s: float         # wall time spent (s)
     inflation: float      # extra clearance (m) the accepted plan kept from the humans
     detail: str = ""
+    from_rest: bool = False   # True: a new trajectory from the robot's configuration at rest (junction =
+    # the s it was planned at); take it only while the robot is still there, with path speed 0
 
 
 class ReplanFailed(HrcError):
@@ -98,14 +100,17 @@ class ReplanOptions:
     tried further back when a turn is too sharp); lead: nominal seconds ahead of the current s that the
     junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
     beta replan must save; prediction_step: nominal seconds between the samples of that prediction;
-    escape_*: how the escape waypoint is searched (random joint offsets of growing radius, seeded)."""
+    rest_speed (rad/s): below it the robot counts as at rest for a beta replan; escape_*: how the escape
+    waypoint is searched (random joint offsets of growing radius, seeded)."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
     lead: float = 0.1
     min_gain: float = 0.10
     prediction_step: float = 0.05
     alpha_floor: float = 0.02
+    rest_speed: float = 0.02
     escape_radii: tuple[float, ...] = (0.2, 0.4, 0.8)
+    escape_alpha: float = 0.2
     escape_samples: int = 64
     seed: int = 0
 
@@ -125,13 +130,19 @@ class Replanner:
 
     def _escape(self, q: np.ndarray, humans: HumanCapsules | None, inflation: float, kept: float) -> np.ndarray | None:
         """A configuration near q with the full inflation's clearance that q reaches without coming closer
-        to a human than it is now (motion checked at the kept inflation); None if none is found. The
+        to a human than it is now (motion checked at the kept inflation), and towards which the SSM lets the
+        robot set off at a useful speed (alpha >= escape_alpha with the humans where they are: a person
+        close by allows only motions that approach none of their capsules); None if none is found. The
         nearest such candidate (in joint distance) is taken."""
         for radius in self.options.escape_radii:
             cands = q + self._rng.uniform(-radius, radius, size=(self.options.escape_samples, q.size))
             cands = cands[np.all((cands >= self.limits.lower) & (cands <= self.limits.upper), axis=1)]
             ok = cands[self.collision.clearances(cands, humans, inflation) > self.collision.margins.tolerance]
-            for cand in ok[np.argsort(np.abs(ok - q).sum(axis=1))][:8]:
+            for cand in ok[np.argsort(np.abs(ok - q).sum(axis=1))][:16]:
+                heading = (cand - q) / np.abs(cand - q).max() * float(self.limits.velocity.min())
+                if humans is not None and ssm_alpha_bound(self.collision.robot, q, heading, humans,
+                                                          self.ssm) < self.options.escape_alpha:
+                    continue
                 if self.collision.motion_free(q, cand, humans, kept)[0]:
                     return cand
         return None
@@ -153,6 +164,17 @@ class Replanner:
         have = float(self.collision.clearances(configs, humans, inflation=0.0).min()) - 2 * self.collision.margins.tolerance
         return min(inflation, have)
 
+    def _tail(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, inflation: float,
+              kept: float) -> np.ndarray:
+        """Waypoints from q_from to the goal: when q_from cannot have the full inflation (kept < inflation),
+        first to an escape configuration that has it, then planned with the inflation all the way."""
+        escape = self._escape(q_from, humans, self._capped(inflation, q_goal[None, :], humans), kept) \
+            if kept < inflation else None
+        if escape is None:
+            return self.planner.plan(q_from, q_goal, humans, kept)
+        rest = self.planner.plan(escape, q_goal, humans, self._capped(inflation, np.vstack([escape, q_goal]), humans))
+        return np.vstack([q_from, rest])
+
     def _branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
                 humans: HumanCapsules | None, inflation: float, version: int) -> tuple[Trajectory, float, float]:
         """Merge at a junction s_j before s_branch: from s_j the old geometry to the branch point, then a
@@ -163,13 +185,7 @@ class Replanner:
         junctions = sorted({max(s_first, s_branch - lb) for lb in self.options.lookback}, reverse=True)
         q_branch = old.sample(float(s_branch))[0]
         kept = self._capped(inflation, np.vstack([old.sample(np.linspace(s_first, s_branch, 8))[0], q_goal]), humans)
-        escape = self._escape(q_branch, humans, self._capped(inflation, q_goal[None, :], humans), kept) \
-            if kept < inflation else None
-        if escape is None:
-            tail = self.planner.plan(q_branch, q_goal, humans, kept)
-        else:       # leave the crowded start first, then keep the full inflation all the way
-            tail = np.vstack([q_branch, self.planner.plan(escape, q_goal, humans,
-                                                           self._capped(inflation, np.vstack([escape, q_goal]), humans))])
+        tail = self._tail(q_branch, q_goal, humans, inflation, kept)
         errors = []
 
         def lead_in(s_j: float) -> np.ndarray:
@@ -245,31 +261,44 @@ class Replanner:
             total += step / max(alpha, self.options.alpha_floor)
         return total
 
-    def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None
-                ) -> ReplanResult:
+    def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                speed_now: float | None = None) -> ReplanResult:
         """A replan that is worth it, or ReplanFailed saying why the old trajectory stays.
 
-        The merge is continuous in nominal time, so the new part must start with the old *nominal*
-        velocity even though the robot creeps (alpha is low): the branch point is put one nominal
-        stopping time ahead, so the old path gives room to come to rest (stop-and-go) before the new
-        path leaves it; that stretch is slow and safe under the scaling layer."""
+        speed_now: the robot's actual joint speed (rad/s, max over joints; None: moving at the nominal
+        speed). At rest (below rest_speed) the new trajectory starts at rest from where the robot is:
+        continuous in the actual velocity, and free to leave in any direction. Moving, the merge must be
+        continuous in nominal time, so the new part starts with the old nominal velocity: the branch point
+        is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
+        new path leaves it."""
         started = time.perf_counter()
         v_now = old.sample(float(s_now))[1]
+        baseline = self.predicted_time(old, s_now, humans)
+        at_rest = speed_now is not None and speed_now < self.options.rest_speed
         stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
         s_branch = min(old.duration, s_now + self.options.lead + stopping)
-        baseline = self.predicted_time(old, s_now, humans)
+        q_now = old.sample(float(s_now))[0]
         full = self.full_speed_inflation()
         tried = []
         for inflation in (full, full / 2, 0.0):
             try:
-                result = self.replan(old, s_now, q_goal, humans, "beta", inflation=inflation, s_branch=s_branch)
-            except ReplanFailed as exc:
+                if at_rest:
+                    kept = self._capped(inflation, np.vstack([q_now, q_goal]), humans)
+                    traj = parameterize(self._tail(q_now, q_goal, humans, inflation, kept), self.limits,
+                                        collision=self.collision, humans=humans, inflation=min(kept, 0.0),
+                                        version=old.version + 1)
+                    result = ReplanResult(traj, s_now, "beta", 0.0, kept, from_rest=True)
+                    predicted = self.predicted_time(traj, 0.0, humans)
+                else:
+                    result = self.replan(old, s_now, q_goal, humans, "beta", inflation=inflation, s_branch=s_branch)
+                    predicted = self.predicted_time(result.trajectory, result.junction, humans) + (result.junction - s_now)
+            except (ReplanFailed, PlanningError, TimingError) as exc:
                 tried.append(f"inflation {inflation:.2f} m: {exc}")
                 continue
-            predicted = self.predicted_time(result.trajectory, result.junction, humans) + (result.junction - s_now)
             if predicted <= (1.0 - self.options.min_gain) * baseline:
                 return ReplanResult(result.trajectory, result.junction, "beta", time.perf_counter() - started,
-                                    inflation, f"predicted {predicted:.2f} s instead of {baseline:.2f} s")
+                                    result.inflation, f"predicted {predicted:.2f} s instead of {baseline:.2f} s",
+                                    result.from_rest)
             tried.append(f"inflation {inflation:.2f} m: predicted {predicted:.2f} s, not {100 * self.options.min_gain:.0f} % "
                          f"better than {baseline:.2f} s")
         raise ReplanFailed("kept the old trajectory; " + "; ".join(tried))

@@ -95,15 +95,15 @@ class ScriptedHuman:
 # The paper's experiment, seen from the robot: the shuttle sweeps the flange over the -x side of the base.
 Q_START = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
 Q_GOAL = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
-IN_PATH = (-0.45, 0.0, 0.5)
+IN_PATH = (-0.45, 0.0, 0.55)
 
 
 def paper_phases(period: float = 6.0) -> ScriptedHuman:
     """The four phases of the paper's experiment, each `period` seconds long.
 
     1 far away (full speed); 2 walking up to the cell and back (scaling down, then up again);
-    3 standing at the cell with the arm across the path (the planner's case); 4 very close, reaching
-    into the path (alpha falls below alpha_min: beta); then leaving.
+    3 leaning in with the forearm across the robot's path (the planner replans around it);
+    4 very close, reaching into the path (alpha falls below alpha_min: beta, a replan); then leaving.
     """
     p = period
     return ScriptedHuman([
@@ -112,9 +112,9 @@ def paper_phases(period: float = 6.0) -> ScriptedHuman:
         Keyframe(p + 0.45 * p, -1.05, 0.0, 0.0, IN_PATH, "2 approaching"),
         Keyframe(p + 0.55 * p, -1.05, 0.0, 0.0, IN_PATH, "2 moving away"),
         Keyframe(2 * p, -2.0, 0.0, 0.0, IN_PATH, "3 arm in the path"),
-        Keyframe(2 * p + 0.3 * p, -1.0, 0.2, 0.9, IN_PATH, "3 arm in the path"),
-        Keyframe(3 * p, -1.0, 0.2, 0.9, IN_PATH, "4 very close"),
-        Keyframe(3 * p + 0.2 * p, -0.85, 0.1, 1.0, IN_PATH, "4 very close"),
-        Keyframe(3.8 * p, -0.85, 0.1, 1.0, IN_PATH, "leaving"),
+        Keyframe(2 * p + 0.3 * p, -1.05, 0.15, 1.0, IN_PATH, "3 arm in the path", lean=0.8),
+        Keyframe(3 * p, -1.05, 0.15, 1.0, IN_PATH, "4 very close", lean=0.8),
+        Keyframe(3 * p + 0.2 * p, -0.9, 0.1, 1.0, IN_PATH, "4 very close", lean=1.0),
+        Keyframe(3.8 * p, -0.9, 0.1, 1.0, IN_PATH, "leaving", lean=1.0),
         Keyframe(4 * p, -2.8, 0.0, 0.0, IN_PATH, "leaving"),
     ])

@@ -53,3 +53,21 @@ def test_the_paper_phases_in_simulation():
     assert by_phase["2"][-1].alpha == pytest.approx(1.0)                         # moving away: back up
     assert any(s.beta for s in by_phase["3"] + by_phase["4"])                    # in the path: replan request
     assert result.beta_requests >= 1 and result.shuttles >= 4
+
+
+def test_the_paper_phases_with_both_layers():
+    from shared.collision import CollisionModel
+    from shared.planner import JointPlanner, PlannerOptions
+    from shared.replanning import Replanner
+    from shared.scene import load_scene
+
+    robot, config = default_robot(), CellConfig()
+    collision = CollisionModel(robot, load_scene("deploy/scene.yaml"), config.ssm.min_separation)
+    replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm)
+    result = run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0, replanner=replanner)
+    assert result.violations == 0
+    done = [e for e in result.replans if e.ok]
+    assert any(e.reason == "horizon" and e.t >= 12.0 for e in done)          # arm in the path
+    assert any(e.reason == "beta" for e in done)                              # alpha below alpha_min
+    # every trajectory the robot followed stayed feasible: the commands never came closer than d_min
+    assert min(r.step.min_separation for r in result.records) >= 0.0
