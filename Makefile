@@ -23,6 +23,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/scaling.py
+	$(BIN)/python bench/planning.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
