@@ -1,0 +1,5 @@
+import sys
+
+from hwsim.emulator import main
+
+sys.exit(main())

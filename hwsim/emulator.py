@@ -1,0 +1,185 @@
+"""The PRBT emulator process: six CiA 402 drives (node ids 3 to 8) on a CAN bus.
+
+Each node is a canopen LocalNode built from ``hwsim/prbt_drive.eds`` (SDO server, NMT slave, heartbeat
+producer from 0x1017, EMCY producer) around a pure ``hwsim.drive.Drive``. RPDO1 (controlword, setpoint)
+is applied on reception, every SYNC advances each drive one interpolation period and sends TPDO1
+(statusword, mode display), TPDO2 (velocity demand, actual) and TPDO3 (position, velocity actual); a
+timer runs the SYNC watchdog between SYNCs. Fault injection through SDO writes to 0x2F00 (any time):
+:1 drop that many per mille of the node's frames, :2 heartbeat off, :3 freeze the node (no PDO, no
+heartbeat; SDO still answers so it can be unfrozen), :4 raise a drive fault.
+
+    python -m hwsim --interface udp_multicast            # only inside a private network namespace
+    python -m hwsim --interface socketcan --channel vcan0
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import random
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+import canopen
+import numpy as np
+
+from hwsim.drive import EMCY_DRIVE_FAULT, Drive, DriveLimits, to_counts
+from shared.canbus import BusError, describe, open_bus
+from shared.robot_model import default_robot
+
+EDS_PATH = Path(__file__).with_name("prbt_drive.eds")
+NODE_IDS = (3, 4, 5, 6, 7, 8)
+log = logging.getLogger("hwsim")
+
+
+class EmulatedNode:
+    """One drive on the bus: glue between canopen's LocalNode and the pure Drive."""
+
+    def __init__(self, network: canopen.Network, node_id: int, limits: DriveLimits, position: float,
+                 rng: random.Random) -> None:
+        self.id = node_id
+        self.drive = Drive(limits)
+        self.drive.boot(position)
+        self.node = canopen.LocalNode(node_id, canopen.import_od(str(EDS_PATH), node_id))
+        network.add_node(self.node)
+        self.lock = threading.Lock()
+        self.rng = rng
+        self.drop = 0.0
+        self.frozen = False
+        self.node.sdo[0x607D][1].raw = to_counts(limits.lower)
+        self.node.sdo[0x607D][2].raw = to_counts(limits.upper)
+        self.node.add_write_callback(self._on_sdo_write)
+        self.node.rpdo.read(from_od=True)
+        self.node.tpdo.read(from_od=True)
+        self.node.rpdo[1].add_callback(self._on_rpdo1)
+        self._publish()
+        self.node.nmt.state = "PRE-OPERATIONAL"          # sends the boot-up message
+
+    def _lost(self) -> bool:
+        return self.frozen or (self.drop > 0 and self.rng.random() < self.drop)
+
+    def _on_rpdo1(self, pdo_map) -> None:
+        if self._lost():
+            return
+        values = {(v.index, v.subindex): v.raw for v in pdo_map}
+        with self.lock:
+            if (0x6040, 0) in values:
+                self._emcy(self.drive.on_controlword(int(values[(0x6040, 0)])))
+            if (0x60C1, 1) in values:
+                self.drive.on_setpoint(int(values[(0x60C1, 1)]))
+
+    def _on_sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
+        value = od.decode_raw(data)
+        with self.lock:
+            if index == 0x6040:
+                self._emcy(self.drive.on_controlword(int(value)))
+            elif index == 0x6060:
+                self.drive.mode = int(value)
+                self.node.sdo[0x6061].raw = int(value)
+            elif index == 0x60C1 and subindex == 1:
+                self.drive.on_setpoint(int(value))
+            elif index == 0x2F00:
+                self._inject(subindex, int(value))
+
+    def _inject(self, subindex: int, value: int) -> None:
+        if subindex == 1:
+            self.drop = min(max(value, 0), 1000) / 1000.0
+        elif subindex == 2:
+            self.node.nmt.stop_heartbeat() if value else self.node.nmt.start_heartbeat(self.node.sdo[0x1017].raw)
+        elif subindex == 3:
+            self.frozen = bool(value)
+            if value:
+                self.node.nmt.stop_heartbeat()
+            else:
+                self.node.nmt.start_heartbeat(self.node.sdo[0x1017].raw)
+        elif subindex == 4 and value:
+            self._emcy(self.drive.raise_fault(EMCY_DRIVE_FAULT))
+        log.info("node %d: fault injection 0x2F00:%d = %d", self.id, subindex, value)
+
+    def _emcy(self, codes: list[int]) -> None:
+        for code in codes:
+            register = 0 if code == 0 else 0x01
+            self.node.emcy.send(code, register)
+            self.node.sdo[0x1001].raw = register
+            log.warning("node %d: EMCY 0x%04X (%s)", self.id, code, self.drive.state.value)
+
+    def _publish(self) -> None:
+        d, od = self.drive, self.node.sdo
+        od[0x6041].raw = d.statusword()
+        od[0x6061].raw = d.mode
+        od[0x6064].raw = to_counts(d.position)
+        od[0x606C].raw = to_counts(d.velocity)
+        od[0x606B].raw = to_counts(d.velocity)
+
+    def on_sync(self, now: float) -> None:
+        if self._lost():
+            return
+        with self.lock:
+            self._emcy(self.drive.on_sync(now))
+            self._publish()
+        if self.node.nmt.state != "OPERATIONAL":
+            return
+        for n in (1, 2, 3):
+            tpdo = self.node.tpdo[n]
+            for var in tpdo:
+                var.raw = self.node.sdo[var.index][var.subindex].raw if var.subindex else self.node.sdo[var.index].raw
+            if not self._lost():
+                tpdo.transmit()
+
+    def watchdog(self, now: float) -> None:
+        with self.lock:
+            self._emcy(self.drive.watchdog(now))
+
+
+def build_limits(period: float) -> list[DriveLimits]:
+    lim = default_robot().limits
+    return [DriveLimits(float(lo), float(hi), float(v), float(a), period)
+            for lo, hi, v, a in zip(lim.lower, lim.upper, lim.velocity, lim.monitor_acceleration)]
+
+
+def run(interface: str, channel: str | None, start: np.ndarray, seed: int, stop: threading.Event) -> None:
+    bus = open_bus(interface, channel)
+    network = canopen.Network(bus)
+    network.connect()
+    rng = random.Random(seed)
+    nodes = [EmulatedNode(network, nid, lim, float(q), rng) for nid, lim, q in zip(NODE_IDS, build_limits(0.01), start)]
+    network.subscribe(0x80, lambda can_id, data, ts: [n.on_sync(time.monotonic()) for n in nodes])
+    print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}", flush=True)
+    try:
+        while not stop.wait(0.005):
+            now = time.monotonic()
+            for n in nodes:
+                n.watchdog(now)
+    finally:
+        for n in nodes:
+            n.node.nmt.stop_heartbeat()
+        network.disconnect()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="hwsim", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--interface", default="udp_multicast", help="python-can interface (default udp_multicast)")
+    parser.add_argument("--channel", default=None, help="channel (vcan0, can0, or a multicast group)")
+    parser.add_argument("--start", type=float, nargs=6, default=[1.57, -0.4, 1.17, 0.0, 1.57, 0.0],
+                        metavar="Q", help="joint positions at power-up (rad)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the frame-dropping fault injection")
+    parser.add_argument("--log-level", default="WARNING")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s hwsim %(levelname)s %(message)s")
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    try:
+        run(args.interface, args.channel, np.array(args.start), args.seed, stop)
+    except BusError as exc:
+        print(f"hwsim: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,167 @@
+"""The robot driver's decisions, as a pure core: no bus, no clock (the service passes `now`).
+
+Every cycle (one SYNC period) ``DriverCore.cycle`` takes what the drives reported (statusword, position,
+velocity, heartbeat age, EMCY) and returns the controlword and the position setpoint for each drive,
+plus safety events. States:
+
+* ENABLING: walk every drive to operation enabled (CiA 402, fault reset edges where needed), holding the
+  setpoints at the actual positions; then RUNNING once a fresh command starts where the robot is.
+* RUNNING: setpoint = the latest command, clamped to the joint limits and rate-limited to what the joint
+  can follow in one period (each clamp is a 'warning' safety event, reported once per episode).
+* STOPPED: quick stop on every drive, setpoints held at the actual positions. Entered on a command older
+  than command_timeout, a drive in fault, an EMCY, a heartbeat older than heartbeat_timeout, or a
+  drive leaving operation enabled; each with a 'stop' safety event. Left only on request() of
+  'recover', and only when no drive is in fault, all heartbeats are fresh and no EMCY is pending.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from shared.cia402 import State, next_controlword, state_from_statusword
+from shared.robot_model import JointLimits
+
+
+class Mode(enum.Enum):
+    ENABLING = "enabling"
+    RUNNING = "running"
+    STOPPED = "stopped"
+
+
+@dataclass
+class Feedback:
+    """What one drive last reported. statusword None: nothing received yet. heartbeat_age (s)."""
+
+    statusword: int | None = None
+    position: float = math.nan
+    velocity: float = 0.0
+    heartbeat_age: float = math.inf
+    emcy: int | None = None            # the last non-zero EMCY code not yet handled
+
+
+@dataclass
+class Event:
+    event: str
+    severity: str                      # info | warning | stop
+    text: str
+
+
+@dataclass
+class CycleOutput:
+    controlwords: list[int]
+    setpoints: np.ndarray              # rad
+    events: list[Event] = field(default_factory=list)
+    mode: Mode = Mode.ENABLING
+    drive_states: list[State] = field(default_factory=list)
+
+
+class DriverCore:
+    def __init__(self, limits: JointLimits, period: float = 0.01, command_timeout: float = 0.05,
+                 heartbeat_timeout: float = 0.3, start_tolerance: float = 0.02) -> None:
+        self.limits = limits
+        self.period = period
+        self.command_timeout = command_timeout
+        self.heartbeat_timeout = heartbeat_timeout
+        self.start_tolerance = start_tolerance
+        self.mode = Mode.ENABLING
+        self._command: np.ndarray | None = None
+        self._command_time = -math.inf
+        self._setpoint: np.ndarray | None = None
+        self._reset_phase = False
+        self._clamping = False
+        self._recover = False
+        self.stop_reason = ""
+
+    # ------------------------------------------------------------------------------------------ inputs
+    def command(self, q: np.ndarray, now: float) -> None:
+        self._command = np.asarray(q, dtype=float).copy()
+        self._command_time = now
+
+    def request(self, action: str) -> None:
+        if action == "recover":
+            self._recover = True
+        elif action == "stop":
+            self._stop("requested", "stop requested")
+
+    # ------------------------------------------------------------------------------------------ cycle
+    def _stop(self, event: str, text: str) -> list[Event]:
+        if self.mode is Mode.STOPPED:
+            return []
+        self.mode, self.stop_reason, self._recover = Mode.STOPPED, text, False
+        return [Event(event, "stop", text)]
+
+    def _faults(self, feedback: list[Feedback], states: list[State]) -> tuple[str, str] | None:
+        for k, (fb, st) in enumerate(zip(feedback, states)):
+            if fb.heartbeat_age > self.heartbeat_timeout:
+                return "heartbeat_lost", f"joint {k + 1}: no heartbeat for {fb.heartbeat_age * 1000:.0f} ms"
+            if fb.emcy:
+                return "emcy", f"joint {k + 1}: EMCY 0x{fb.emcy:04X}"
+            if st in (State.FAULT, State.FAULT_REACTION_ACTIVE):
+                return "drive_fault", f"joint {k + 1}: drive in {st.value}"
+        return None
+
+    def cycle(self, now: float, feedback: list[Feedback]) -> CycleOutput:
+        n = len(feedback)
+        states = [state_from_statusword(fb.statusword) if fb.statusword is not None else State.NOT_READY
+                  for fb in feedback]
+        actual = np.array([fb.position for fb in feedback])
+        events: list[Event] = []
+        if self._setpoint is None or not np.all(np.isfinite(self._setpoint)):
+            self._setpoint = actual.copy()
+        fault = self._faults(feedback, states)
+        # while enabling, a drive still in fault is expected (it is being reset); a lost heartbeat or a new
+        # EMCY is not
+        if fault is not None and (self.mode is Mode.RUNNING or fault[0] in ("heartbeat_lost", "emcy")):
+            events += self._stop(*fault)
+        if self.mode is Mode.RUNNING:
+            if now - self._command_time > self.command_timeout:
+                events += self._stop("stale_command", f"no command for {(now - self._command_time) * 1000:.0f} ms")
+            elif any(st is not State.OPERATION_ENABLED for st in states):
+                events += self._stop("drive_disabled", "a drive left operation enabled")
+        if self.mode is Mode.STOPPED:
+            if self._recover:
+                if fault is None or fault[0] in ("drive_fault", "emcy"):
+                    self.mode, self._recover = Mode.ENABLING, False
+                    events.append(Event("recovering", "info", "recovery requested: resetting and enabling"))
+                else:
+                    events.append(Event("recover_refused", "warning", f"recovery refused: {fault[1]}"))
+                    self._recover = False
+        if self.mode is Mode.ENABLING:
+            if all(st is State.OPERATION_ENABLED for st in states) and self._fresh(now):
+                if np.abs(self._command - actual).max() <= self.start_tolerance:
+                    self.mode, self._setpoint = Mode.RUNNING, actual.copy()
+                    events.append(Event("running", "info", "all drives enabled, following commands"))
+        if self.mode is Mode.RUNNING:
+            events += self._follow()
+            controlwords = [next_controlword(st, State.OPERATION_ENABLED) for st in states]
+        elif self.mode is Mode.ENABLING:
+            self._setpoint = np.where(np.isfinite(actual), actual, self._setpoint)
+            self._reset_phase = not self._reset_phase
+            controlwords = [next_controlword(st, State.OPERATION_ENABLED, ip_running=True,
+                                             reset_phase=self._reset_phase) for st in states]
+        else:
+            self._setpoint = np.where(np.isfinite(actual), actual, self._setpoint)
+            controlwords = [next_controlword(st, State.QUICK_STOP_ACTIVE) if st is State.OPERATION_ENABLED
+                            else next_controlword(st, State.SWITCH_ON_DISABLED) for st in states]
+        return CycleOutput(controlwords, self._setpoint.copy(), events, self.mode, states)
+
+    def _fresh(self, now: float) -> bool:
+        return self._command is not None and now - self._command_time <= self.command_timeout
+
+    def _follow(self) -> list[Event]:
+        lim = self.limits
+        wanted = np.clip(self._command, lim.lower, lim.upper)
+        step = lim.velocity * self.period
+        moved = np.clip(wanted - self._setpoint, -step, step)
+        clamped = bool(np.any(wanted != self._command) or np.any(moved != wanted - self._setpoint))
+        self._setpoint = self._setpoint + moved
+        events = []
+        if clamped and not self._clamping:
+            events.append(Event("command_clamped", "warning",
+                                "a command beyond the joint limits or faster than the joints was clamped"))
+        self._clamping = clamped
+        return events
