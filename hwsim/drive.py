@@ -10,7 +10,7 @@ Behaviour (PRBT facts sheet, sections 3 and 4; CiA 402 where the sheet is silent
 * quick stop and fault reaction brake at the acceleration limit; a fault reaction ends in FAULT;
 * protections, each a fault with an EMCY code: a setpoint outside the software position limits
   (0x8612), a setpoint step the joint cannot follow in one period (0x8611), no SYNC for sync_timeout_factor
-  periods while enabled (0x8100), no new setpoint for that many SYNCs while interpolating (0x8250), an
+  periods while powered (0x8100), no new setpoint for that many SYNCs while interpolating (0x8250), an
   injected drive fault (0x5000). A fault reset sends the EMCY "error reset" (0x0000).
 """
 
@@ -107,8 +107,10 @@ class Drive:
         return [code]
 
     def watchdog(self, now: float) -> list[int]:
-        """Called between SYNCs: no SYNC for sync_timeout_factor periods while enabled is a fault."""
-        if self.last_sync is None or self.state is not State.OPERATION_ENABLED:
+        """Called between SYNCs: once SYNC has run, no SYNC for sync_timeout_factor periods while the drive is
+        powered (ready, switched on, enabled, quick stop) is a fault."""
+        powered = (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE)
+        if self.last_sync is None or self.state not in powered:
             return []
         if now - self.last_sync > self.limits.sync_timeout_factor * self.limits.period:
             return self.raise_fault(EMCY_SYNC_TIMEOUT)

@@ -45,7 +45,8 @@ class EmulatedNode:
         self.drive.boot(position)
         self.node = canopen.LocalNode(node_id, canopen.import_od(str(EDS_PATH), node_id))
         network.add_node(self.node)
-        self.lock = threading.Lock()
+        # re-entrant: writing an OD value runs the node's write callbacks again, under this lock
+        self.lock = threading.RLock()
         self.rng = rng
         self.drop = 0.0
         self.frozen = False
@@ -56,7 +57,23 @@ class EmulatedNode:
         self.node.tpdo.read(from_od=True)
         self.node.rpdo[1].add_callback(self._on_rpdo1)
         self._publish()
-        self.node.nmt.state = "PRE-OPERATIONAL"          # sends the boot-up message
+        network.subscribe(0, self._on_nmt)               # after the NMT slave's own handler
+        self._boot()
+
+    def _boot(self) -> None:
+        """Boot-up message, then pre-operational (canopen's NMT slave starts the heartbeat on that)."""
+        self.node.network.send_message(0x700 + self.id, [0])
+        self.node.nmt.state = "PRE-OPERATIONAL"
+
+    def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """canopen's NMT slave sets INITIALISING on a reset and stops there: finish the reset."""
+        if len(data) < 2 or data[1] not in (0, self.id) or data[0] not in (0x81, 0x82) or self.frozen:
+            return
+        if data[0] == 0x81:                              # reset node: the application restarts too
+            with self.lock:
+                self.drive.boot(self.drive.position)
+                self.drive.mode = 0
+        self._boot()
 
     def _lost(self) -> bool:
         return self.frozen or (self.drop > 0 and self.rng.random() < self.drop)

@@ -10,7 +10,7 @@
 
 from __future__ import annotations
 
-import os
+import socket
 
 import can
 
@@ -25,8 +25,10 @@ class BusError(HrcError):
 
 
 def network_interfaces() -> list[str]:
+    """Interfaces of this process's network namespace (if_nameindex asks the kernel for the current
+    namespace; /sys/class/net would show the namespace sysfs was mounted in)."""
     try:
-        return sorted(os.listdir("/sys/class/net"))
+        return sorted(name for _, name in socket.if_nameindex())
     except OSError:
         return []
 

@@ -9,6 +9,7 @@ Every service takes its keys from here, so the topic layout lives in one place:
     <prefix>/scaler/command       scaler -> robot_driver           JointCommand
     <prefix>/scaler/status        scaler -> planner, CLI           ScalerStatus
     <prefix>/robot/joint_state    robot_driver -> scaler, planner, monitor     JointState
+    <prefix>/robot/request        CLI -> robot_driver              DriverRequest (stop, recover)
     <prefix>/safety/events        every service -> CLI, logs       SafetyEvent
     <prefix>/alive/<service>      liveliness token of each service
 """
@@ -74,6 +75,10 @@ class KeySpace:
     @property
     def joint_state(self) -> str:
         return self._key("robot/joint_state")
+
+    @property
+    def driver_request(self) -> str:
+        return self._key("robot/request")
 
     @property
     def safety_events(self) -> str:

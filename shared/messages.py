@@ -207,8 +207,22 @@ class SafetyEvent(Message):
             raise MessageError(f"safety_event.severity: expected info, warning or stop, got {self.severity!r}")
 
 
+@dataclass(frozen=True)
+class DriverRequest(Message):
+    """Ask the robot driver to 'stop' (quick stop all drives) or 'recover' (reset and re-enable, if safe)."""
+
+    KIND: ClassVar[str] = "driver_request"
+    SPEC: ClassVar[dict[str, Spec]] = {"action": S, "source": S}
+    action: str
+    source: str
+
+    def check(self) -> None:
+        if self.action not in ("stop", "recover"):
+            raise MessageError(f"driver_request.action: expected stop or recover, got {self.action!r}")
+
+
 MESSAGE_TYPES: dict[str, type[Message]] = {cls.KIND: cls for cls in (
-    HumanRaw, HumanState, Goal, TrajectoryMsg, JointCommand, ScalerStatus, JointState, SafetyEvent)}
+    HumanRaw, HumanState, Goal, TrajectoryMsg, JointCommand, ScalerStatus, JointState, SafetyEvent, DriverRequest)}
 
 
 def _same_rows(msg: Message, *names: str) -> None:

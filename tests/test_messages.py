@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from shared.errors import MessageError
-from shared.messages import (MESSAGE_TYPES, SCHEMA_VERSION, Goal, HumanState, JointCommand, SafetyEvent,
+from shared.messages import (MESSAGE_TYPES, SCHEMA_VERSION, DriverRequest, Goal, HumanState, JointCommand, SafetyEvent,
                              TrajectoryMsg, decode, encode, message_fields)
 
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
@@ -47,6 +47,8 @@ def messages(draw, cls=None):
         values["junction"] = min(values["junction"], values["times"][-1])
     if cls is SafetyEvent:
         values["severity"] = draw(st.sampled_from(["info", "warning", "stop"]))
+    if cls is DriverRequest:
+        values["action"] = draw(st.sampled_from(["stop", "recover"]))
     return cls(**values, seq=draw(st.integers(0, 2 ** 40)), stamp=draw(finite))
 
 

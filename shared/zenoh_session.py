@@ -1,0 +1,46 @@
+"""The one place that opens Zenoh sessions, so every session is built safe.
+
+Multicast scouting is always off (it would send packets out of the machine's network interfaces);
+endpoints are explicit and, unless allow_remote is set (the multi-host deployment, through a router on
+the cell network), must be loopback: tcp/127.0.0.1:PORT or tcp/[::1]:PORT. Peers do not forward for
+each other, so either every peer listens on its own loopback port or all connect to one router.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+import zenoh
+
+from shared.errors import ConfigError
+
+_LOOPBACK = re.compile(r"^tcp/(127\.0\.0\.1|\[::1\]):\d{1,5}$")
+
+
+def check_endpoints(endpoints: list[str], allow_remote: bool = False) -> list[str]:
+    for e in endpoints:
+        if not isinstance(e, str) or not e.startswith("tcp/"):
+            raise ConfigError(f"zenoh endpoint {e!r}: expected tcp/HOST:PORT")
+        if not allow_remote and not _LOOPBACK.match(e):
+            raise ConfigError(f"zenoh endpoint {e!r}: only loopback (tcp/127.0.0.1:PORT) is allowed here")
+    return list(endpoints)
+
+
+def make_config(mode: str = "peer", listen: list[str] = (), connect: list[str] = (),
+                allow_remote: bool = False) -> zenoh.Config:
+    if mode not in ("peer", "client", "router"):
+        raise ConfigError(f"zenoh mode {mode!r}: expected peer, client or router")
+    config = zenoh.Config()
+    config.insert_json5("mode", json.dumps(mode))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    config.insert_json5("scouting/gossip/enabled", "true" if mode == "peer" else "false")
+    config.insert_json5("listen/endpoints", json.dumps(check_endpoints(list(listen), allow_remote)))
+    config.insert_json5("connect/endpoints", json.dumps(check_endpoints(list(connect), allow_remote)))
+    return config
+
+
+def open_session(mode: str = "peer", listen: list[str] = (), connect: list[str] = (),
+                 allow_remote: bool = False) -> zenoh.Session:
+    """Open a Zenoh session with the safe config (see module docstring)."""
+    return zenoh.open(make_config(mode, listen, connect, allow_remote))

@@ -1,0 +1,324 @@
+"""Hardware-in-the-loop harness: the emulator and the robot driver as separate processes on a CAN bus,
+driven and observed from here over Zenoh (commands, joint states, safety events) and CAN (fault
+injection by SDO, EMCY frames, garbage frames). Prints one JSON object with the result of each scenario.
+
+Run it inside a private network namespace for udp_multicast (the tests do: unshare -rn), or with
+--interface socketcan --channel vcan0 where the kernel has vcan. Every process it starts is its child,
+dies with it (PR_SET_PDEATHSIG) and is ended by PID at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import math
+import os
+import random
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import can
+import canopen
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+
+from hwsim.emulator import EDS_PATH, NODE_IDS  # noqa: E402
+from shared.canbus import open_bus  # noqa: E402
+from shared.keys import KeySpace  # noqa: E402
+from shared.messages import DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode  # noqa: E402
+from shared.zenoh_session import open_session  # noqa: E402
+
+Q0 = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+PERIOD = 0.01
+
+
+def _die_with_parent() -> None:
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)     # PR_SET_PDEATHSIG
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Cell:
+    def __init__(self, interface: str, channel: str | None) -> None:
+        self.interface, self.channel = interface, channel
+        self.port = free_port()
+        self.keys = KeySpace("hil/cell")
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.states: list[tuple[float, JointState]] = []
+        self.events: list[tuple[float, SafetyEvent]] = []
+        self.emcy: list[tuple[float, int, int]] = []
+        self.lock = threading.Lock()
+        self.seq = 0
+
+    def _spawn(self, name: str, args: list[str]) -> None:
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        self.procs[name] = subprocess.Popen([sys.executable, "-m", *args], cwd=ROOT, env=env,
+                                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                            preexec_fn=_die_with_parent)
+
+    def start(self) -> None:
+        bus_args = ["--interface", self.interface] + (["--channel", self.channel] if self.channel else [])
+        self._spawn("hwsim", ["hwsim", *bus_args])
+        self._expect_line("hwsim", "hwsim: PRBT emulator")
+        self._spawn("driver", ["services.robot_driver", *bus_args, "--prefix", self.keys.prefix,
+                               "--listen", f"tcp/127.0.0.1:{self.port}", "--log-level", "WARNING"])
+        self._expect_line("driver", "robot_driver: drives up", timeout=30)
+        self.session = open_session("peer", connect=[f"tcp/127.0.0.1:{self.port}"])
+        self.cmd_pub = self.session.declare_publisher(self.keys.command)
+        self.req_pub = self.session.declare_publisher(self.keys.driver_request)
+        self.subs = [self.session.declare_subscriber(self.keys.joint_state, self._on_state),
+                     self.session.declare_subscriber(self.keys.safety_events, self._on_event)]
+        self.tool = canopen.Network(open_bus(self.interface, self.channel))
+        self.tool.connect()
+        self.nodes = {}
+        for nid in NODE_IDS:
+            node = canopen.RemoteNode(nid, canopen.import_od(str(EDS_PATH), nid))
+            self.tool.add_node(node)
+            self.nodes[nid] = node
+            self.tool.subscribe(0x80 + nid, lambda cid, data, ts: self._on_emcy(cid, data))
+        self.sync_stamps: list[float] = []
+        self.tool.subscribe(0x80, lambda cid, data, ts: self.sync_stamps.append(time.monotonic()))
+
+    def _expect_line(self, name: str, text: str, timeout: float = 20.0) -> None:
+        proc = self.procs[name]
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if text in line:
+                threading.Thread(target=self._drain, args=(name,), daemon=True).start()
+                return
+            if not line and proc.poll() is not None:
+                break
+        raise RuntimeError(f"{name} did not start (exit {proc.poll()})")
+
+    def _drain(self, name: str) -> None:
+        for line in self.procs[name].stdout:
+            if os.environ.get("HIL_VERBOSE"):
+                sys.stderr.write(f"[{name}] {line}")
+
+    def _on_state(self, sample) -> None:
+        msg = decode(sample.payload.to_bytes(), JointState)
+        with self.lock:
+            self.states.append((time.monotonic(), msg))
+
+    def _on_event(self, sample) -> None:
+        msg = decode(sample.payload.to_bytes(), SafetyEvent)
+        with self.lock:
+            self.events.append((time.monotonic(), msg))
+
+    def _on_emcy(self, can_id: int, data: bytes) -> None:
+        if len(data) >= 2:
+            with self.lock:
+                self.emcy.append((time.monotonic(), can_id - 0x80, int.from_bytes(data[:2], "little")))
+
+    # ------------------------------------------------------------------------------------------ helpers
+    def latest(self) -> JointState | None:
+        with self.lock:
+            return self.states[-1][1] if self.states else None
+
+    def command(self, q: np.ndarray) -> None:
+        self.seq += 1
+        self.cmd_pub.put(encode(JointCommand(q=np.asarray(q, float), qd=np.zeros(6), trajectory_version=0, s=0.0,
+                                             seq=self.seq, stamp=time.monotonic())))
+
+    def request(self, action: str) -> None:
+        self.req_pub.put(encode(DriverRequest(action=action, source="hil")))
+
+    def hold_until(self, condition, timeout: float, q: np.ndarray | None = None) -> float | None:
+        """Send commands (q, or the measured position) every period until condition(); its time or None."""
+        start = time.monotonic()
+        while time.monotonic() - start < timeout:
+            state = self.latest()
+            if q is not None:
+                self.command(q)
+            elif state is not None:
+                self.command(state.q)
+            if state is not None and condition(state):
+                return time.monotonic() - start
+            time.sleep(PERIOD)
+        return None
+
+    def events_since(self, t0: float) -> list[tuple[float, SafetyEvent]]:
+        with self.lock:
+            return [(t, e) for t, e in self.events if t >= t0]
+
+    def stop(self) -> None:
+        for name, proc in self.procs.items():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGCONT)
+                proc.terminate()
+        for proc in self.procs.values():
+            try:
+                proc.wait(5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        try:
+            self.tool.disconnect()
+            self.session.close()
+        except Exception:
+            pass
+
+
+def recover(cell: Cell, timeout: float = 5.0) -> bool:
+    cell.request("recover")
+    return cell.hold_until(lambda s: s.enabled, timeout) is not None
+
+
+# ---------------------------------------------------------------------------------------------- scenarios
+def enable(cell: Cell) -> dict:
+    t = cell.hold_until(lambda s: s.enabled, 10.0)
+    return {"ok": t is not None, "enable_s": t}
+
+
+def follow(cell: Cell) -> dict:
+    start = cell.latest().q.copy()
+    errors, t0 = [], time.monotonic()
+    duration = 2.0
+    while (elapsed := time.monotonic() - t0) < duration + 0.5:
+        u = min(elapsed / duration, 1.0)
+        target = start + np.array([-0.6, 0.2, -0.2, 0.3, -0.3, 0.5]) * 0.5 * (1 - math.cos(math.pi * u))
+        cell.command(target)
+        state = cell.latest()
+        errors.append(float(np.abs(state.q - target).max()))
+        time.sleep(PERIOD)
+    final = float(np.abs(cell.latest().q - target).max())
+    return {"ok": final < 0.005 and max(errors) < 0.1, "max_error_rad": max(errors), "final_error_rad": final,
+            "enabled": cell.latest().enabled}
+
+
+def stale_command(cell: Cell) -> dict:
+    cell.hold_until(lambda s: False, 0.5)                   # steady, then moving: a ramp on joint 1
+    q = cell.latest().q.copy()
+    for k in range(50):
+        q[0] -= 0.012
+        cell.command(q)
+        time.sleep(PERIOD)
+    t_last = time.monotonic()
+    time.sleep(1.0)                                          # nothing more is sent
+    events = [(t - t_last, e) for t, e in cell.events_since(t_last) if e.event == "stale_command"]
+    with cell.lock:
+        moving_after = [t - t_last for t, s in cell.states if t > t_last and np.abs(s.qd).max() > 1e-3]
+    stop_time = max(moving_after) if moving_after else 0.0
+    return {"ok": bool(events) and events[0][0] <= 0.1 and stop_time <= 0.6 and not cell.latest().enabled,
+            "event_after_s": events[0][0] if events else None, "standstill_after_s": stop_time}
+
+
+def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...], within: float) -> dict:
+    ok_recover = recover(cell)
+    t0 = time.monotonic()
+    cell.nodes[node_id].sdo[0x2F00][sub].raw = 1
+    detected = cell.hold_until(lambda s: not s.enabled, within + 0.5)
+    events = [(t - t0, e.event) for t, e in cell.events_since(t0) if e.severity == "stop"]
+    time.sleep(0.3)
+    state = cell.latest()
+    if sub != 4:
+        cell.nodes[node_id].sdo[0x2F00][sub].raw = 0
+    stopped_all = "operation_enabled" not in state.drive_state.split(":")[1].split("/")
+    return {"ok": ok_recover and detected is not None and detected <= within + 0.1 and bool(events)
+            and events[0][1] in expect and stopped_all,
+            "recovered_first": ok_recover, "detected_after_s": detected, "events": events[:3],
+            "drive_state": state.drive_state}
+
+
+def heartbeat_loss(cell: Cell) -> dict:
+    return _fault_scenario(cell, 5, 2, ("heartbeat_lost",), 0.3 + 0.1)
+
+
+def drive_fault(cell: Cell) -> dict:
+    return _fault_scenario(cell, 7, 4, ("emcy", "drive_fault"), 0.05)
+
+
+def emulator_watchdog(cell: Cell) -> dict:
+    ok_recover = recover(cell)
+    cell.hold_until(lambda s: False, 0.2)                    # running, commands flowing
+    t0 = time.monotonic()
+    cell.procs["driver"].send_signal(signal.SIGSTOP)        # SYNC and targets stop
+    time.sleep(0.5)
+    with cell.lock:
+        emcy = [(t - t0, node, code) for t, node, code in cell.emcy if t >= t0 and code]
+    cell.procs["driver"].send_signal(signal.SIGCONT)
+    time.sleep(0.5)
+    nodes = sorted({node for _, node, code in emcy if code == 0x8100})
+    first = min((t for t, _, code in emcy if code == 0x8100), default=None)
+    return {"ok": ok_recover and nodes == list(NODE_IDS) and first is not None and first <= 0.06 + 0.05,
+            "recovered_first": ok_recover, "sync_timeout_emcy_nodes": nodes, "first_after_s": first, "emcy": emcy[:8],
+            "driver_alive": cell.procs["driver"].poll() is None}
+
+
+def garbage_frames(cell: Cell) -> dict:
+    rng = random.Random(7)
+    # a raw bus of its own: sending on the tool's filtered bus would make it drop real frames with those ids
+    bus = can.Bus(interface=cell.interface, channel=cell.channel or "239.74.163.2")
+    ids = [0x000, 0x080, 0x700 + 3] + [base + nid for base in (0x180, 0x200, 0x300, 0x380, 0x600, 0x580)
+                                        for nid in NODE_IDS] + [rng.randrange(0x800) for _ in range(20)]
+    sent = 0
+    t_end = time.monotonic() + 1.0
+    while time.monotonic() < t_end:
+        cid = rng.choice(ids)
+        data = bytes(rng.randrange(256) for _ in range(rng.randrange(9)))
+        if cid == 0x000:                  # never a valid NMT command: those would legitimately act
+            data = bytes([0x55, 0x00])
+        bus.send(can.Message(arbitration_id=cid, data=data, is_extended_id=False))
+        sent += 1
+        time.sleep(0.0005)
+    bus.shutdown()
+    time.sleep(0.3)
+    alive = {name: proc.poll() is None for name, proc in cell.procs.items()}
+    try:
+        answer = cell.nodes[3].sdo[0x1018][1].raw
+    except Exception as exc:
+        answer = f"no SDO answer: {exc}"
+    before = len(cell.states)
+    time.sleep(0.3)
+    publishing = len(cell.states) > before
+    recovered = recover(cell)
+    return {"ok": all(alive.values()) and answer == 1547 and publishing and recovered,
+            "frames": sent, "alive": alive, "sdo_after": answer, "driver_publishing": publishing,
+            "recovered_after": recovered}
+
+
+SCENARIOS = {"enable": enable, "follow": follow, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
+             "drive_fault": drive_fault, "emulator_watchdog": emulator_watchdog, "garbage_frames": garbage_frames}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--interface", default="udp_multicast")
+    parser.add_argument("--channel", default=None)
+    parser.add_argument("--scenarios", nargs="*", default=list(SCENARIOS))
+    args = parser.parse_args()
+    if args.interface == "udp_multicast":
+        for cmd in (["ip", "link", "set", "lo", "up"], ["ip", "link", "set", "lo", "multicast", "on"],
+                    ["ip", "route", "add", "224.0.0.0/4", "dev", "lo"]):
+            subprocess.run(cmd, check=True)
+    cell = Cell(args.interface, args.channel)
+    results = {"transport": f"{args.interface}:{args.channel or ''}"}
+    try:
+        cell.start()
+        for name in args.scenarios:
+            try:
+                results[name] = SCENARIOS[name](cell)
+            except Exception as exc:                     # a scenario's own failure, reported, not hidden
+                results[name] = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+        results["sync_intervals_ms"] = list(np.diff(cell.sync_stamps[-600:]) * 1e3) if len(cell.sync_stamps) > 2 else []
+    finally:
+        cell.stop()
+    results.pop("sync_intervals_ms", None)
+    print(json.dumps(results, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,58 @@
+"""Hardware-in-the-loop: the PRBT emulator and the robot driver as separate processes on a CAN bus.
+
+udp_multicast runs inside a private network namespace made here (unshare -rn: only lo, a multicast
+route on lo), so no frame can leave the machine. vcan runs where the kernel has it, and says so when it
+has not. tests/hil/harness.py starts both processes, drives them, and reports each scenario.
+"""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+HARNESS = Path(__file__).parent / "hil" / "harness.py"
+SCENARIOS = ["enable", "follow", "stale_command", "heartbeat_loss", "drive_fault", "emulator_watchdog", "garbage_frames"]
+
+
+def _namespace_reason() -> str | None:
+    if not shutil.which("unshare") or not shutil.which("ip"):
+        return "unshare or ip (iproute2) is not installed"
+    probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True, text=True)
+    return None if probe.returncode == 0 else f"unshare -rn is not permitted here: {probe.stderr.strip()}"
+
+
+def run_harness(prefix: list[str], extra: list[str]) -> dict:
+    out = subprocess.run(prefix + [sys.executable, str(HARNESS), *extra], capture_output=True, text=True, timeout=240)
+    lines = [line for line in out.stdout.splitlines() if line.startswith("{")]
+    assert lines, f"harness printed no result (exit {out.returncode}):\n{out.stdout[-2000:]}\n{out.stderr[-3000:]}"
+    return json.loads(lines[-1])
+
+
+@pytest.fixture(scope="module")
+def udp_results():
+    reason = _namespace_reason()
+    if reason:
+        print(f"SKIP: no private network namespace ({reason}); the driver core is covered in lockstep by "
+              "tests/test_driver_core.py")
+        pytest.skip(reason)
+    return run_harness(["unshare", "-rn"], ["--interface", "udp_multicast"])
+
+
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_over_udp_multicast_in_a_namespace(udp_results, scenario):
+    print(f"transport {udp_results['transport']}: {scenario}: {udp_results[scenario]}")
+    assert udp_results[scenario]["ok"], udp_results[scenario]
+
+
+def test_over_vcan():
+    if not os.path.exists("/sys/class/net/vcan0"):
+        reason = "no vcan0 in this kernel (modprobe vcan; ip link add vcan0 type vcan)"
+        print(f"SKIP: {reason}; the same scenarios ran over udp_multicast in a private namespace")
+        pytest.skip(reason)
+    results = run_harness([], ["--interface", "socketcan", "--channel", "vcan0"])
+    failed = {k: v for k, v in results.items() if isinstance(v, dict) and not v["ok"]}
+    assert not failed, failed
