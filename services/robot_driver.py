@@ -69,8 +69,7 @@ class CanMaster:
 
     def bring_up(self, timeout: float = 10.0) -> None:
         for k, node in enumerate(self.nodes):
-            node.nmt.send_command(0x82)                                  # reset communication
-            node.nmt.wait_for_bootup(timeout)
+            self._reset_communication(node, timeout)
             node.sdo[0x1017].raw = 100
             ident = {"node": node.id, "vendor": node.sdo[0x1018][1].raw, "product": node.sdo[0x1018][2].raw,
                      "revision": node.sdo[0x1018][3].raw, "serial": node.sdo[0x1018][4].raw,
@@ -94,6 +93,23 @@ class CanMaster:
             log.info("node %d up: %s", node.id, ident)
         for node in self.nodes:
             node.nmt.wait_for_heartbeat(2.0)
+
+    def _reset_communication(self, node, timeout: float) -> None:
+        """NMT reset communication, then wait for the boot-up. The listener is in place before the command:
+        a drive answers within microseconds, before canopen's wait_for_bootup would start waiting."""
+        booted = threading.Event()
+
+        def on_frame(can_id: int, data: bytes, timestamp: float) -> None:
+            if data[:1] == b"\x00":
+                booted.set()
+
+        self.network.subscribe(0x700 + node.id, on_frame)
+        try:
+            node.nmt.send_command(0x82)
+            if not booted.wait(timeout):
+                raise HrcError(f"node {node.id}: no boot-up within {timeout:.0f} s of a communication reset")
+        finally:
+            self.network.unsubscribe(0x700 + node.id, on_frame)
 
     def _on_tpdo(self, k: int, pdo_map) -> None:
         with self.lock:
@@ -262,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     except (BusError, HrcError) as exc:
         print(f"robot_driver: error: {exc}", file=sys.stderr)
         return 2
-    except canopen.SdoCommunicationError as exc:
+    except (canopen.SdoCommunicationError, canopen.nmt.NmtError) as exc:
         print(f"robot_driver: error: a drive did not answer: {exc}", file=sys.stderr)
         return 2
 

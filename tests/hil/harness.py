@@ -63,8 +63,8 @@ class Cell:
         self.seq = 0
 
     def _spawn(self, name: str, args: list[str]) -> None:
-        env = dict(os.environ, PYTHONPATH=str(ROOT))
-        self.procs[name] = subprocess.Popen([sys.executable, "-m", *args], cwd=ROOT, env=env,
+        env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
+        self.procs[name] = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", *args], cwd=ROOT, env=env,
                                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                             preexec_fn=_die_with_parent)
 
@@ -94,14 +94,16 @@ class Cell:
     def _expect_line(self, name: str, text: str, timeout: float = 20.0) -> None:
         proc = self.procs[name]
         deadline = time.monotonic() + timeout
+        seen: list[str] = []
         while time.monotonic() < deadline:
             line = proc.stdout.readline()
             if text in line:
                 threading.Thread(target=self._drain, args=(name,), daemon=True).start()
                 return
+            seen.append(line)
             if not line and proc.poll() is not None:
                 break
-        raise RuntimeError(f"{name} did not start (exit {proc.poll()})")
+        raise RuntimeError(f"{name} did not start (exit {proc.poll()}): " + "".join(seen[-15:]))
 
     def _drain(self, name: str) -> None:
         for line in self.procs[name].stdout:
