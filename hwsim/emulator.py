@@ -117,6 +117,8 @@ class EmulatedNode:
         log.info("node %d: fault injection 0x2F00:%d = %d", self.id, subindex, value)
 
     def _emcy(self, codes: list[int]) -> None:
+        if self.frozen:                                   # a frozen node is silent
+            return
         for code in codes:
             register = 0 if code == 0 else 0x01
             self.node.emcy.send(code, register)
@@ -147,6 +149,8 @@ class EmulatedNode:
                 tpdo.transmit()
 
     def watchdog(self, now: float) -> None:
+        if self.frozen:
+            return
         with self.lock:
             self._emcy(self.drive.watchdog(now))
 

@@ -77,9 +77,15 @@ class DriverCore:
         self.stop_reason = ""
 
     # ------------------------------------------------------------------------------------------ inputs
-    def command(self, q: np.ndarray, now: float) -> None:
+    def command(self, q: np.ndarray, now: float) -> np.ndarray | None:
+        """Take a new command. While running, returns the setpoint it gives right away (clamped and
+        rate-limited against the last SYNC's setpoint, exactly as the next cycle will), so the service can
+        put it on the bus before the SYNC; None otherwise."""
         self._command = np.asarray(q, dtype=float).copy()
         self._command_time = now
+        if self.mode is not Mode.RUNNING or self._setpoint is None:
+            return None
+        return self._limited(self._command, self._setpoint)[0]
 
     def request(self, action: str) -> None:
         if action == "recover":
@@ -152,13 +158,17 @@ class DriverCore:
     def _fresh(self, now: float) -> bool:
         return self._command is not None and now - self._command_time <= self.command_timeout
 
-    def _follow(self) -> list[Event]:
+    def _limited(self, command: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The command clipped to the joint limits and to one period's travel from the previous setpoint."""
         lim = self.limits
-        wanted = np.clip(self._command, lim.lower, lim.upper)
+        wanted = np.clip(command, lim.lower, lim.upper)
         step = lim.velocity * self.period
-        moved = np.clip(wanted - self._setpoint, -step, step)
-        clamped = bool(np.any(wanted != self._command) or np.any(moved != wanted - self._setpoint))
-        self._setpoint = self._setpoint + moved
+        moved = np.clip(wanted - previous, -step, step)
+        clamped = bool(np.any(wanted != command) or np.any(moved != wanted - previous))
+        return previous + moved, clamped
+
+    def _follow(self) -> list[Event]:
+        self._setpoint, clamped = self._limited(self._command, self._setpoint)
         events = []
         if clamped and not self._clamping:
             events.append(Event("command_clamped", "warning",

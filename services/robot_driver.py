@@ -7,7 +7,11 @@ Thin shell around ``services.driver_core.DriverCore``:
   (invalidate, map, transmission type, validate), NMT start;
 * a cycle thread at the SYNC period (default 10 ms; deadline sleeping, not asyncio's millisecond
   timers): the core's controlwords and setpoints go out as RPDO1 on every node, then SYNC; the drives'
-  TPDOs come back; the joint state is published on Zenoh, and every core event as a SafetyEvent;
+  TPDOs come back and, as soon as every drive has answered the SYNC, the joint state is published on
+  Zenoh (from the CAN thread, not a cycle later); every core event goes out as a SafetyEvent;
+* a command that arrives while running goes on the bus at once (RPDO1 is synchronous: the drives take
+  the latest setpoint at the next SYNC), clamped and rate-limited exactly as the cycle will, so a command
+  waits for the SYNC inside the drive instead of in this process;
 * asyncio main: Zenoh subscriptions (joint commands, stop / recover requests), liveliness token,
   SIGTERM. A malformed message is logged and dropped; the service goes on.
 
@@ -20,6 +24,7 @@ import argparse
 import asyncio
 import logging
 import math
+import os
 import signal
 import sys
 import threading
@@ -64,8 +69,12 @@ class CanMaster:
             self.nodes.append(node)
         self.feedback_raw = [_NodeFeedback() for _ in node_ids]
         self.lock = threading.Lock()
+        self.send_lock = threading.Lock()          # the cycle and early commands both write RPDO1
         self.identity: list[dict] = []
         self._setpoint_vars = []
+        self._fresh: set[int] = set()
+        self.on_complete = None            # called (from the CAN thread) once every drive answered a SYNC
+        self.completed = False             # set with each complete answer; the cycle clears it
 
     def bring_up(self, timeout: float = 10.0) -> None:
         for k, node in enumerate(self.nodes):
@@ -112,6 +121,7 @@ class CanMaster:
             self.network.unsubscribe(0x700 + node.id, on_frame)
 
     def _on_tpdo(self, k: int, pdo_map) -> None:
+        complete = False
         with self.lock:
             fb = self.feedback_raw[k]
             for v in pdo_map:
@@ -119,8 +129,16 @@ class CanMaster:
                     fb.statusword = int(v.raw)
                 elif v.index == 0x6064:
                     fb.position = to_rad(int(v.raw))
+                    self._fresh.add(k)
                 elif v.index == 0x606C:
                     fb.velocity = to_rad(int(v.raw))
+            if len(self._fresh) == len(self.nodes):
+                self._fresh.clear()
+                complete = self.completed = True
+                positions = np.array([f.position for f in self.feedback_raw])
+                velocities = np.array([f.velocity for f in self.feedback_raw])
+        if complete and self.on_complete is not None:
+            self.on_complete(positions, velocities)
 
     def _on_heartbeat(self, k: int) -> None:
         with self.lock:
@@ -140,14 +158,18 @@ class CanMaster:
                 fb.emcy = None
         return out
 
-    def send(self, controlwords: list[int], setpoints: np.ndarray) -> None:
-        """RPDO1 (controlword, IP setpoint) to every node, then SYNC."""
-        for (variables, rpdo), cw, sp in zip(self._setpoint_vars, controlwords, setpoints):
-            variables[(0x6040, 0)].raw = int(cw)
-            if math.isfinite(sp):
-                variables[(0x60C1, 1)].raw = to_counts(float(sp))
-            rpdo.transmit()
-        self.network.sync.transmit()
+    def send(self, controlwords: list[int] | None, setpoints: np.ndarray, sync: bool = True) -> None:
+        """RPDO1 (controlword, IP setpoint) to every node, then SYNC. controlwords None: keep the last ones
+        (an early setpoint between SYNCs; the drives take the latest at the next SYNC)."""
+        with self.send_lock:
+            for k, ((variables, rpdo), sp) in enumerate(zip(self._setpoint_vars, setpoints)):
+                if controlwords is not None:
+                    variables[(0x6040, 0)].raw = int(controlwords[k])
+                if math.isfinite(sp):
+                    variables[(0x60C1, 1)].raw = to_counts(float(sp))
+                rpdo.transmit()
+            if sync:
+                self.network.sync.transmit()
 
     def shutdown(self) -> None:
         for node in self.nodes:
@@ -168,8 +190,10 @@ class Driver:
         self.state_pub = session.declare_publisher(keys.joint_state)
         self.event_pub = session.declare_publisher(keys.safety_events)
         self.seq = 0
-        self.sync_times: list[float] = []
+        self.pub_lock = threading.Lock()
+        self.last_output = None
         self.bad_messages = 0
+        master.on_complete = self.publish_state
 
     def on_command(self, sample) -> None:
         try:
@@ -179,7 +203,9 @@ class Driver:
             log.error("dropped a bad joint command: %s", exc)
             return
         with self.core_lock:
-            self.core.command(msg.q, time.monotonic())
+            early = self.core.command(msg.q, time.monotonic())
+        if early is not None:           # on the bus now; the drives take the latest setpoint at the next SYNC
+            self.master.send(None, early, sync=False)
 
     def on_request(self, sample) -> None:
         try:
@@ -193,12 +219,17 @@ class Driver:
             self.core.request(msg.action)
 
     def _publish_event(self, event) -> None:
-        self.seq += 1
-        self.event_pub.put(encode(SafetyEvent(source="robot_driver", event=event.event, severity=event.severity,
-                                              text=event.text, seq=self.seq, stamp=time.monotonic())))
+        with self.pub_lock:
+            self.seq += 1
+            self.event_pub.put(encode(SafetyEvent(source="robot_driver", event=event.event, severity=event.severity,
+                                                  text=event.text, seq=self.seq, stamp=time.monotonic())))
         (log.warning if event.severity != "info" else log.info)("%s: %s", event.event, event.text)
 
     def run_cycles(self) -> None:
+        try:       # best effort: a real-time class for this thread where the OS permits it
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+        except (AttributeError, OSError, PermissionError):
+            pass
         deadline = time.monotonic()
         while not self.stop.is_set():
             deadline += self.period
@@ -211,20 +242,28 @@ class Driver:
             if now - deadline > self.period:          # overran (e.g. the process was stopped): resync
                 deadline = now
             feedback = self.master.feedback(now)
+            with self.master.lock:
+                answered, self.master.completed = self.master.completed, False
+            if not answered:       # a drive did not answer the last SYNC: publish what there is, never go silent
+                self.publish_state(np.array([fb.position for fb in feedback]), np.array([fb.velocity for fb in feedback]))
             with self.core_lock:
                 out = self.core.cycle(now, feedback)
             self.master.send(out.controlwords, out.setpoints)
-            self.sync_times.append(time.monotonic())
+            self.last_output = out
             for event in out.events:
                 self._publish_event(event)
-            q = np.array([fb.position for fb in feedback])
-            if np.all(np.isfinite(q)):
-                self.seq += 1
-                states = sorted({s.value for s in out.drive_states})
-                self.state_pub.put(encode(JointState(
-                    q=q, qd=np.array([fb.velocity for fb in feedback]), drive_state=f"{out.mode.value}:{'/'.join(states)}",
-                    enabled=out.mode.value == "running", fault=any(s.value == "fault" for s in out.drive_states),
-                    seq=self.seq, stamp=now)))
+
+    def publish_state(self, q: np.ndarray, qd: np.ndarray) -> None:
+        """Every drive has answered this SYNC: the joint state goes out now (from the CAN thread)."""
+        out = self.last_output
+        if out is None or not np.all(np.isfinite(q)):
+            return
+        states = sorted({s.value for s in out.drive_states})
+        with self.pub_lock:
+            self.seq += 1
+            self.state_pub.put(encode(JointState(
+                q=q, qd=qd, drive_state=f"{out.mode.value}:{'/'.join(states)}", enabled=out.mode.value == "running",
+                fault=any(s.value == "fault" for s in out.drive_states), seq=self.seq, stamp=time.monotonic())))
 
 
 async def serve(args: argparse.Namespace) -> int:
@@ -273,6 +312,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--log-level", default="INFO")
     args = parser.parse_args(argv)
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    # Python hands the GIL over every 5 ms by default: a Zenoh or CAN callback thread could make the SYNC
+    # thread wait that long. 0.5 ms keeps the SYNC within a fraction of a millisecond of its deadline.
+    sys.setswitchinterval(0.0005)
     try:
         return asyncio.run(serve(args))
     except (BusError, HrcError) as exc:

@@ -135,3 +135,15 @@ def test_recovery_only_when_asked_and_safe():
     for _ in range(30):
         out = cell.step(cell.q)
     assert out.mode is Mode.RUNNING and all(d.interpolating for d in cell.drives)
+
+
+def test_an_early_command_gives_the_setpoint_the_next_cycle_will_send():
+    cell = Cell()
+    assert cell.core.command(Q0, cell.t) is None               # not running yet: nothing goes out early
+    enable(cell)
+    target = cell.q + np.array([0.001, 0, 0, 0, 0, -0.002])
+    early = cell.core.command(target, cell.t)
+    out = cell.step()
+    assert np.array_equal(early, out.setpoints)
+    far = cell.core.command(cell.q + 1.0, cell.t)               # rate-limited like the cycle
+    assert np.abs(far - cell.core.cycle(cell.t, cell.feedback()).setpoints).max() < 1e-12

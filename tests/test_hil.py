@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 
 HARNESS = Path(__file__).parent / "hil" / "harness.py"
-SCENARIOS = ["enable", "follow", "stale_command", "heartbeat_loss", "drive_fault", "emulator_watchdog", "garbage_frames"]
+SCENARIOS = ["enable", "follow", "stale_command", "heartbeat_loss", "drive_fault", "frozen_node", "dropped_frames",
+             "emulator_watchdog", "garbage_frames"]
 
 
 def _namespace_reason() -> str | None:

@@ -89,7 +89,7 @@ class Cell:
             self.nodes[nid] = node
             self.tool.subscribe(0x80 + nid, lambda cid, data, ts: self._on_emcy(cid, data))
         self.sync_stamps: list[float] = []
-        self.tool.subscribe(0x80, lambda cid, data, ts: self.sync_stamps.append(time.monotonic()))
+        self.tool.subscribe(0x80, lambda cid, data, ts: self.sync_stamps.append(ts))     # receive timestamps
 
     def _expect_line(self, name: str, text: str, timeout: float = 20.0) -> None:
         proc = self.procs[name]
@@ -217,7 +217,8 @@ def stale_command(cell: Cell) -> dict:
             "event_after_s": events[0][0] if events else None, "standstill_after_s": stop_time}
 
 
-def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...], within: float) -> dict:
+def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...], within: float,
+                    silent: bool = False) -> dict:
     ok_recover = recover(cell)
     t0 = time.monotonic()
     cell.nodes[node_id].sdo[0x2F00][sub].raw = 1
@@ -227,7 +228,10 @@ def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...],
     state = cell.latest()
     if sub != 4:
         cell.nodes[node_id].sdo[0x2F00][sub].raw = 0
-    stopped_all = "operation_enabled" not in state.drive_state.split(":")[1].split("/")
+    # every drive that still answers is out of operation enabled (a frozen one reports its last state;
+    # it does not move either: it processes no SYNC)
+    stopped_all = "operation_enabled" not in state.drive_state.split(":")[1].split("/") or (
+        silent and state.drive_state.startswith("stopped:"))
     return {"ok": ok_recover and detected is not None and detected <= within + 0.1 and bool(events)
             and events[0][1] in expect and stopped_all,
             "recovered_first": ok_recover, "detected_after_s": detected, "events": events[:3],
@@ -240,6 +244,31 @@ def heartbeat_loss(cell: Cell) -> dict:
 
 def drive_fault(cell: Cell) -> dict:
     return _fault_scenario(cell, 7, 4, ("emcy", "drive_fault"), 0.05)
+
+
+def frozen_node(cell: Cell) -> dict:
+    result = _fault_scenario(cell, 6, 3, ("heartbeat_lost",), 0.3 + 0.1, silent=True)
+    result["ok"] = result["ok"] and recover(cell)                # unfrozen (0x2F00:3 = 0): back to work
+    return result
+
+
+def dropped_frames(cell: Cell) -> dict:
+    """A fifth of node 4's frames lost both ways: the robot keeps following (the drive interpolates to the
+    last setpoint it got; a lost TPDO is one cycle of stale feedback), and nothing faults."""
+    ok_recover = recover(cell)
+    cell.nodes[4].sdo[0x2F00][1].raw = 200
+    start, t0, errors = cell.latest().q.copy(), time.monotonic(), []
+    while (elapsed := time.monotonic() - t0) < 1.5:
+        target = start + np.array([0.0, 0.15, 0, 0, 0, 0]) * math.sin(math.pi * elapsed / 1.5)
+        cell.command(target)
+        errors.append(float(np.abs(cell.latest().q - target).max()))
+        time.sleep(PERIOD)
+    cell.nodes[4].sdo[0x2F00][1].raw = 0
+    stops = [e.event for _, e in cell.events_since(t0) if e.severity == "stop"]
+    with cell.lock:
+        emcy = sorted({f"node {n}: 0x{c:04X}" for t, n, c in cell.emcy if t >= t0 and c})
+    return {"ok": ok_recover and cell.latest().enabled and not stops and max(errors) < 0.05,
+            "max_error_rad": max(errors), "stops": stops, "emcy": emcy}
 
 
 def emulator_watchdog(cell: Cell) -> dict:
@@ -292,7 +321,8 @@ def garbage_frames(cell: Cell) -> dict:
 
 
 SCENARIOS = {"enable": enable, "follow": follow, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
-             "drive_fault": drive_fault, "emulator_watchdog": emulator_watchdog, "garbage_frames": garbage_frames}
+             "drive_fault": drive_fault, "frozen_node": frozen_node, "dropped_frames": dropped_frames,
+             "emulator_watchdog": emulator_watchdog, "garbage_frames": garbage_frames}
 
 
 def main() -> int:

@@ -1,0 +1,126 @@
+"""Benchmark of the CAN loop: the PRBT emulator and the robot driver as separate processes (not a test:
+it prints figures).
+
+* SYNC jitter: |interval - period| of the SYNC frames as seen on the bus;
+* command to frame: a joint command published on Zenoh until the RPDO1 frame carrying that setpoint is
+  on the bus (the driver forwards a command at once while running; the drives latch it at the next SYNC);
+* state to Zenoh: the TPDO3 frame with a new position until the joint state with that position arrives.
+
+udp_multicast runs inside a private network namespace: the script re-runs itself under `unshare -rn`
+when it is not in one. Last line: one JSON object.
+
+    python bench/can_loop.py [--seconds 10] [--interface socketcan --channel vcan0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests" / "hil"))
+
+from hwsim.drive import to_counts  # noqa: E402
+from shared.canbus import in_private_namespace  # noqa: E402
+
+
+def pct(values, p):
+    return round(float(np.percentile(values, p)), 3) if len(values) else None
+
+
+def measure(interface: str, channel: str | None, seconds: float) -> dict:
+    import harness  # the HIL harness's process management, reused
+    from shared.messages import JointState
+
+    if interface == "udp_multicast":
+        for cmd in (["ip", "link", "set", "lo", "up"], ["ip", "link", "set", "lo", "multicast", "on"],
+                    ["ip", "route", "add", "224.0.0.0/4", "dev", "lo"]):
+            subprocess.run(cmd, check=True)
+    cell = harness.Cell(interface, channel)
+    cell.start()
+    frames: dict[int, list[float]] = {}     # setpoint counts -> times RPDO1 of node 3 carried it
+    tpdo: dict[int, list[float]] = {}       # position counts -> times TPDO3 of node 3 carried it
+    lock = threading.Lock()
+
+    def on_rpdo(can_id, data, ts):
+        if len(data) == 8:
+            counts = int.from_bytes(data[4:8], "little", signed=True)
+            with lock:
+                frames.setdefault(counts, []).append(time.monotonic())
+
+    def on_tpdo(can_id, data, ts):
+        if len(data) >= 4:
+            counts = int.from_bytes(data[0:4], "little", signed=True)
+            with lock:
+                tpdo.setdefault(counts, []).append(time.monotonic())
+
+    cell.tool.subscribe(0x203, on_rpdo)
+    cell.tool.subscribe(0x383, on_tpdo)
+    try:
+        if cell.hold_until(lambda s: s.enabled, 10.0) is None:
+            raise RuntimeError("the drives did not enable")
+        q = cell.latest().q.copy()
+        sent: list[tuple[int, float]] = []
+        sync_start = len(cell.sync_stamps)
+        state_start = len(cell.states)
+        t_end = time.monotonic() + seconds
+        k = 0
+        while time.monotonic() < t_end:          # a slow sine on joint 1, a new setpoint every 10 ms
+            k += 1
+            q[0] = 1.57 - 0.2 * np.sin(k * 0.01)
+            counts = to_counts(q[0])
+            t_pub = time.monotonic()
+            cell.command(q)
+            sent.append((counts, t_pub))
+            time.sleep(0.01 - (time.monotonic() - t_pub) % 0.01)
+        time.sleep(0.1)
+        syncs = np.diff(np.array(cell.sync_stamps[sync_start:])) * 1e3
+        jitter = np.abs(syncs - 10.0)
+        with lock:
+            # the first frame with that setpoint after it was published; the last TPDO3 with that
+            # position before the state arrived (positions and setpoints recur along the sine)
+            cmd = [(min(f for f in frames[c] if f >= t) - t) * 1e3 for c, t in sent
+                   if any(f >= t for f in frames.get(c, []))]
+            lat = []
+            for t_state, st in list(cell.states[state_start:]):
+                before = [f for f in tpdo.get(to_counts(float(st.q[0])), []) if f <= t_state]
+                if before:
+                    lat.append((t_state - max(before)) * 1e3)
+    finally:
+        cell.stop()
+    return {"bench": "can_loop", "transport": f"{interface}:{channel or ''}",
+            "sync_jitter_ms": {"p50": pct(jitter, 50), "p99": pct(jitter, 99), "max": round(float(jitter.max()), 3)},
+            "command_to_frame_ms": {"p50": pct(cmd, 50), "p99": pct(cmd, 99)},
+            "state_to_zenoh_ms": {"p50": pct(lat, 50), "p99": pct(lat, 99)},
+            "samples": {"syncs": int(len(syncs)), "commands": len(cmd), "states": len(lat)}}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--interface", default="udp_multicast")
+    parser.add_argument("--channel", default=None)
+    parser.add_argument("--seconds", type=float, default=10.0)
+    args = parser.parse_args()
+    sys.setswitchinterval(0.0005)       # the measuring threads should not wait 5 ms for the GIL either
+    if args.interface == "udp_multicast" and not in_private_namespace():
+        return subprocess.call(["unshare", "-rn", sys.executable, __file__, *sys.argv[1:]])
+    result = measure(args.interface, args.channel, args.seconds)
+    print(f"SYNC jitter: p50 {result['sync_jitter_ms']['p50']} ms, p99 {result['sync_jitter_ms']['p99']} ms, "
+          f"max {result['sync_jitter_ms']['max']} ms ({result['samples']['syncs']} periods)")
+    print(f"command to frame: p50 {result['command_to_frame_ms']['p50']} ms, p99 {result['command_to_frame_ms']['p99']} ms")
+    print(f"state to Zenoh:   p50 {result['state_to_zenoh_ms']['p50']} ms, p99 {result['state_to_zenoh_ms']['p99']} ms")
+    print(json.dumps(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
