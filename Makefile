@@ -24,6 +24,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python bench/scaling.py
 	$(BIN)/python bench/planning.py
+	$(BIN)/python bench/can_loop.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
