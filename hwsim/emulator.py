@@ -110,7 +110,8 @@ class EmulatedNode:
             self.frozen = bool(value)
             if value:
                 self.node.nmt.stop_heartbeat()
-            else:
+            else:             # a hung node resumes: its SYNC watchdog restarts with the next SYNC
+                self.drive.last_sync = None
                 self.node.nmt.start_heartbeat(self.node.sdo[0x1017].raw)
         elif subindex == 4 and value:
             self._emcy(self.drive.raise_fault(EMCY_DRIVE_FAULT))
