@@ -233,11 +233,11 @@ class Driver:
         deadline = time.monotonic()
         while not self.stop.is_set():
             deadline += self.period
+            # sleep to the deadline (clock_nanosleep: tens of microseconds late); no spinning, which would
+            # hold the GIL while a command or a drive's answer waits for it
             remaining = deadline - time.monotonic()
-            if remaining > 3e-4:
-                time.sleep(remaining - 3e-4)
-            while time.monotonic() < deadline:
-                pass
+            if remaining > 0:
+                time.sleep(remaining)
             now = time.monotonic()
             if now - deadline > self.period:          # overran (e.g. the process was stopped): resync
                 deadline = now
