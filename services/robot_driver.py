@@ -195,12 +195,18 @@ class Driver:
         self.bad_messages = 0
         master.on_complete = self.publish_state
 
-    def on_command(self, sample) -> None:
+    def _decode(self, sample, kind):
+        """The message in a Zenoh sample, or None after logging why it was dropped (the service goes on)."""
         try:
-            msg = decode(sample.payload.to_bytes(), JointCommand)
+            return decode(sample.payload.to_bytes(), kind)
         except MessageError as exc:
             self.bad_messages += 1
-            log.error("dropped a bad joint command: %s", exc)
+            log.error("dropped a bad %s on %s: %s", kind.KIND, sample.key_expr, exc)
+            return None
+
+    def on_command(self, sample) -> None:
+        msg = self._decode(sample, JointCommand)
+        if msg is None:
             return
         with self.core_lock:
             early = self.core.command(msg.q, time.monotonic())
@@ -208,11 +214,8 @@ class Driver:
             self.master.send(None, early, sync=False)
 
     def on_request(self, sample) -> None:
-        try:
-            msg = decode(sample.payload.to_bytes(), DriverRequest)
-        except MessageError as exc:
-            self.bad_messages += 1
-            log.error("dropped a bad driver request: %s", exc)
+        msg = self._decode(sample, DriverRequest)
+        if msg is None:
             return
         log.info("request %s from %s", msg.action, msg.source)
         with self.core_lock:
