@@ -16,7 +16,7 @@ import pytest
 
 HARNESS = Path(__file__).parent / "hil" / "harness.py"
 SCENARIOS = ["enable", "follow", "stale_command", "heartbeat_loss", "drive_fault", "frozen_node", "dropped_frames",
-             "emulator_watchdog", "garbage_frames"]
+             "bad_messages", "emulator_watchdog", "garbage_frames"]
 
 
 def _namespace_reason() -> str | None:

@@ -320,9 +320,31 @@ def garbage_frames(cell: Cell) -> dict:
             "recovered_after": recovered}
 
 
+def bad_messages(cell: Cell) -> dict:
+    """Garbage, wrong kinds and a NaN command on the keys the driver reads, between good commands: the
+    driver drops them (and logs why), keeps following and keeps publishing."""
+    import msgpack
+    ok_recover = recover(cell)
+    good = encode(JointCommand(q=cell.latest().q, qd=np.zeros(6), trajectory_version=0, s=0.0))
+    nan_command = msgpack.unpackb(good, raw=False)
+    nan_command["q"] = np.array([math.nan] * 6).tobytes()
+    bad = [b"", b"\xff" * 40, b"garbage", msgpack.packb({"kind": "joint_command", "v": 1}),
+           msgpack.packb(nan_command, use_bin_type=True), encode(DriverRequest(action="stop", source="x"))[:-3]]
+    t0 = time.monotonic()
+    before = len(cell.states)
+    for k in range(60):
+        cell.command(cell.latest().q)
+        cell.cmd_pub.put(bad[k % len(bad)])
+        cell.req_pub.put(bad[(k + 1) % len(bad)])
+        time.sleep(PERIOD)
+    stops = [e.event for _, e in cell.events_since(t0) if e.severity == "stop"]
+    return {"ok": ok_recover and cell.latest().enabled and not stops and len(cell.states) - before > 40
+            and cell.procs["driver"].poll() is None, "stops": stops, "states_published": len(cell.states) - before}
+
+
 SCENARIOS = {"enable": enable, "follow": follow, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
              "drive_fault": drive_fault, "frozen_node": frozen_node, "dropped_frames": dropped_frames,
-             "emulator_watchdog": emulator_watchdog, "garbage_frames": garbage_frames}
+             "bad_messages": bad_messages, "emulator_watchdog": emulator_watchdog, "garbage_frames": garbage_frames}
 
 
 def main() -> int:
