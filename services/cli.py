@@ -111,19 +111,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
             "scaling + planning layers" + (" (no beta replans)" if args.no_beta else "")
         print(f"hrc demo: {layers} on the built-in scenario (in-process, simulated clock)")
 
-    replans_seen = [0]
+    def replanned(event) -> None:
+        if not args.quiet:
+            state = "replanned" if event.ok else "replan refused"
+            print(f"t={event.t:6.2f}s  {state} ({event.reason}) in {event.compute_ms:.0f} ms  {event.detail[:100]}",
+                  flush=True)
 
-    def progress_and_replans(record) -> None:
-        progress(record)
-        while not args.quiet and replans_seen[0] < len(result_box[0].replans if result_box[0] else []):
-            e = result_box[0].replans[replans_seen[0]]
-            replans_seen[0] += 1
-            state = "replanned" if e.ok else "replan refused"
-            print(f"t={e.t:6.2f}s  {state} ({e.reason}) in {e.compute_ms:.0f} ms  {e.detail[:90]}", flush=True)
-
-    result_box = [None]
     result = run_shuttle(robot, config, human, Q_START, Q_GOAL, args.duration, progress, replanner,
-                         beta_replans=not args.no_beta)
+                         beta_replans=not args.no_beta, on_replan=replanned)
     summary = result.summary()
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

@@ -237,7 +237,10 @@ class Replanner:
             # too close to branch in front of it: branch at the planning lead, and the new path may not
             # come closer to the human than that point is (the scaling layer keeps the speed safe)
             s_branch = min(old.duration, s_now + self.options.lead)
-        return self.replan(old, s_now, q_goal, humans, "horizon", s_branch=s_branch)
+        result = self.replan(old, s_now, q_goal, humans, "horizon", s_branch=s_branch)
+        blocked = float(check.s[check.first_infeasible])
+        return ReplanResult(result.trajectory, result.junction, result.reason, result.plan_s, result.inflation,
+                            f"path blocked at s={blocked:.2f}, merged at s={result.junction:.2f}")
 
     # ------------------------------------------------------------------------------------ beta replans
     def full_speed_inflation(self, robot_speed: float = 1.0) -> float:

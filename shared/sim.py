@@ -18,7 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from shared.config import CellConfig
+from shared.planner import PlanningError
 from shared.replanning import ReplanFailed, Replanner
+from shared.timing import TimingError
 from shared.robot_model import RobotModel
 from shared.scaling_layer import ScalingLayer, ScalingStep, StepStatus
 from shared.scenarios import ScriptedHuman
@@ -83,11 +85,12 @@ class SimResult:
 
 def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a: np.ndarray, q_b: np.ndarray,
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
-                beta_cooldown: float = 0.5) -> SimResult:
+                beta_cooldown: float = 0.5, on_replan=None) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
     replanner: the planning layer (None: scaling only, straight shuttles). beta_replans: answer the
-    scaling layer's replan requests (the paper's ablation switches this off)."""
+    scaling layer's replan requests (the paper's ablation switches this off). on_record / on_replan: called
+    with each SimRecord / ReplanEvent as it happens."""
     layer = ScalingLayer(robot, config.ssm, config.scaling)
     period = config.scaling.period
     lim = robot.limits
@@ -99,12 +102,17 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     next_beta_try = next_horizon_try = 0.0
     pending_leg = False
 
+    def log_replan(event: ReplanEvent) -> None:
+        result.replans.append(event)
+        if on_replan is not None:
+            on_replan(event)
+
     def replan(t: float, reason: str, action) -> None:
         started = time.perf_counter()
         try:
             res = action()
         except ReplanFailed as exc:
-            result.replans.append(ReplanEvent(t, reason, False, (time.perf_counter() - started) * 1e3, str(exc)))
+            log_replan(ReplanEvent(t, reason, False, (time.perf_counter() - started) * 1e3, str(exc)))
             return
         if res is None:
             return
@@ -121,7 +129,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             layer.sdot = sdot
         else:
             return
-        result.replans.append(ReplanEvent(t, reason, True, elapsed, res.detail))
+        log_replan(ReplanEvent(t, reason, True, elapsed, res.detail))
 
     for k in range(int(round(duration / period))):
         t = k * period
@@ -133,8 +141,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                                             layer.trajectory.version + 1)
                 layer.set_trajectory(traj)
                 pending_leg = False
-            except Exception as exc:                      # goal blocked for now: hold and try again
-                result.replans.append(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
+            except (PlanningError, TimingError) as exc:   # goal blocked for now: hold and try again
+                log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
         elif replanner is not None and layer.s < layer.trajectory.duration and t >= next_horizon_try:
             failures = len(result.replans)
             replan(t, "horizon", lambda: replanner.on_horizon(layer.trajectory, layer.s, goal, humans))
