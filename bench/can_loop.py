@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import threading
@@ -39,7 +38,6 @@ def pct(values, p):
 
 def measure(interface: str, channel: str | None, seconds: float) -> dict:
     import harness  # the HIL harness's process management, reused
-    from shared.messages import JointState
 
     if interface == "udp_multicast":
         for cmd in (["ip", "link", "set", "lo", "up"], ["ip", "link", "set", "lo", "multicast", "on"],

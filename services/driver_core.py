@@ -111,7 +111,6 @@ class DriverCore:
         return None
 
     def cycle(self, now: float, feedback: list[Feedback]) -> CycleOutput:
-        n = len(feedback)
         states = [state_from_statusword(fb.statusword) if fb.statusword is not None else State.NOT_READY
                   for fb in feedback]
         actual = np.array([fb.position for fb in feedback])

@@ -205,7 +205,8 @@ class Replanner:
                                 collision=self.collision, humans=humans, inflation=kept)
             go = parameterize(tail, self.limits, collision=self.collision, humans=humans, inflation=kept)
         except TimingError as exc:
-            raise ReplanFailed("no junction allows a continuous merge: " + "; ".join(errors + [f"stop-and-go: {exc}"]))
+            raise ReplanFailed("no junction allows a continuous merge: "
+                               + "; ".join(errors + [f"stop-and-go: {exc}"])) from None
         return merge(merge(old, s_j, stop, version), s_j + stop.duration, go, version), s_j, kept
 
     def replan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,

@@ -107,10 +107,10 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         if on_replan is not None:
             on_replan(event)
 
-    def replan(t: float, reason: str, action) -> None:
+    def replan(t: float, reason: str, action, *args) -> None:
         started = time.perf_counter()
         try:
-            res = action()
+            res = action(*args)
         except ReplanFailed as exc:
             log_replan(ReplanEvent(t, reason, False, (time.perf_counter() - started) * 1e3, str(exc)))
             return
@@ -145,7 +145,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                 log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
         elif replanner is not None and layer.s < layer.trajectory.duration and t >= next_horizon_try:
             failures = len(result.replans)
-            replan(t, "horizon", lambda: replanner.on_horizon(layer.trajectory, layer.s, goal, humans))
+            replan(t, "horizon", replanner.on_horizon, layer.trajectory, layer.s, goal, humans)
             if len(result.replans) > failures and not result.replans[-1].ok:
                 next_horizon_try = t + beta_cooldown / 2     # do not hammer a blocked horizon every cycle
         step = layer.step(humans, 0.0)
@@ -155,7 +155,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         if step.beta and beta_replans and replanner is not None and t >= next_beta_try:
             next_beta_try = t + beta_cooldown
             speed = float(np.abs(step.qd_command).max())
-            replan(t, "beta", lambda: replanner.on_beta(layer.trajectory, layer.s, goal, humans, speed))
+            replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed)
         # independent check of the commanded motion: approach speed of every link against its limit
         points, jac = robot.capsule_kinematics(step.q_command)
         check = pair_ssm(points, robot.radii, jac @ step.qd_command, humans, config.ssm)

@@ -157,7 +157,7 @@ class Cell:
             return [(t, e) for t, e in self.events if t >= t0]
 
     def stop(self) -> None:
-        for name, proc in self.procs.items():
+        for proc in self.procs.values():
             if proc.poll() is None:
                 proc.send_signal(signal.SIGCONT)
                 proc.terminate()
