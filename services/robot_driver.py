@@ -24,7 +24,6 @@ import argparse
 import asyncio
 import logging
 import math
-import os
 import signal
 import sys
 import threading
@@ -38,11 +37,10 @@ from hwsim.drive import to_counts, to_rad
 from hwsim.emulator import EDS_PATH, NODE_IDS
 from services.driver_core import DriverCore, Feedback
 from shared.canbus import BusError, describe, open_bus
-from shared.errors import HrcError, MessageError
-from shared.keys import KeySpace
-from shared.messages import DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode
+from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
+from shared.errors import HrcError
+from shared.messages import DriverRequest, JointCommand, JointState, SafetyEvent, encode
 from shared.robot_model import default_robot
-from shared.zenoh_session import open_session
 
 log = logging.getLogger("robot_driver")
 
@@ -183,40 +181,26 @@ class CanMaster:
 class Driver:
     """Ties the master, the core and Zenoh together."""
 
-    def __init__(self, master: CanMaster, core: DriverCore, session, keys: KeySpace, period: float) -> None:
-        self.master, self.core, self.session, self.keys, self.period = master, core, session, keys, period
+    def __init__(self, master: CanMaster, core: DriverCore, shell: ServiceShell, period: float) -> None:
+        self.master, self.core, self.shell, self.period = master, core, shell, period
         self.core_lock = threading.Lock()
         self.stop = threading.Event()
-        self.state_pub = session.declare_publisher(keys.joint_state)
-        self.event_pub = session.declare_publisher(keys.safety_events)
+        self.state_pub = shell.session.declare_publisher(shell.keys.joint_state)
+        self.event_pub = shell.session.declare_publisher(shell.keys.safety_events)
         self.seq = 0
         self.pub_lock = threading.Lock()
         self.last_output = None
-        self.bad_messages = 0
         master.on_complete = self.publish_state
+        shell.subscribe(shell.keys.command, JointCommand, self.on_command)
+        shell.subscribe(shell.keys.driver_request, DriverRequest, self.on_request)
 
-    def _decode(self, sample, kind):
-        """The message in a Zenoh sample, or None after logging why it was dropped (the service goes on)."""
-        try:
-            return decode(sample.payload.to_bytes(), kind)
-        except MessageError as exc:
-            self.bad_messages += 1
-            log.error("dropped a bad %s on %s: %s", kind.KIND, sample.key_expr, exc)
-            return None
-
-    def on_command(self, sample) -> None:
-        msg = self._decode(sample, JointCommand)
-        if msg is None:
-            return
+    def on_command(self, msg: JointCommand) -> None:
         with self.core_lock:
             early = self.core.command(msg.q, time.monotonic())
         if early is not None:           # on the bus now; the drives take the latest setpoint at the next SYNC
             self.master.send(None, early, sync=False)
 
-    def on_request(self, sample) -> None:
-        msg = self._decode(sample, DriverRequest)
-        if msg is None:
-            return
+    def on_request(self, msg: DriverRequest) -> None:
         log.info("request %s from %s", msg.action, msg.source)
         with self.core_lock:
             self.core.request(msg.action)
@@ -228,33 +212,19 @@ class Driver:
                                                   text=event.text, seq=self.seq, stamp=time.monotonic())))
         (log.warning if event.severity != "info" else log.info)("%s: %s", event.event, event.text)
 
-    def run_cycles(self) -> None:
-        try:       # best effort: a real-time class for this thread where the OS permits it
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
-        except (AttributeError, OSError, PermissionError):
-            pass
-        deadline = time.monotonic()
-        while not self.stop.is_set():
-            deadline += self.period
-            # sleep to the deadline (clock_nanosleep: tens of microseconds late); no spinning, which would
-            # hold the GIL while a command or a drive's answer waits for it
-            remaining = deadline - time.monotonic()
-            if remaining > 0:
-                time.sleep(remaining)
-            now = time.monotonic()
-            if now - deadline > self.period:          # overran (e.g. the process was stopped): resync
-                deadline = now
-            feedback = self.master.feedback(now)
-            with self.master.lock:
-                answered, self.master.completed = self.master.completed, False
-            if not answered:       # a drive did not answer the last SYNC: publish what there is, never go silent
-                self.publish_state(np.array([fb.position for fb in feedback]), np.array([fb.velocity for fb in feedback]))
-            with self.core_lock:
-                out = self.core.cycle(now, feedback)
-            self.master.send(out.controlwords, out.setpoints)
-            self.last_output = out
-            for event in out.events:
-                self._publish_event(event)
+    def cycle(self, now: float) -> None:
+        """One SYNC period: the core decides, RPDO1 to every drive, then SYNC (paced by run_paced)."""
+        feedback = self.master.feedback(now)
+        with self.master.lock:
+            answered, self.master.completed = self.master.completed, False
+        if not answered:       # a drive did not answer the last SYNC: publish what there is, never go silent
+            self.publish_state(np.array([fb.position for fb in feedback]), np.array([fb.velocity for fb in feedback]))
+        with self.core_lock:
+            out = self.core.cycle(now, feedback)
+        self.master.send(out.controlwords, out.setpoints)
+        self.last_output = out
+        for event in out.events:
+            self._publish_event(event)
 
     def publish_state(self, q: np.ndarray, qd: np.ndarray) -> None:
         """Every drive has answered this SYNC: the joint state goes out now (from the CAN thread)."""
@@ -270,19 +240,16 @@ class Driver:
 
 
 async def serve(args: argparse.Namespace) -> int:
-    keys = KeySpace(args.prefix)
     bus = open_bus(args.interface, args.channel)
     print(f"robot_driver: CANopen master on {describe(args.interface, args.channel)}, SYNC every "
           f"{args.period * 1000:.1f} ms", flush=True)
     master = CanMaster(bus)
     await asyncio.to_thread(master.bring_up)
-    session = open_session("peer", listen=args.listen, connect=args.connect)
+    shell = ServiceShell("robot_driver", args)
     core = DriverCore(default_robot().limits, args.period, args.command_timeout)
-    driver = Driver(master, core, session, keys, args.period)
-    subs = [session.declare_subscriber(keys.command, driver.on_command),
-            session.declare_subscriber(keys.driver_request, driver.on_request)]
-    token = session.liveliness().declare_token(keys.alive("robot_driver"))
-    thread = threading.Thread(target=driver.run_cycles, name="can-cycle", daemon=True)
+    driver = Driver(master, core, shell, args.period)
+    thread = threading.Thread(target=run_paced, args=(args.period, driver.cycle, driver.stop), name="can-cycle",
+                              daemon=True)
     thread.start()
     loop = asyncio.get_running_loop()
     stopped = asyncio.Event()
@@ -293,11 +260,8 @@ async def serve(args: argparse.Namespace) -> int:
     await stopped.wait()
     driver.stop.set()
     thread.join(1.0)
-    for sub in subs:
-        sub.undeclare()
-    token.undeclare()
     master.shutdown()
-    session.close()
+    shell.close()
     return 0
 
 
@@ -306,18 +270,12 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--interface", default="udp_multicast")
     parser.add_argument("--channel", default=None)
-    parser.add_argument("--prefix", default="hrc/cell1")
-    parser.add_argument("--listen", nargs="*", default=["tcp/127.0.0.1:7447"])
-    parser.add_argument("--connect", nargs="*", default=[])
+    add_zenoh_arguments(parser, default_listen="tcp/127.0.0.1:7447")
     parser.add_argument("--period", type=float, default=0.01, help="SYNC period (s), default 0.01")
     parser.add_argument("--command-timeout", type=float, default=0.05,
                         help="a command older than this stops the drives (s), default 0.05")
-    parser.add_argument("--log-level", default="INFO")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(levelname)s %(message)s")
-    # Python hands the GIL over every 5 ms by default: a Zenoh or CAN callback thread could make the SYNC
-    # thread wait that long. 0.5 ms keeps the SYNC within a fraction of a millisecond of its deadline.
-    sys.setswitchinterval(0.0005)
+    setup_logging(args.log_level)
     try:
         return asyncio.run(serve(args))
     except (BusError, HrcError) as exc:

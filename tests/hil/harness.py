@@ -51,8 +51,9 @@ def free_port() -> int:
 
 
 class Cell:
-    def __init__(self, interface: str, channel: str | None) -> None:
+    def __init__(self, interface: str, channel: str | None, with_scaler: bool = False) -> None:
         self.interface, self.channel = interface, channel
+        self.with_scaler = with_scaler
         self.port = free_port()
         self.keys = KeySpace("hil/cell")
         self.procs: dict[str, subprocess.Popen] = {}
@@ -75,7 +76,13 @@ class Cell:
         self._spawn("driver", ["services.robot_driver", *bus_args, "--prefix", self.keys.prefix,
                                "--listen", f"tcp/127.0.0.1:{self.port}", "--log-level", "WARNING"])
         self._expect_line("driver", "robot_driver: drives up", timeout=30)
-        self.session = open_session("peer", connect=[f"tcp/127.0.0.1:{self.port}"])
+        if self.with_scaler:        # peers do not forward: each listens on its own port, gossip meshes them
+            self._spawn("scaler", ["services.scaler", "--prefix", self.keys.prefix, "--listen",
+                                   f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
+                                   "--log-level", "WARNING"])
+            self._expect_line("scaler", "scaler:")
+        self.session = open_session("peer", listen=[f"tcp/127.0.0.1:{free_port()}"],
+                                    connect=[f"tcp/127.0.0.1:{self.port}"])
         self.cmd_pub = self.session.declare_publisher(self.keys.command)
         self.req_pub = self.session.declare_publisher(self.keys.driver_request)
         self.subs = [self.session.declare_subscriber(self.keys.joint_state, self._on_state),
@@ -342,6 +349,78 @@ def bad_messages(cell: Cell) -> dict:
             and cell.procs["driver"].poll() is None, "stops": stops, "states_published": len(cell.states) - before}
 
 
+# ------------------------------------------------------------------ with the scaler (robot + scaling layer)
+class HumanFeed:
+    """Publishes a human state at 50 Hz (an empty, valid one unless told otherwise) until stopped."""
+
+    def __init__(self, cell: Cell) -> None:
+        from shared.convert import humans_to_msg
+        from shared.humans import HumanCapsules
+        self.cell, self.humans, self.running = cell, HumanCapsules.empty(), True
+        self.pub = cell.session.declare_publisher(cell.keys.human_state)
+        self._to_msg = humans_to_msg
+        threading.Thread(target=self._run, daemon=True).start()
+
+    def _run(self) -> None:
+        while self.running:
+            self.pub.put(encode(self._to_msg(self.humans, True, time.monotonic())))
+            time.sleep(0.02)
+
+
+def _publish_trajectory(cell: Cell, goal: np.ndarray, version: int):
+    from shared.convert import trajectory_to_msg
+    from shared.robot_model import default_robot
+    from shared.trajectory import straight_line_trajectory
+    lim = default_robot().limits
+    traj = straight_line_trajectory(cell.latest().q, goal, lim.velocity, lim.acceleration, version=version)
+    cell.session.put(cell.keys.trajectory, encode(trajectory_to_msg(traj, goal_id=version, reason="goal")))
+    return traj
+
+
+def system_goal(cell: Cell) -> dict:
+    feed = HumanFeed(cell)
+    t_enable = _wait(lambda: cell.latest() is not None and cell.latest().enabled, 10.0)
+    goal = Q0 + np.array([-0.8, 0.2, -0.2, 0.4, -0.3, 0.5])
+    traj = _publish_trajectory(cell, goal, 1)
+    t0 = time.monotonic()
+    reached = _wait(lambda: np.abs(cell.latest().q - goal).max() < 0.005, traj.duration + 3.0)
+    feed.running = False
+    return {"ok": t_enable is not None and reached is not None, "enable_s": t_enable,
+            "nominal_s": traj.duration, "reached_after_s": reached,
+            "final_error_rad": float(np.abs(cell.latest().q - goal).max()), "started_s": round(time.monotonic() - t0, 3)}
+
+
+def system_stale_humans(cell: Cell) -> dict:
+    feed = HumanFeed(cell)
+    _wait(lambda: cell.latest().enabled, 5.0)
+    traj = _publish_trajectory(cell, Q0, 2)                    # back to the start, a long motion
+    time.sleep(traj.duration * 0.4)
+    moving = float(np.abs(cell.latest().qd).max())
+    feed.running = False                                       # the tracker goes silent
+    t0 = time.monotonic()
+    still = _wait(lambda: np.abs(cell.latest().qd).max() < 1e-3, 2.0)
+    time.sleep(0.3)
+    q_stop = cell.latest().q.copy()
+    time.sleep(0.5)
+    drift = float(np.abs(cell.latest().q - q_stop).max())
+    return {"ok": moving > 0.3 and still is not None and still <= 0.05 + 0.5 and drift < 1e-4,
+            "speed_before_rad_s": moving, "standstill_after_s": still, "drift_after_rad": drift}
+
+
+def _wait(condition, timeout: float) -> float | None:
+    start = time.monotonic()
+    while time.monotonic() - start < timeout:
+        try:
+            if condition():
+                return time.monotonic() - start
+        except (AttributeError, TypeError):
+            pass
+        time.sleep(0.01)
+    return None
+
+
+SYSTEM_SCENARIOS = {"system_goal": system_goal, "system_stale_humans": system_stale_humans}
+
 SCENARIOS = {"enable": enable, "follow": follow, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
              "drive_fault": drive_fault, "frozen_node": frozen_node, "dropped_frames": dropped_frames,
              "bad_messages": bad_messages, "emulator_watchdog": emulator_watchdog, "garbage_frames": garbage_frames}
@@ -351,19 +430,22 @@ def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--interface", default="udp_multicast")
     parser.add_argument("--channel", default=None)
-    parser.add_argument("--scenarios", nargs="*", default=list(SCENARIOS))
+    parser.add_argument("--scenarios", nargs="*", default=None)
+    parser.add_argument("--with-scaler", action="store_true", help="also run the scaler service")
     args = parser.parse_args()
+    table = SYSTEM_SCENARIOS if args.with_scaler else SCENARIOS
+    args.scenarios = args.scenarios or list(table)
     if args.interface == "udp_multicast":
         for cmd in (["ip", "link", "set", "lo", "up"], ["ip", "link", "set", "lo", "multicast", "on"],
                     ["ip", "route", "add", "224.0.0.0/4", "dev", "lo"]):
             subprocess.run(cmd, check=True)
-    cell = Cell(args.interface, args.channel)
+    cell = Cell(args.interface, args.channel, with_scaler=args.with_scaler)
     results = {"transport": f"{args.interface}:{args.channel or ''}"}
     try:
         cell.start()
         for name in args.scenarios:
             try:
-                results[name] = SCENARIOS[name](cell)
+                results[name] = table[name](cell)
             except Exception as exc:                     # a scenario's own failure, reported, not hidden
                 results[name] = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
         results["sync_intervals_ms"] = list(np.diff(cell.sync_stamps[-600:]) * 1e3) if len(cell.sync_stamps) > 2 else []

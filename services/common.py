@@ -1,0 +1,98 @@
+"""What every service shell shares: logging format, the Zenoh session, liveliness, decoding with a
+clear (rate-limited) log on bad input, and a deadline-paced loop thread.
+
+A service is a thin shell around a pure core: it decodes what arrives on its keys (a bad message is
+dropped with a log line and the service goes on), calls the core, encodes and publishes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+import threading
+import time
+
+from shared.errors import MessageError
+from shared.keys import KeySpace
+from shared.messages import Message, decode
+from shared.zenoh_session import open_session
+
+LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s %(message)s"
+
+
+def setup_logging(level: str) -> None:
+    logging.basicConfig(level=level.upper(), format=LOG_FORMAT)
+
+
+def add_zenoh_arguments(parser: argparse.ArgumentParser, default_listen: str | None = None) -> None:
+    parser.add_argument("--prefix", default="hrc/cell1", help="key prefix of the cell (default hrc/cell1)")
+    parser.add_argument("--listen", nargs="*", default=[default_listen] if default_listen else [],
+                        help="Zenoh endpoints to listen on (tcp/127.0.0.1:PORT)")
+    parser.add_argument("--connect", nargs="*", default=[], help="Zenoh endpoints to connect to")
+    parser.add_argument("--log-level", default="INFO")
+
+
+class ServiceShell:
+    """Session, keys, liveliness token and decoding for one named service."""
+
+    def __init__(self, name: str, args: argparse.Namespace) -> None:
+        self.name = name
+        self.log = logging.getLogger(name)
+        self.keys = KeySpace(args.prefix)
+        self.session = open_session("peer", listen=args.listen, connect=args.connect)
+        self.token = self.session.liveliness().declare_token(self.keys.alive(name))
+        self.bad_messages = 0
+        self._last_bad_log = -1e9
+        self._subscribers = []
+
+    def decode(self, sample, kind: type[Message]) -> Message | None:
+        """The message in a sample, or None after logging why it was dropped (at most one line a second,
+        with a count, so a flood of garbage cannot flood the log)."""
+        try:
+            return decode(sample.payload.to_bytes(), kind)
+        except MessageError as exc:
+            self.bad_messages += 1
+            now = time.monotonic()
+            if now - self._last_bad_log >= 1.0:
+                self._last_bad_log = now
+                self.log.error("dropped a bad %s on %s (%d so far): %s", kind.KIND, sample.key_expr,
+                               self.bad_messages, exc)
+            return None
+
+    def subscribe(self, key: str, kind: type[Message], handler) -> None:
+        """Call handler(message) for every valid message on key."""
+        def on_sample(sample):
+            msg = self.decode(sample, kind)
+            if msg is not None:
+                handler(msg)
+        self._subscribers.append(self.session.declare_subscriber(key, on_sample))
+
+    def close(self) -> None:
+        for sub in self._subscribers:
+            sub.undeclare()
+        self.token.undeclare()
+        self.session.close()
+
+
+def run_paced(period: float, tick, stop: threading.Event) -> None:
+    """Call tick(now) every period: deadline sleeping (clock_nanosleep, tens of microseconds late), no
+    spinning (that would hold the GIL while a callback waits); an overrun re-syncs instead of bursting.
+    Python hands the GIL over every 5 ms by default, which would let any callback thread delay a tick that
+    long: the switch interval is set to 0.5 ms. SCHED_FIFO is asked for where the OS permits it."""
+    sys.setswitchinterval(0.0005)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+    except (AttributeError, OSError):
+        pass
+    deadline = time.monotonic()
+    while not stop.is_set():
+        deadline += period
+        remaining = deadline - time.monotonic()
+        if remaining > 0:
+            time.sleep(remaining)
+        now = time.monotonic()
+        if now - deadline > period:
+            deadline = now
+        tick(now)

@@ -1,0 +1,135 @@
+"""scaler: the trajectory scaling layer as a service (a thin shell around shared.scaling_layer).
+
+Each tick (the configured control period, 100 Hz by default) it takes the last trajectory, the last
+human state and the last joint state received, runs ScalingLayer.step, and publishes the joint command
+and its status. Rules of the shell:
+* no trajectory yet, or none taken: it commands the measured position (hold), so the driver can enable;
+* a new trajectory version is taken without a jump: a fresh plan (base_version -1) when the robot is at
+  its start; a merged one when the follower has not passed its junction (it continues at the same s);
+* human data that never came, is marked invalid, or is older than the configured bound stops the robot
+  (the core's rule); an invalid or malformed message counts as no message.
+
+    python -m services.scaler --connect tcp/127.0.0.1:7447 [--config deploy/cell.yaml]
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
+from shared.config import load_config
+from shared.convert import humans_from_msg, trajectory_from_msg
+from shared.errors import HrcError
+from shared.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, encode
+from shared.robot_model import default_robot
+from shared.scaling_layer import ScalingLayer
+
+START_TOLERANCE = 0.02     # rad: how close the robot must be to a fresh plan's start to take it
+
+
+class Scaler:
+    def __init__(self, shell: ServiceShell, layer: ScalingLayer) -> None:
+        self.shell, self.layer = shell, layer
+        self.lock = threading.Lock()
+        self.humans = None                 # HumanCapsules, or None
+        self.human_stamp = -np.inf         # monotonic time of the human sample
+        self.joint_q = None
+        self.pending: TrajectoryMsg | None = None
+        self.version = -1
+        self.seq = 0
+        keys = shell.keys
+        self.cmd_pub = shell.session.declare_publisher(keys.command)
+        self.status_pub = shell.session.declare_publisher(keys.scaler_status)
+        shell.subscribe(keys.human_state, HumanState, self.on_humans)
+        shell.subscribe(keys.joint_state, JointState, self.on_joints)
+        shell.subscribe(keys.trajectory, TrajectoryMsg, self.on_trajectory)
+
+    def on_humans(self, msg: HumanState) -> None:
+        with self.lock:
+            self.humans = humans_from_msg(msg)
+            self.human_stamp = msg.sample_stamp if msg.valid else -np.inf
+
+    def on_joints(self, msg: JointState) -> None:
+        with self.lock:
+            self.joint_q = np.asarray(msg.q)
+
+    def on_trajectory(self, msg: TrajectoryMsg) -> None:
+        with self.lock:
+            if msg.version > self.version:
+                self.pending = msg
+
+    def _take_pending(self) -> None:
+        msg, self.pending = self.pending, None
+        traj = trajectory_from_msg(msg)
+        layer = self.layer
+        if msg.base_version == -1:
+            if self.joint_q is None or np.abs(traj.positions[0] - self.joint_q).max() > START_TOLERANCE:
+                self.shell.log.warning("trajectory %d not taken: the robot is not at its start", msg.version)
+                return
+            layer.set_trajectory(traj, 0.0)
+            layer.sdot = 0.0
+        elif msg.base_version == self.version and layer.s <= msg.junction + 1e-9:
+            sdot = layer.sdot
+            layer.set_trajectory(traj, layer.s)
+            layer.sdot = sdot
+        else:
+            self.shell.log.warning("trajectory %d not taken: junction %.3f already passed (s = %.3f)",
+                                   msg.version, msg.junction, layer.s)
+            return
+        self.version = msg.version
+        self.shell.log.info("following trajectory %d (%s)", msg.version, msg.reason)
+
+    def tick(self, now: float) -> None:
+        with self.lock:
+            if self.pending is not None:
+                self._take_pending()
+            humans, age, q_meas = self.humans, now - self.human_stamp, self.joint_q
+        if self.layer.trajectory is None and q_meas is not None:
+            self.layer.hold(q_meas)
+        if self.layer.trajectory is None:
+            return
+        step = self.layer.step(humans, age if humans is not None else np.inf)
+        self.seq += 1
+        self.cmd_pub.put(encode(JointCommand(q=step.q_command, qd=step.qd_command,
+                                             trajectory_version=step.trajectory_version, s=step.s,
+                                             seq=self.seq, stamp=now)))
+        finite = lambda v: v if np.isfinite(v) else None
+        self.status_pub.put(encode(ScalerStatus(
+            s=step.s, alpha=step.alpha, safe_alpha=step.safe_alpha, beta=step.beta, q_command=step.q_command,
+            trajectory_version=step.trajectory_version, status=step.status.value, method=step.method,
+            min_separation=finite(step.min_separation), min_margin=finite(step.min_margin),
+            compute_us=step.compute_us, seq=self.seq, stamp=now)))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="scaler", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_zenoh_arguments(parser)
+    parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
+    args = parser.parse_args(argv)
+    setup_logging(args.log_level)
+    try:
+        config = load_config(args.config)
+        shell = ServiceShell("scaler", args)
+    except HrcError as exc:
+        print(f"scaler: error: {exc}", file=sys.stderr)
+        return 2
+    scaler = Scaler(shell, ScalingLayer(default_robot(), config.ssm, config.scaling))
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    print(f"scaler: {1 / config.scaling.period:.0f} Hz, solver {config.scaling.solver}, keys {shell.keys.prefix}/",
+          flush=True)
+    run_paced(config.scaling.period, scaler.tick, stop)
+    shell.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

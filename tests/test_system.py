@@ -1,0 +1,25 @@
+"""The robot end and the scaling layer as three processes (emulator, robot driver, scaler) over Zenoh and
+CAN, in a private network namespace: a trajectory is followed to its goal at the nominal speed when no
+one is near, and a silent tracker brings the robot to a standstill."""
+
+import pytest
+
+from tests.test_hil import _namespace_reason, run_harness
+
+SCENARIOS = ["system_goal", "system_stale_humans"]
+
+
+@pytest.fixture(scope="module")
+def results():
+    reason = _namespace_reason()
+    if reason:
+        print(f"SKIP: no private network namespace ({reason}); the scaler core is covered by "
+              "tests/test_scaling_layer.py")
+        pytest.skip(reason)
+    return run_harness(["unshare", "-rn"], ["--interface", "udp_multicast", "--with-scaler"])
+
+
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_three_processes(results, scenario):
+    print(f"{scenario}: {results[scenario]}")
+    assert results[scenario]["ok"], results[scenario]
