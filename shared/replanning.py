@@ -3,6 +3,8 @@
 * ``horizon_check``: the next n configurations of the trajectory from the current path parameter (n and
   spacing configurable), all checked at once against the latest human capsules; returns the first
   infeasible one.
+* ``Replanner.on_horizon``: the path ahead is blocked: a merge that keeps, where it can, the separation
+  at which the human allows full speed (then half of it, then the bare margin).
 * ``Replanner.replan``: keeps the old trajectory unchanged up to a junction s_j, and from there follows
   the old path geometry to a branch point (the last feasible horizon configuration), then a new
   RRT-Connect path to the goal. The new part is time-parameterised starting with the old nominal
@@ -184,8 +186,11 @@ class Replanner:
         s_first = min(s_now + self.options.lead, s_branch)     # never before the planning lead
         junctions = sorted({max(s_first, s_branch - lb) for lb in self.options.lookback}, reverse=True)
         q_branch = old.sample(float(s_branch))[0]
-        kept = self._capped(inflation, np.vstack([old.sample(np.linspace(s_first, s_branch, 8))[0], q_goal]), humans)
+        # the new part is planned with the inflation the branch point and the goal allow; the lead-in is
+        # the old, already checked path, so the smoothed whole is verified at what the lead-in has too
+        kept = self._capped(inflation, np.vstack([q_branch, q_goal]), humans)
         tail = self._tail(q_branch, q_goal, humans, inflation, kept)
+        check = min(kept, self._capped(kept, old.sample(np.linspace(s_first, s_branch, 8))[0], humans))
         errors = []
 
         def lead_in(s_j: float) -> np.ndarray:
@@ -195,15 +200,16 @@ class Replanner:
             try:
                 part = parameterize(np.vstack([lead_in(s_j), tail[1:]]), self.limits,
                                     start_velocity=old.sample(float(s_j))[1], collision=self.collision,
-                                    humans=humans, inflation=kept)
+                                    humans=humans, inflation=min(check, self._capped(check, lead_in(s_j), humans)))
                 return merge(old, s_j, part, version), s_j, kept
             except TimingError as exc:
                 errors.append(f"through at s={s_j:.2f}: {exc}")
         s_j = junctions[-1]                          # stop-and-go, with the most room to stop
         try:
             stop = parameterize(lead_in(s_j), self.limits, start_velocity=old.sample(float(s_j))[1],
-                                collision=self.collision, humans=humans, inflation=kept)
-            go = parameterize(tail, self.limits, collision=self.collision, humans=humans, inflation=kept)
+                                collision=self.collision, humans=humans,
+                                inflation=min(check, self._capped(check, lead_in(s_j), humans)))
+            go = parameterize(tail, self.limits, collision=self.collision, humans=humans, inflation=min(kept, check))
         except TimingError as exc:
             raise ReplanFailed("no junction allows a continuous merge: "
                                + "; ".join(errors + [f"stop-and-go: {exc}"])) from None
@@ -233,15 +239,31 @@ class Replanner:
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
         if check.first_infeasible is None:
             return None
-        s_branch = check.last_feasible_s
-        if s_branch is None or s_branch < s_now + self.options.lead:
-            # too close to branch in front of it: branch at the planning lead, and the new path may not
-            # come closer to the human than that point is (the scaling layer keeps the speed safe)
-            s_branch = min(old.duration, s_now + self.options.lead)
-        result = self.replan(old, s_now, q_goal, humans, "horizon", s_branch=s_branch)
         blocked = float(check.s[check.first_infeasible])
-        return ReplanResult(result.trajectory, result.junction, result.reason, result.plan_s, result.inflation,
-                            f"path blocked at s={blocked:.2f}, merged at s={result.junction:.2f}")
+        # A path that only just clears the human is collision-free but slow: within the SSM's fixed distance
+        # an approaching link gets alpha = 0. So the inflation ladder of a beta replan (the separation that
+        # allows full speed, half of it, the bare margin), each branching at the last horizon sample that
+        # still has that clearance: earlier, with room to keep it.
+        q_horizon = old.sample(check.s)[0]
+        full = self.full_speed_inflation()
+        errors = []
+        for inflation in (full, full / 2, 0.0):
+            ok = self.collision.clearances(q_horizon, humans, inflation) > self.collision.margins.tolerance
+            first_bad = int(np.argmin(ok)) if not ok.all() else len(ok)
+            s_branch = float(check.s[first_bad - 1]) if first_bad > 0 else s_now
+            if s_branch < s_now + self.options.lead:
+                # too close to branch in front of it: branch at the planning lead; the new path may not
+                # come closer to the human than that point is (the scaling layer keeps the speed safe)
+                s_branch = min(old.duration, s_now + self.options.lead)
+            try:
+                result = self.replan(old, s_now, q_goal, humans, "horizon", inflation=inflation, s_branch=s_branch)
+            except ReplanFailed as exc:
+                errors.append(f"inflation {inflation:.2f} m: {exc}")
+                continue
+            return ReplanResult(result.trajectory, result.junction, result.reason, result.plan_s, result.inflation,
+                                f"path blocked at s={blocked:.2f}, merged at s={result.junction:.2f}, "
+                                f"kept {result.inflation:.2f} m extra")
+        raise ReplanFailed("; ".join(errors))
 
     # ------------------------------------------------------------------------------------ beta replans
     def full_speed_inflation(self, robot_speed: float = 1.0) -> float:

@@ -51,9 +51,11 @@ def free_port() -> int:
 
 
 class Cell:
-    def __init__(self, interface: str, channel: str | None, with_scaler: bool = False) -> None:
+    def __init__(self, interface: str, channel: str | None, with_scaler: bool = False,
+                 with_planner: bool = False) -> None:
         self.interface, self.channel = interface, channel
-        self.with_scaler = with_scaler
+        self.with_scaler = with_scaler or with_planner
+        self.with_planner = with_planner
         self.port = free_port()
         self.keys = KeySpace("hil/cell")
         self.procs: dict[str, subprocess.Popen] = {}
@@ -81,6 +83,11 @@ class Cell:
                                    f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
                                    "--log-level", "WARNING"])
             self._expect_line("scaler", "scaler:")
+        if self.with_planner:
+            self._spawn("planner", ["services.planner", "--prefix", self.keys.prefix, "--seed", "3", "--listen",
+                                    f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
+                                    "--log-level", "WARNING"])
+            self._expect_line("planner", "planner:")
         self.session = open_session("peer", listen=[f"tcp/127.0.0.1:{free_port()}"],
                                     connect=[f"tcp/127.0.0.1:{self.port}"])
         self.cmd_pub = self.session.declare_publisher(self.keys.command)
@@ -362,8 +369,10 @@ class HumanFeed:
         threading.Thread(target=self._run, daemon=True).start()
 
     def _run(self) -> None:
+        seq = 0
         while self.running:
-            self.pub.put(encode(self._to_msg(self.humans, True, time.monotonic())))
+            seq += 1
+            self.pub.put(encode(self._to_msg(self.humans, True, time.monotonic(), seq=seq, stamp=time.monotonic())))
             time.sleep(0.02)
 
 
@@ -419,7 +428,39 @@ def _wait(condition, timeout: float) -> float | None:
     return None
 
 
-SYSTEM_SCENARIOS = {"system_goal": system_goal, "system_stale_humans": system_stale_humans}
+def system_replan(cell: Cell) -> dict:
+    """Goal through the planner; an arm appears across the path while the robot moves: the planner
+    replans (horizon check) and the goal is still reached, never closer to the arm than d_min."""
+    from shared.geometry import capsule_pair_distances
+    from shared.humans import HumanCapsules
+    from shared.messages import Goal
+    from shared.robot_model import default_robot
+    robot = default_robot()
+    feed = HumanFeed(cell)
+    _wait(lambda: cell.latest().enabled, 5.0)
+    goal = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+    arm = HumanCapsules.from_arrays([[[-0.75, -0.15, 0.55], [-0.35, 0.15, 0.55]],
+                                     [[-1.0, -0.2, 0.9], [-1.0, -0.2, 1.45]]], [0.05, 0.17],
+                                    np.zeros((2, 2, 3)), [True, True])
+    t0 = time.monotonic()
+    cell.session.put(cell.keys.goal, encode(Goal(goal_id=7, name="q_g", q=goal)))
+    _wait(lambda: np.abs(cell.latest().qd).max() > 0.2, 3.0)
+    time.sleep(0.2)
+    feed.humans = arm                                          # steps in while the robot moves
+    reached = _wait(lambda: np.abs(cell.latest().q - goal).max() < 0.01, 15.0)
+    feed.running = False
+    events = [e.event for t, e in cell.events_since(t0) if e.source == "planner"]
+    texts = [e.text[:160] for t, e in cell.events_since(t0) if e.source == "planner"]
+    with cell.lock:
+        qs = [s.q for t, s in cell.states if t >= t0]
+    closest = min(float(capsule_pair_distances(robot.capsule_segments(q), robot.radii, arm.segments,
+                                               arm.radii).distance.min()) for q in qs[::5])
+    return {"ok": reached is not None and "trajectory_horizon" in events and closest >= 0.05,
+            "reached_after_s": reached, "planner_events": events[:6], "texts": texts[:8], "closest_to_arm_m": closest}
+
+
+SYSTEM_SCENARIOS = {"system_goal": system_goal, "system_stale_humans": system_stale_humans,
+                    "system_replan": system_replan}
 
 SCENARIOS = {"enable": enable, "follow": follow, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
              "drive_fault": drive_fault, "frozen_node": frozen_node, "dropped_frames": dropped_frames,
@@ -432,14 +473,15 @@ def main() -> int:
     parser.add_argument("--channel", default=None)
     parser.add_argument("--scenarios", nargs="*", default=None)
     parser.add_argument("--with-scaler", action="store_true", help="also run the scaler service")
+    parser.add_argument("--with-planner", action="store_true", help="also run the scaler and planner services")
     args = parser.parse_args()
-    table = SYSTEM_SCENARIOS if args.with_scaler else SCENARIOS
+    table = SYSTEM_SCENARIOS if (args.with_scaler or args.with_planner) else SCENARIOS
     args.scenarios = args.scenarios or list(table)
     if args.interface == "udp_multicast":
         for cmd in (["ip", "link", "set", "lo", "up"], ["ip", "link", "set", "lo", "multicast", "on"],
                     ["ip", "route", "add", "224.0.0.0/4", "dev", "lo"]):
             subprocess.run(cmd, check=True)
-    cell = Cell(args.interface, args.channel, with_scaler=args.with_scaler)
+    cell = Cell(args.interface, args.channel, with_scaler=args.with_scaler, with_planner=args.with_planner)
     results = {"transport": f"{args.interface}:{args.channel or ''}"}
     try:
         cell.start()

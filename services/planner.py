@@ -1,0 +1,200 @@
+"""planner: the planning layer as a service (a thin shell around shared.replanning).
+
+Inputs (the latest of each is kept): goals, human states, joint states, scaler status. A worker thread
+(OMPL holds the GIL: planning never runs in a latency-critical process) then, in this order:
+* a new goal: a fresh plan from where the robot is (base_version -1), or, while a trajectory is being
+  followed, a merge into it;
+* a replan request (beta in the scaler status, at most every beta_cooldown): Replanner.on_beta, which
+  keeps the old trajectory unless the new one is predicted to be 10 % faster;
+* every new human state (at most every horizon_period): the horizon check, and a merge when the path
+  ahead is blocked (failed replans back off).
+Every published trajectory and every refusal is reported as an event on <prefix>/safety/events (source
+planner, severity info): why, and how long it took.
+
+    python -m services.planner --connect tcp/127.0.0.1:7447 [--scene deploy/scene.yaml] [--seed 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from services.common import ServiceShell, add_zenoh_arguments, setup_logging
+from shared.collision import CollisionModel
+from shared.config import load_config
+from shared.convert import humans_from_msg, trajectory_to_msg
+from shared.errors import HrcError
+from shared.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
+from shared.planner import JointPlanner, PlannerOptions, PlanningError
+from shared.replanning import ReplanFailed, Replanner, ReplanResult
+from shared.robot_model import default_robot
+from shared.scene import Scene, load_scene
+from shared.timing import TimingError
+from shared.trajectory import Trajectory
+
+DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
+
+
+class PlannerService:
+    def __init__(self, shell: ServiceShell, replanner: Replanner, horizon_period: float = 0.02,
+                 beta_cooldown: float = 0.5) -> None:
+        self.shell, self.replanner = shell, replanner
+        self.horizon_period, self.beta_cooldown = horizon_period, beta_cooldown
+        self.lock = threading.Lock()
+        self.wake = threading.Event()
+        self.goal: Goal | None = None
+        self.new_goal = False
+        self.humans = None
+        self.human_seq = -1
+        self.q = None
+        self.status: ScalerStatus | None = None
+        self.trajectory: Trajectory | None = None
+        self.goal_id = 0
+        self.seq = 0
+        self.traj_pub = shell.session.declare_publisher(shell.keys.trajectory)
+        self.event_pub = shell.session.declare_publisher(shell.keys.safety_events)
+        shell.subscribe(shell.keys.goal, Goal, self.on_goal)
+        shell.subscribe(shell.keys.human_state, HumanState, self.on_humans)
+        shell.subscribe(shell.keys.joint_state, JointState, self.on_joints)
+        shell.subscribe(shell.keys.scaler_status, ScalerStatus, self.on_status)
+
+    # ------------------------------------------------------------------------------------- inputs
+    def on_goal(self, msg: Goal) -> None:
+        with self.lock:
+            self.goal, self.new_goal = msg, True
+        self.wake.set()
+
+    def on_humans(self, msg: HumanState) -> None:
+        with self.lock:      # counted here: the horizon check must not depend on the sender's numbering
+            self.humans, self.human_seq = humans_from_msg(msg), self.human_seq + 1
+        self.wake.set()
+
+    def on_joints(self, msg: JointState) -> None:
+        with self.lock:
+            self.q = np.asarray(msg.q)
+
+    def on_status(self, msg: ScalerStatus) -> None:
+        with self.lock:
+            self.status = msg
+        if msg.beta:
+            self.wake.set()
+
+    # ------------------------------------------------------------------------------------- outputs
+    def _event(self, event: str, text: str) -> None:
+        self.seq += 1
+        self.event_pub.put(encode(SafetyEvent(source="planner", event=event, severity="info", text=text,
+                                              seq=self.seq, stamp=time.monotonic())))
+        self.shell.log.info("%s: %s", event, text)
+
+    def _publish(self, traj: Trajectory, reason: str, junction: float, base_version: int, ms: float,
+                 detail: str = "") -> None:
+        self.trajectory = traj
+        self.seq += 1
+        self.traj_pub.put(encode(trajectory_to_msg(traj, self.goal_id, reason, junction, base_version,
+                                                   seq=self.seq, stamp=time.monotonic())))
+        self._event(f"trajectory_{reason}", f"version {traj.version} in {ms:.0f} ms, junction s={junction:.2f}; {detail}")
+
+    # ------------------------------------------------------------------------------------- work
+    def _following(self) -> tuple[Trajectory, float] | None:
+        """The trajectory the scaler follows and where it is on it, if it is ours and not finished."""
+        st = self.status
+        if self.trajectory is None or st is None or st.trajectory_version != self.trajectory.version:
+            return None
+        return (self.trajectory, st.s) if st.s < self.trajectory.duration - 1e-6 else None
+
+    def _apply(self, result: ReplanResult, base: Trajectory, started: float) -> None:
+        ms = (time.perf_counter() - started) * 1e3
+        if result.from_rest:
+            self._publish(result.trajectory, result.reason, 0.0, -1, ms, result.detail)
+        else:
+            self._publish(result.trajectory, result.reason, result.junction, base.version, ms, result.detail)
+
+    def work_once(self, now: float, state: dict) -> None:
+        with self.lock:
+            goal, new_goal, humans, q, status = self.goal, self.new_goal, self.humans, self.q, self.status
+            self.new_goal = False
+            human_seq = self.human_seq
+        if goal is None or q is None:
+            return
+        version = (self.trajectory.version + 1) if self.trajectory is not None else 1
+        following = self._following()
+        started = time.perf_counter()
+        if new_goal:
+            self.goal_id = goal.goal_id
+            try:
+                if following is None:
+                    traj = self.replanner.plan_fresh(q, goal.q, humans, version)
+                    self._publish(traj, "goal", 0.0, -1, (time.perf_counter() - started) * 1e3)
+                else:
+                    self._apply(self.replanner.replan(following[0], following[1], goal.q, humans, "goal"),
+                                following[0], started)
+            except (PlanningError, TimingError, ReplanFailed) as exc:
+                self._event("plan_refused", f"goal {goal.goal_id}: {type(exc).__name__}: {exc}")
+            return
+        if following is None:
+            return
+        traj, s = following
+        if status is not None and status.beta and now >= state["next_beta"]:
+            state["next_beta"] = now + self.beta_cooldown
+            speed = float(np.abs(traj.sample(s)[1]).max() * status.alpha)
+            try:
+                self._apply(self.replanner.on_beta(traj, s, goal.q, humans, speed), traj, started)
+            except ReplanFailed as exc:
+                self._event("replan_refused", f"beta: {exc}"[:500])
+            return
+        if human_seq != state["human_seq"] and now >= state["next_horizon"]:
+            state["human_seq"] = human_seq
+            state["next_horizon"] = now + self.horizon_period
+            try:
+                result = self.replanner.on_horizon(traj, s, goal.q, humans)
+                if result is not None:
+                    self._apply(result, traj, started)
+            except ReplanFailed as exc:
+                state["next_horizon"] = now + self.beta_cooldown / 2
+                self._event("replan_refused", f"horizon: {exc}"[:500])
+
+    def run(self, stop: threading.Event) -> None:
+        state = {"next_beta": 0.0, "next_horizon": 0.0, "human_seq": -1}
+        while not stop.is_set():
+            self.wake.wait(0.05)
+            self.wake.clear()
+            self.work_once(time.monotonic(), state)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="planner", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_zenoh_arguments(parser)
+    parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
+    parser.add_argument("--scene", type=Path, default=None, help="static cell (default deploy/scene.yaml)")
+    parser.add_argument("--seed", type=int, default=None, help="seed of OMPL's sampling (default: random)")
+    args = parser.parse_args(argv)
+    setup_logging(args.log_level)
+    try:
+        config = load_config(args.config)
+        scene = load_scene(args.scene) if args.scene else (load_scene(DEFAULT_SCENE) if DEFAULT_SCENE.exists()
+                                                           else Scene(floor_z=0.0))
+        shell = ServiceShell("planner", args)
+    except HrcError as exc:
+        print(f"planner: error: {exc}", file=sys.stderr)
+        return 2
+    collision = CollisionModel(default_robot(), scene, config.ssm.min_separation)
+    replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm)
+    service = PlannerService(shell, replanner)
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: (stop.set(), service.wake.set()))
+    signal.signal(signal.SIGINT, lambda *_: (stop.set(), service.wake.set()))
+    print(f"planner: RRT-Connect, scene with {len(scene.names)} obstacles, keys {shell.keys.prefix}/", flush=True)
+    service.run(stop)
+    shell.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
