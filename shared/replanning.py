@@ -102,6 +102,8 @@ class ReplanOptions:
     tried further back when a turn is too sharp); lead: nominal seconds ahead of the current s that the
     junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
     beta replan must save; prediction_step: nominal seconds between the samples of that prediction;
+    inflated_budget (s): RRT-Connect's time for an attempt with extra clearance (when such a path exists
+    it is found fast; the bare-margin attempt keeps the planner's full budget);
     rest_speed (rad/s): below it the robot counts as at rest for a beta replan; escape_*: how the escape
     waypoint is searched (random joint offsets of growing radius, seeded)."""
 
@@ -110,6 +112,7 @@ class ReplanOptions:
     min_gain: float = 0.10
     prediction_step: float = 0.05
     alpha_floor: float = 0.02
+    inflated_budget: float = 0.1
     rest_speed: float = 0.02
     escape_radii: tuple[float, ...] = (0.2, 0.4, 0.8)
     escape_alpha: float = 0.2
@@ -168,13 +171,15 @@ class Replanner:
 
     def _tail(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, inflation: float,
               kept: float) -> np.ndarray:
+        budget = self.options.inflated_budget if inflation > 0 else None
         """Waypoints from q_from to the goal: when q_from cannot have the full inflation (kept < inflation),
         first to an escape configuration that has it, then planned with the inflation all the way."""
         escape = self._escape(q_from, humans, self._capped(inflation, q_goal[None, :], humans), kept) \
             if kept < inflation else None
         if escape is None:
-            return self.planner.plan(q_from, q_goal, humans, kept)
-        rest = self.planner.plan(escape, q_goal, humans, self._capped(inflation, np.vstack([escape, q_goal]), humans))
+            return self.planner.plan(q_from, q_goal, humans, kept, time_budget=budget)
+        rest = self.planner.plan(escape, q_goal, humans, self._capped(inflation, np.vstack([escape, q_goal]), humans),
+                                 time_budget=budget)
         return np.vstack([q_from, rest])
 
     def _branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
