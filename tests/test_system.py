@@ -1,6 +1,7 @@
-"""The robot end and the scaling layer as three processes (emulator, robot driver, scaler) over Zenoh and
-CAN, in a private network namespace: a trajectory is followed to its goal at the nominal speed when no
-one is near, and a silent tracker brings the robot to a standstill."""
+"""The robot end, the tracker and the scaling layer as four processes (emulator, robot driver,
+tracker_ingest, scaler) over Zenoh and CAN, in a private network namespace. Raw human poses go through
+tracker_ingest at 240 Hz: a trajectory is followed to its goal at the nominal speed when no one is near,
+and a silent tracker (its raw stream stops) brings the robot to a standstill."""
 
 import pytest
 
@@ -19,7 +20,7 @@ def results():
         print(f"SKIP: no private network namespace ({reason}); the scaler core is covered by "
               "tests/test_scaling_layer.py")
         pytest.skip(reason)
-    return run_harness(["unshare", "-rn"], ["--interface", "udp_multicast", "--with-scaler", "--scenarios", *SCENARIOS])
+    return run_harness(["unshare", "-rn"], ["--interface", "udp_multicast", "--with-tracker", "--scenarios", *SCENARIOS])
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)

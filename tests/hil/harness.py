@@ -52,9 +52,10 @@ def free_port() -> int:
 
 class Cell:
     def __init__(self, interface: str, channel: str | None, with_scaler: bool = False,
-                 with_planner: bool = False) -> None:
+                 with_planner: bool = False, with_tracker: bool = False) -> None:
         self.interface, self.channel = interface, channel
-        self.with_scaler = with_scaler or with_planner
+        self.with_tracker = with_tracker
+        self.with_scaler = with_scaler or with_planner or with_tracker
         self.with_planner = with_planner
         self.port = free_port()
         self.keys = KeySpace("hil/cell")
@@ -83,6 +84,11 @@ class Cell:
                                    f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
                                    "--log-level", "WARNING"])
             self._expect_line("scaler", "scaler:")
+        if self.with_tracker:
+            self._spawn("tracker", ["services.tracker_ingest", "--prefix", self.keys.prefix, "--listen",
+                                    f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
+                                    "--log-level", "WARNING"])
+            self._expect_line("tracker", "tracker_ingest:")
         if self.with_planner:
             self._spawn("planner", ["services.planner", "--prefix", self.keys.prefix, "--seed", "3", "--listen",
                                     f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
@@ -364,16 +370,23 @@ class HumanFeed:
         from shared.convert import humans_to_msg
         from shared.humans import HumanCapsules
         self.cell, self.humans, self.running = cell, HumanCapsules.empty(), True
-        self.pub = cell.session.declare_publisher(cell.keys.human_state)
+        self.raw = cell.with_tracker           # with the tracker service: raw poses at 240 Hz, through it
+        self.pub = cell.session.declare_publisher(cell.keys.human_raw if self.raw else cell.keys.human_state)
         self._to_msg = humans_to_msg
         threading.Thread(target=self._run, daemon=True).start()
 
     def _run(self) -> None:
+        from shared.messages import HumanRaw
         seq = 0
         while self.running:
             seq += 1
-            self.pub.put(encode(self._to_msg(self.humans, True, time.monotonic(), seq=seq, stamp=time.monotonic())))
-            time.sleep(0.02)
+            now = time.monotonic()
+            if self.raw:
+                self.pub.put(encode(HumanRaw(source="hil", sample_time=now, segments=self.humans.segments,
+                                             radii=self.humans.radii, seq=seq, stamp=now)))
+            else:
+                self.pub.put(encode(self._to_msg(self.humans, True, now, seq=seq, stamp=now)))
+            time.sleep(1 / 240 if self.raw else 0.02)
 
 
 def _publish_trajectory(cell: Cell, goal: np.ndarray, version: int):
@@ -474,14 +487,16 @@ def main() -> int:
     parser.add_argument("--scenarios", nargs="*", default=None)
     parser.add_argument("--with-scaler", action="store_true", help="also run the scaler service")
     parser.add_argument("--with-planner", action="store_true", help="also run the scaler and planner services")
+    parser.add_argument("--with-tracker", action="store_true", help="also run the scaler and tracker_ingest services")
     args = parser.parse_args()
-    table = SYSTEM_SCENARIOS if (args.with_scaler or args.with_planner) else SCENARIOS
+    table = SYSTEM_SCENARIOS if (args.with_scaler or args.with_planner or args.with_tracker) else SCENARIOS
     args.scenarios = args.scenarios or list(table)
     if args.interface == "udp_multicast":
         for cmd in (["ip", "link", "set", "lo", "up"], ["ip", "link", "set", "lo", "multicast", "on"],
                     ["ip", "route", "add", "224.0.0.0/4", "dev", "lo"]):
             subprocess.run(cmd, check=True)
-    cell = Cell(args.interface, args.channel, with_scaler=args.with_scaler, with_planner=args.with_planner)
+    cell = Cell(args.interface, args.channel, with_scaler=args.with_scaler, with_planner=args.with_planner,
+                with_tracker=args.with_tracker)
     results = {"transport": f"{args.interface}:{args.channel or ''}"}
     try:
         cell.start()

@@ -1,0 +1,94 @@
+"""tracker_ingest: raw human poses in, the human state out (a thin shell around shared.tracking).
+
+Every raw sample (<prefix>/human/raw, HumanRaw: capsules from motion capture, the CLI or a replay, up to
+240 Hz) is filtered and published at once as HumanState on <prefix>/human/state, stamped with its arrival
+time (the scaler measures the data's age from it). A 100 Hz check publishes an invalid state while no
+sample has arrived within the dropout bound, so a silent tracker is announced, not only noticed.
+
+    python -m services.tracker_ingest --connect tcp/127.0.0.1:7447
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+
+
+from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
+from shared.convert import humans_to_msg
+from shared.errors import HrcError
+from shared.humans import HumanCapsules
+from shared.messages import HumanRaw, HumanState, SafetyEvent, encode
+from shared.tracking import HumanTracker, TrackerParameters
+
+
+class TrackerIngest:
+    def __init__(self, shell: ServiceShell, tracker: HumanTracker) -> None:
+        self.shell, self.tracker = shell, tracker
+        self.lock = threading.Lock()
+        self.seq = 0
+        self.valid_before = False
+        self.state_pub = shell.session.declare_publisher(shell.keys.human_state)
+        self.event_pub = shell.session.declare_publisher(shell.keys.safety_events)
+        shell.subscribe(shell.keys.human_raw, HumanRaw, self.on_raw)
+
+    def _publish(self, msg: HumanState) -> None:
+        self.seq += 1
+        self.state_pub.put(encode(HumanState(segments=msg.segments, radii=msg.radii, velocities=msg.velocities,
+                                             velocity_known=msg.velocity_known, valid=msg.valid,
+                                             sample_stamp=msg.sample_stamp, seq=self.seq, stamp=time.monotonic())))
+
+    def on_raw(self, msg: HumanRaw) -> None:
+        arrival = time.monotonic()
+        with self.lock:
+            humans = self.tracker.update(msg.segments, msg.radii, msg.sample_time, arrival)
+            if humans is not None:
+                self._publish(humans_to_msg(humans, True, arrival))
+
+    def check(self, now: float) -> None:
+        with self.lock:
+            valid = self.tracker.valid(now)
+            if not valid:
+                self._publish(humans_to_msg(HumanCapsules.empty(), False, now))
+            if valid != self.valid_before:
+                self.valid_before = valid
+                self.seq += 1
+                text = "tracking resumed" if valid else "no human sample within the dropout bound"
+                self.event_pub.put(encode(SafetyEvent(source="tracker_ingest", event="tracker_dropout" if not valid
+                                                      else "tracker_ok", severity="stop" if not valid else "info",
+                                                      text=text, seq=self.seq, stamp=now)))
+                (self.shell.log.warning if not valid else self.shell.log.info)(text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="tracker_ingest", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_zenoh_arguments(parser)
+    parser.add_argument("--dropout", type=float, default=0.05, help="no sample for this long: invalid (s)")
+    parser.add_argument("--window", type=float, default=0.04, help="velocity fit window (s)")
+    args = parser.parse_args(argv)
+    setup_logging(args.log_level)
+    if not (0 < args.dropout <= 1.0 and 0 < args.window <= 1.0):
+        print("tracker_ingest: error: --dropout and --window must be in (0, 1] s", file=sys.stderr)
+        return 2
+    try:
+        shell = ServiceShell("tracker_ingest", args)
+    except HrcError as exc:
+        print(f"tracker_ingest: error: {exc}", file=sys.stderr)
+        return 2
+    service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=args.window, dropout=args.dropout)))
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    print(f"tracker_ingest: least-squares velocity over {args.window * 1000:.0f} ms, dropout "
+          f"{args.dropout * 1000:.0f} ms, keys {shell.keys.prefix}/", flush=True)
+    run_paced(0.01, service.check, stop)
+    shell.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

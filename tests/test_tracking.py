@@ -1,0 +1,66 @@
+"""Human tracking: velocity from noisy samples, glitches, dropouts."""
+
+import numpy as np
+import pytest
+
+from shared.tracking import HumanTracker, TrackerParameters
+
+DT = 1 / 240
+
+
+def feed(tracker, positions, radius=0.05, t0=0.0, noise=0.0, rng=None):
+    out = None
+    for k, p in enumerate(positions):
+        seg = np.array([[p, p + [0, 0, 0.3]]])
+        if noise:
+            seg = seg + rng.normal(scale=noise, size=seg.shape)
+        out = tracker.update(seg, [radius], t0 + k * DT, t0 + k * DT)
+    return out
+
+
+def test_constant_velocity_is_estimated_without_bias_through_noise():
+    rng = np.random.default_rng(3)
+    v = np.array([1.2, -0.4, 0.1])
+    errs = []
+    tracker = HumanTracker()
+    for k in range(400):
+        p = np.array([0.5, 0.2, 1.0]) + v * k * DT
+        seg = np.array([[p, p + [0, 0, 0.3]]]) + rng.normal(scale=0.001, size=(1, 2, 3))
+        h = tracker.update(seg, [0.05], k * DT, k * DT)
+        if k > 20:
+            errs.append(h.velocities[0, 0] - v)
+    errs = np.array(errs)
+    assert np.abs(errs.mean(axis=0)).max() < 0.01                  # unbiased
+    assert errs.std(axis=0).max() < 0.06                           # noise about 0.03 m/s
+    assert h.velocity_known.all()
+
+
+def test_velocity_is_unknown_until_the_window_has_samples():
+    tracker = HumanTracker()
+    h = feed(tracker, [np.zeros(3)] * 2)
+    assert not h.velocity_known.any()
+    h = feed(tracker, [np.zeros(3)] * 10, t0=2 * DT)
+    assert h.velocity_known.all() and np.allclose(h.velocities, 0)
+
+
+def test_a_jump_faster_than_a_human_marks_the_velocity_unknown_and_takes_the_new_position():
+    tracker = HumanTracker()
+    feed(tracker, [np.zeros(3)] * 20)
+    h = tracker.update(np.array([[[1.0, 0, 0], [1.0, 0, 0.3]]]), [0.05], 20 * DT, 20 * DT)
+    assert not h.velocity_known.any() and h.segments[0, 0, 0] == pytest.approx(1.0)
+    assert tracker.glitches == 1
+
+
+def test_dropout_invalidates_the_track():
+    tracker = HumanTracker(TrackerParameters(dropout=0.05))
+    feed(tracker, [np.zeros(3)] * 5)
+    last = 4 * DT
+    assert tracker.valid(last + 0.04) and not tracker.valid(last + 0.06)
+
+
+def test_out_of_order_samples_are_dropped_and_capsule_count_changes_restart():
+    tracker = HumanTracker()
+    feed(tracker, [np.zeros(3)] * 10)
+    assert tracker.update(np.zeros((1, 2, 3)), [0.05], 0.0, 1.0) is None
+    h = tracker.update(np.zeros((2, 2, 3)), [0.05, 0.05], 11 * DT, 11 * DT)
+    assert h.count == 2 and not h.velocity_known.any()
