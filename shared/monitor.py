@@ -1,0 +1,112 @@
+"""The independent safety monitor's check (pure): ISO/TS 15066 SSM on a measured robot state.
+
+Independent of the scaling layer on purpose: distances and witness points come from coal (not the
+project's compiled kernels), point velocities from pinocchio's frame Jacobians (not the compiled chain),
+and the robot's approach speed is taken at its actual closest point to each human capsule, as the
+standard states it (the scaling layer bounds it by the worst end point of the link, a stronger
+condition). Only the ISO formula itself (shared.ssm.velocity_limit) is common: it is the standard.
+
+For every robot link i and human capsule j: separation d_ij (coal), unit direction n_ij from the robot's
+closest point to the human's, the robot point's velocity v_r = J_i(q, p) qd, the human point's velocity
+interpolated between the capsule's end points, human approach speed max(0, -n . v_h) (or the ISO 13855
+speed when untracked). A violation: n . v_r > max(v_r_max(d, v_h), 0) + tolerance, or d < d_min. (Overlapping capsules are always
+a separation violation; coal's penetration witness points give no meaningful direction there.)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from shared.humans import HumanCapsules
+from shared.robot_model import RobotModel
+from shared.ssm import SsmParameters, default_human_speed, velocity_limit
+
+
+def _capsule_placement(a: np.ndarray, b: np.ndarray) -> tuple[pin.SE3, float]:
+    """The frame of a coal capsule (centre, z along the axis) for segment a-b, and its length."""
+    axis = b - a
+    length = float(np.linalg.norm(axis))
+    z = axis / length if length > 1e-12 else np.array([0.0, 0.0, 1.0])
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return pin.SE3(np.column_stack([x, np.cross(z, x), z]), (a + b) / 2), length
+
+
+@dataclass
+class Violation:
+    link: str
+    capsule: int
+    kind: str                 # 'speed' or 'separation'
+    separation: float
+    approach_speed: float
+    limit: float
+
+
+@dataclass
+class MonitorResult:
+    min_separation: float = np.inf
+    min_margin: float = np.inf          # min over pairs of max(limit, 0) - approach speed (m/s)
+    violations: list[Violation] = field(default_factory=list)
+
+
+class SafetyMonitor:
+    def __init__(self, robot: RobotModel, ssm: SsmParameters, tolerance: float = 1e-3) -> None:
+        self.robot, self.ssm, self.tolerance = robot, ssm, tolerance
+        self.model = robot.model
+        self.data = self.model.createData()
+        self._links = []
+        for cap in robot.capsules:
+            placement, length = _capsule_placement(cap.a, cap.b)
+            self._links.append((cap.link, self.model.getFrameId(cap.link), placement,
+                                coal.Capsule(cap.radius, length)))
+        self._request = coal.DistanceRequest()
+        self._request.enable_signed_distance = True
+
+    def check(self, q: np.ndarray, qd: np.ndarray, humans: HumanCapsules | None) -> MonitorResult:
+        result = MonitorResult()
+        if humans is None or humans.count == 0:
+            return result
+        q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        human_shapes = []
+        for j in range(humans.count):
+            placement, length = _capsule_placement(humans.segments[j, 0], humans.segments[j, 1])
+            human_shapes.append((coal.Capsule(float(humans.radii[j]), length),
+                                 coal.Transform3s(placement.rotation, placement.translation)))
+        for link, fid, local, shape in self._links:
+            frame = self.data.oMf[fid]
+            world = frame * local
+            tf = coal.Transform3s(world.rotation, world.translation)
+            jac = pin.getFrameJacobian(self.model, self.data, fid, pin.LOCAL_WORLD_ALIGNED)
+            twist = jac @ qd                                         # (v at the frame origin, omega)
+            for j, (hshape, htf) in enumerate(human_shapes):
+                res = coal.DistanceResult()
+                d = coal.distance(shape, tf, hshape, htf, self._request, res)
+                p_robot, p_human = res.getNearestPoint1(), res.getNearestPoint2()
+                diff = p_human - p_robot
+                norm = np.linalg.norm(diff)
+                n = diff / norm if norm > 1e-9 else np.zeros(3)
+                v_robot = twist[:3] + np.cross(twist[3:], p_robot - frame.translation)
+                approach = float(n @ v_robot) if norm > 1e-9 else float(np.linalg.norm(v_robot))
+                a, b = humans.segments[j]
+                u = float(np.clip((p_human - a) @ (b - a) / max((b - a) @ (b - a), 1e-12), 0.0, 1.0))
+                v_h_point = (1 - u) * humans.velocities[j, 0] + u * humans.velocities[j, 1]
+                if humans.velocity_known[j]:
+                    v_h = max(0.0, float(-(n @ v_h_point))) if norm > 1e-9 else float(np.linalg.norm(v_h_point))
+                else:
+                    v_h = float(default_human_speed(d, self.ssm))
+                limit = float(velocity_limit(d, v_h, self.ssm))
+                margin = max(limit, 0.0) - approach
+                result.min_separation = min(result.min_separation, float(d))
+                result.min_margin = min(result.min_margin, margin)
+                if margin < -self.tolerance:
+                    result.violations.append(Violation(link, j, "speed", float(d), approach, limit))
+                if d < self.ssm.min_separation - self.tolerance:
+                    result.violations.append(Violation(link, j, "separation", float(d), approach, limit))
+        return result
