@@ -4,7 +4,8 @@ The robot follows the planned path exactly: q(s), joint velocity q'(s) sdot, wit
 Each cycle the largest alpha in [0, 1] is sought such that
 
 * SSM (hard): for every robot link i and human capsule j, the speed at which link i approaches capsule j,
-  n_ij^T J_i(q) q'(s) sdot_nom alpha, stays below max(v_r_max,ij, 0). The approach speed of a rigid
+  n_ij^T J_i(q) q'(s) sdot_nom alpha, stays below max(v_r_max,ij - tracking_margin, 0) (the margin covers
+  the drives' one-period lag behind their setpoints, see SsmParameters). The approach speed of a rigid
   segment is affine along it, so the largest of its two end points' speeds is used with the pair's
   closest distance: conservative for the whole link, not only for the closest point. A negative limit
   forbids approaching but never forbids moving away. Where the two axes touch (no direction defined)
@@ -55,6 +56,7 @@ class ScalingRows:
     soft_coef: np.ndarray
     soft_bound: np.ndarray
     ssm: PairSsm | None
+    tracking_margin: float = 0.0
 
     @property
     def hard_coef(self) -> np.ndarray:
@@ -63,7 +65,7 @@ class ScalingRows:
 
     @property
     def hard_bound(self) -> np.ndarray:
-        ssm = np.maximum(self.ssm.limit, 0.0).ravel() if self.ssm is not None else np.zeros(0)
+        ssm = np.maximum(self.ssm.limit - self.tracking_margin, 0.0).ravel() if self.ssm is not None else np.zeros(0)
         return np.concatenate([self.joint_speed_limit, ssm])
 
     def slack(self, alpha: float) -> float:
@@ -124,10 +126,11 @@ def build_rows(robot: RobotModel, q: np.ndarray, dq_ds: np.ndarray, d2q_ds2: np.
         points, jac = robot.capsule_kinematics(q)                       # (L,2,3), (L,2,3,6)
         pairs = pair_ssm(points, robot.radii, jac @ tangent, humans, ssm)
     joint_speed = np.abs(tangent)
-    upper = _upper_bound(joint_speed, lim.velocity, *((pairs.robot_speed, pairs.limit) if pairs else (_NO_PAIRS, _NO_PAIRS)))
+    upper = _upper_bound(joint_speed, lim.velocity, *((pairs.robot_speed, pairs.limit - ssm.tracking_margin)
+                                                      if pairs else (_NO_PAIRS, _NO_PAIRS)))
     coef, bound = _acceleration_rows(dq, np.asarray(d2q_ds2, dtype=np.float64), float(sdot_nominal),
                                      float(sdot_prev), float(period), lim.acceleration)
-    return ScalingRows(joint_speed, lim.velocity, upper, coef, bound, pairs)
+    return ScalingRows(joint_speed, lim.velocity, upper, coef, bound, pairs, ssm.tracking_margin)
 
 
 def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray, humans: HumanCapsules,
@@ -137,7 +140,7 @@ def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray
         return 1.0
     points, jac = robot.capsule_kinematics(q)
     pairs = pair_ssm(points, robot.radii, jac @ joint_velocity, humans, ssm)
-    return _upper_bound(_NO_ROWS, _NO_ROWS, pairs.robot_speed, pairs.limit)
+    return _upper_bound(_NO_ROWS, _NO_ROWS, pairs.robot_speed, pairs.limit - ssm.tracking_margin)
 
 
 _NO_ROWS = np.zeros(0)

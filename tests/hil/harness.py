@@ -89,6 +89,11 @@ class Cell:
                                     f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
                                     "--log-level", "WARNING"])
             self._expect_line("tracker", "tracker_ingest:")
+        if self.with_tracker:
+            self._spawn("monitor", ["services.safety_monitor", "--prefix", self.keys.prefix, "--listen",
+                                    f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
+                                    "--log-level", "WARNING"])
+            self._expect_line("monitor", "safety_monitor:")
         if self.with_planner:
             self._spawn("planner", ["services.planner", "--prefix", self.keys.prefix, "--seed", "3", "--listen",
                                     f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
@@ -100,6 +105,12 @@ class Cell:
         self.req_pub = self.session.declare_publisher(self.keys.driver_request)
         self.subs = [self.session.declare_subscriber(self.keys.joint_state, self._on_state),
                      self.session.declare_subscriber(self.keys.safety_events, self._on_event)]
+        # peers do not forward: a put reaches a service only once this session is linked to it directly
+        # (gossip builds the mesh a little after start); wait for each service's liveliness token
+        for service in [name for name, on in (("scaler", self.with_scaler), ("tracker_ingest", self.with_tracker),
+                                              ("safety_monitor", self.with_tracker), ("planner", self.with_planner))
+                        if on]:
+            self._await_token(service)
         self.tool = canopen.Network(open_bus(self.interface, self.channel))
         self.tool.connect()
         self.nodes = {}
@@ -110,6 +121,14 @@ class Cell:
             self.tool.subscribe(0x80 + nid, lambda cid, data, ts: self._on_emcy(cid, data))
         self.sync_stamps: list[float] = []
         self.tool.subscribe(0x80, lambda cid, data, ts: self.sync_stamps.append(ts))     # receive timestamps
+
+    def _await_token(self, service: str, timeout: float = 10.0) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if list(self.session.liveliness().get(self.keys.alive(service), timeout=0.5)):
+                return
+            time.sleep(0.05)
+        raise RuntimeError(f"no liveliness token from {service} within {timeout:.0f} s")
 
     def _expect_line(self, name: str, text: str, timeout: float = 20.0) -> None:
         proc = self.procs[name]
@@ -429,6 +448,40 @@ def system_stale_humans(cell: Cell) -> dict:
             "speed_before_rad_s": moving, "standstill_after_s": still, "drift_after_rad": drift}
 
 
+def system_near_human(cell: Cell) -> dict:
+    """A person stands beside the shuttle's path, tracked: the robot slows near them, still reaches the
+    goal, and the independent monitor (measured states) counts no violation."""
+    from shared.humans import HumanCapsules
+    from shared.scenarios import body_segments
+    feed = HumanFeed(cell)
+    _wait(lambda: cell.latest().enabled, 5.0)
+    seg, radii = body_segments(-1.3, 0.0, 0.6, np.array([-0.45, 0.0, 0.6]), lean=0.3)
+    feed.humans = HumanCapsules.from_arrays(seg, radii, np.zeros_like(seg), np.ones(len(radii), bool))
+    time.sleep(0.3)
+    goal = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+    traj = _publish_trajectory(cell, goal, 5)
+    reached = _wait(lambda: np.abs(cell.latest().q - goal).max() < 0.005, traj.duration * 8)
+    time.sleep(1.2)
+    feed.running = False
+    with cell.lock:
+        summaries = [e for _, e in cell.events if e.source == "safety_monitor" and e.event == "monitor_summary"]
+    last = summaries[-1]
+    return {"ok": reached is not None and reached > traj.duration * 1.05 and last.value == 0
+            and "inf" not in last.text, "nominal_s": traj.duration, "reached_after_s": reached,
+            "monitor": last.text}
+
+
+def monitor_report(cell: Cell) -> dict:
+    """The monitor's last summary (it runs with the tracker): checks and violations counted."""
+    time.sleep(1.2)
+    with cell.lock:
+        summaries = [e for _, e in cell.events if e.source == "safety_monitor" and e.event == "monitor_summary"]
+        violations = [e.text for _, e in cell.events if e.source == "safety_monitor" and e.event == "ssm_violation"]
+    last = summaries[-1] if summaries else None
+    return {"ok": last is not None and last.value == 0 and not violations and "checks" in last.text
+            and not last.text.startswith("0 checks"), "summary": last.text if last else None, "violations": violations[:3]}
+
+
 def _wait(condition, timeout: float) -> float | None:
     start = time.monotonic()
     while time.monotonic() - start < timeout:
@@ -473,7 +526,8 @@ def system_replan(cell: Cell) -> dict:
 
 
 SYSTEM_SCENARIOS = {"system_goal": system_goal, "system_stale_humans": system_stale_humans,
-                    "system_replan": system_replan}
+                    "system_replan": system_replan, "system_near_human": system_near_human,
+                    "monitor_report": monitor_report}
 
 SCENARIOS = {"enable": enable, "follow": follow, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
              "drive_fault": drive_fault, "frozen_node": frozen_node, "dropped_frames": dropped_frames,

@@ -1,0 +1,107 @@
+"""safety_monitor: an independent process that checks every measured joint state against the latest
+human state (shared.monitor: coal distances, pinocchio Jacobians, the standard's closest-point check)
+and counts violations of the ISO/TS 15066 speed limit and of d_min.
+
+Each violation goes out as a SafetyEvent (event 'ssm_violation', severity stop; at most ten a second),
+and once a second a summary (event 'monitor_summary', value = violations so far, text with the checks
+and the smallest margin seen). It commands nothing: it is the witness, not the guard.
+
+    python -m services.safety_monitor --connect tcp/127.0.0.1:7447
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
+from shared.config import load_config
+from shared.convert import humans_from_msg
+from shared.errors import HrcError
+from shared.messages import HumanState, JointState, SafetyEvent, encode
+from shared.monitor import SafetyMonitor
+from shared.robot_model import default_robot
+
+
+class MonitorService:
+    def __init__(self, shell: ServiceShell, monitor: SafetyMonitor) -> None:
+        self.shell, self.monitor = shell, monitor
+        self.lock = threading.Lock()
+        self.humans = None
+        self.checks = 0
+        self.violations = 0
+        self.min_margin = np.inf
+        self.min_separation = np.inf
+        self.seq = 0
+        self._event_times: list[float] = []
+        self.event_pub = shell.session.declare_publisher(shell.keys.safety_events)
+        shell.subscribe(shell.keys.human_state, HumanState, self.on_humans)
+        shell.subscribe(shell.keys.joint_state, JointState, self.on_joints)
+
+    def on_humans(self, msg: HumanState) -> None:
+        with self.lock:
+            self.humans = humans_from_msg(msg)
+
+    def _event(self, event: str, severity: str, text: str, value: float | None = None) -> None:
+        self.seq += 1
+        self.event_pub.put(encode(SafetyEvent(source="safety_monitor", event=event, severity=severity, text=text,
+                                              value=value, seq=self.seq, stamp=time.monotonic())))
+
+    def on_joints(self, msg: JointState) -> None:
+        with self.lock:
+            humans = self.humans
+        result = self.monitor.check(msg.q, msg.qd, humans)
+        with self.lock:
+            self.checks += 1
+            self.min_margin = min(self.min_margin, result.min_margin)
+            self.min_separation = min(self.min_separation, result.min_separation)
+            if not result.violations:
+                return
+            self.violations += len(result.violations)
+            now = time.monotonic()
+            self._event_times = [t for t in self._event_times if t > now - 1.0]
+            if len(self._event_times) < 10:
+                self._event_times.append(now)
+                v = result.violations[0]
+                self._event("ssm_violation", "stop", f"{v.link} / human capsule {v.capsule}: {v.kind}, separation "
+                            f"{v.separation:.3f} m, approach {v.approach_speed:.3f} m/s, limit {v.limit:.3f} m/s",
+                            float(self.violations))
+
+    def summary(self, now: float) -> None:
+        with self.lock:
+            text = (f"{self.checks} checks, {self.violations} violations, smallest margin "
+                    f"{self.min_margin:.3f} m/s, smallest separation {self.min_separation:.3f} m")
+            self._event("monitor_summary", "info", text, float(self.violations))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="safety_monitor", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_zenoh_arguments(parser)
+    parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
+    args = parser.parse_args(argv)
+    setup_logging(args.log_level)
+    try:
+        config = load_config(args.config)
+        shell = ServiceShell("safety_monitor", args)
+    except HrcError as exc:
+        print(f"safety_monitor: error: {exc}", file=sys.stderr)
+        return 2
+    service = MonitorService(shell, SafetyMonitor(default_robot(), config.ssm))
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    print(f"safety_monitor: ISO/TS 15066 SSM on every joint state, keys {shell.keys.prefix}/", flush=True)
+    run_paced(1.0, service.summary, stop)
+    shell.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
