@@ -186,6 +186,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     collision = CollisionModel(default_robot(), scene, config.ssm.min_separation)
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm)
+    lim = collision.robot.limits
+    mid = (lim.lower + lim.upper) / 2
+    try:                             # compile the collision kernels and warm toppra before serving
+        replanner.plan_fresh(mid, mid + 0.05, None, 0)
+    except (PlanningError, TimingError):
+        pass
     service = PlannerService(shell, replanner)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: (stop.set(), service.wake.set()))

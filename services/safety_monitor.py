@@ -1,6 +1,7 @@
 """safety_monitor: an independent process that checks every measured joint state against the latest
 human state (shared.monitor: coal distances, pinocchio Jacobians, the standard's closest-point check)
-and counts violations of the ISO/TS 15066 speed limit and of d_min.
+and counts violations of the ISO/TS 15066 speed limit (an exceedance that outlasts the reaction time
+T_r: the standard's allowance for reacting to new information) and of d_min (at once).
 
 Each violation goes out as a SafetyEvent (event 'ssm_violation', severity stop; at most ten a second),
 and once a second a summary (event 'monitor_summary', value = violations so far, text with the checks
@@ -25,13 +26,14 @@ from shared.config import load_config
 from shared.convert import humans_from_msg
 from shared.errors import HrcError
 from shared.messages import HumanState, JointState, SafetyEvent, encode
-from shared.monitor import SafetyMonitor
+from shared.monitor import ReactionWindow, SafetyMonitor
 from shared.robot_model import default_robot
 
 
 class MonitorService:
     def __init__(self, shell: ServiceShell, monitor: SafetyMonitor) -> None:
         self.shell, self.monitor = shell, monitor
+        self.window = ReactionWindow(monitor.ssm.reaction_time)
         self.lock = threading.Lock()
         self.humans = None
         self.checks = 0
@@ -61,14 +63,15 @@ class MonitorService:
             self.checks += 1
             self.min_margin = min(self.min_margin, result.min_margin)
             self.min_separation = min(self.min_separation, result.min_separation)
-            if not result.violations:
+            violations = self.window.update(msg.stamp, result)
+            if not violations:
                 return
-            self.violations += len(result.violations)
+            self.violations += len(violations)
             now = time.monotonic()
             self._event_times = [t for t in self._event_times if t > now - 1.0]
             if len(self._event_times) < 10:
                 self._event_times.append(now)
-                v = result.violations[0]
+                v = violations[0]
                 self._event("ssm_violation", "stop", f"{v.link} / human capsule {v.capsule}: {v.kind}, separation "
                             f"{v.separation:.3f} m, approach {v.approach_speed:.3f} m/s, limit {v.limit:.3f} m/s",
                             float(self.violations))

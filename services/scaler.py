@@ -120,7 +120,9 @@ def main(argv: list[str] | None = None) -> int:
     except HrcError as exc:
         print(f"scaler: error: {exc}", file=sys.stderr)
         return 2
-    scaler = Scaler(shell, ScalingLayer(default_robot(), config.ssm, config.scaling))
+    layer = ScalingLayer(default_robot(), config.ssm, config.scaling)
+    layer.warm_up()                  # compile before the first deadline, not at it
+    scaler = Scaler(shell, layer)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())

@@ -9,7 +9,8 @@ condition). Only the ISO formula itself (shared.ssm.velocity_limit) is common: i
 For every robot link i and human capsule j: separation d_ij (coal), unit direction n_ij from the robot's
 closest point to the human's, the robot point's velocity v_r = J_i(q, p) qd, the human point's velocity
 interpolated between the capsule's end points, human approach speed max(0, -n . v_h) (or the ISO 13855
-speed when untracked). A violation: n . v_r > max(v_r_max(d, v_h), 0) + tolerance, or d < d_min. (Overlapping capsules are always
+speed when untracked). An exceedance: n . v_r > max(v_r_max(d, v_h), 0) + tolerance, or d < d_min. ``ReactionWindow`` then counts
+a speed exceedance as a violation only once it outlasts the reaction time T_r, as the standard does. (Overlapping capsules are always
 a separation violation; coal's penetration witness points give no meaningful direction there.)
 """
 
@@ -110,3 +111,23 @@ class SafetyMonitor:
                 if d < self.ssm.min_separation - self.tolerance:
                     result.violations.append(Violation(link, j, "separation", float(d), approach, limit))
         return result
+
+
+class ReactionWindow:
+    """Turns instantaneous speed exceedances into violations the way the standard counts them.
+
+    ISO/TS 15066 gives the system its reaction time T_r: when new information lowers the limit at once (a
+    person appears, a velocity becomes unknown), the robot may keep its speed for up to T_r before it must
+    be braking within the limit. So a speed exceedance of a (link, capsule) pair is a violation only when
+    it has lasted longer than T_r; a separation below d_min is a violation at once.
+    """
+
+    def __init__(self, reaction_time: float) -> None:
+        self.reaction_time = reaction_time
+        self._since: dict[tuple[str, int], float] = {}
+
+    def update(self, now: float, result: MonitorResult) -> list[Violation]:
+        speeding = {(v.link, v.capsule): v for v in result.violations if v.kind == "speed"}
+        self._since = {pair: self._since.get(pair, now) for pair in speeding}
+        late = [v for pair, v in speeding.items() if now - self._since[pair] > self.reaction_time]
+        return late + [v for v in result.violations if v.kind == "separation"]

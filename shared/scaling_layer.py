@@ -126,6 +126,15 @@ class ScalingLayer:
         self.sdot = 0.0
         self.beta = False
 
+    def warm_up(self) -> None:
+        """Run every compiled path once (kinematics, SSM rows, solvers, verification, sampling), so that a
+        service meets its first deadlines instead of compiling then; the layer is left without a trajectory."""
+        q = (self.robot.limits.lower + self.robot.limits.upper) / 2
+        self.set_trajectory(Trajectory(np.array([0.0, 1.0]), np.vstack([q, q + 0.1]), np.full((2, q.size), 0.1)))
+        seg = self.robot.capsule_segments(q)[-1] + np.array([0.5, 0.0, 0.0])
+        self.step(HumanCapsules(seg[None], np.array([0.05]), np.zeros((1, 2, 3)), np.array([True])), 0.0)
+        self.trajectory, self.s, self.sdot, self.beta = None, 0.0, 0.0, False
+
     def set_trajectory(self, trajectory: Trajectory, s: float = 0.0) -> None:
         """Follow a new trajectory from its path parameter s (the junction, for a merged trajectory).
 

@@ -66,3 +66,16 @@ def test_every_command_of_the_paper_phases_passes_the_independent_monitor():
     bad = [(r.t, MONITOR.check(r.step.q_command, r.step.qd_command, human.at(r.t)).violations)
            for r in result.records[::2]]
     assert [entry for entry in bad if entry[1]] == []
+
+
+def test_speed_exceedances_count_only_after_the_reaction_time():
+    from shared.monitor import MonitorResult, ReactionWindow, Violation
+    window = ReactionWindow(0.1)
+    speeding = MonitorResult(violations=[Violation("prbt_link_4", 0, "speed", 0.5, 0.3, 0.1)])
+    assert window.update(0.00, speeding) == []
+    assert window.update(0.08, speeding) == []                  # still reacting
+    assert len(window.update(0.11, speeding)) == 1              # failed to react in time
+    assert window.update(0.12, MonitorResult()) == []           # cleared ...
+    assert window.update(0.13, speeding) == []                  # ... and the clock starts again
+    too_close = MonitorResult(violations=[Violation("prbt_link_4", 0, "separation", 0.01, 0.0, -1.0)])
+    assert len(window.update(0.14, too_close)) == 1             # d_min at once
