@@ -31,6 +31,10 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser, default_listen: str | N
     parser.add_argument("--listen", nargs="*", default=[default_listen] if default_listen else [],
                         help="Zenoh endpoints to listen on (tcp/127.0.0.1:PORT)")
     parser.add_argument("--connect", nargs="*", default=[], help="Zenoh endpoints to connect to")
+    parser.add_argument("--mode", choices=("peer", "client"), default="peer",
+                        help="Zenoh mode: peer (one host, meshed) or client (of a router)")
+    parser.add_argument("--allow-remote", action="store_true",
+                        help="allow non-loopback endpoints (the multi-host deployment through a router)")
     parser.add_argument("--log-level", default="INFO")
 
 
@@ -41,7 +45,8 @@ class ServiceShell:
         self.name = name
         self.log = logging.getLogger(name)
         self.keys = KeySpace(args.prefix)
-        self.session = open_session("peer", listen=args.listen, connect=args.connect)
+        self.session = open_session(args.mode, listen=args.listen if args.mode == "peer" else [],
+                                    connect=args.connect, allow_remote=args.allow_remote)
         self.token = self.session.liveliness().declare_token(self.keys.alive(name))
         self.bad_messages = 0
         self._last_bad_log = -1e9
