@@ -1,6 +1,5 @@
 """Zenoh deployment: the safe config, the shipped config files, and clients meeting through the router."""
 
-import json
 import re
 import socket
 import subprocess

@@ -438,7 +438,6 @@ def system_stale_humans(cell: Cell) -> dict:
     time.sleep(traj.duration * 0.4)
     moving = float(np.abs(cell.latest().qd).max())
     feed.running = False                                       # the tracker goes silent
-    t0 = time.monotonic()
     still = _wait(lambda: np.abs(cell.latest().qd).max() < 1e-3, 2.0)
     time.sleep(0.3)
     q_stop = cell.latest().q.copy()
