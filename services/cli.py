@@ -22,7 +22,15 @@ monitoring). Subcommands:
                   scaling layer keeps every link below its ISO/TS 15066 speed limit and the planning
                   layer replans around the arm (--no-beta: without the replan requests, as in the
                   paper's ablation; --no-planner: scaling only).
+  hrc goal Q1 .. Q6 | NAME      send a goal configuration (rad) or a named one (q_s, q_g, home) to
+                                 the planner of a running cell
+  hrc human inject X Y Z ...     publish a human pose (a capsule) once, or moving at a velocity
+  hrc status                     which services are alive, the robot, the scaler, the monitor
+The cell's commands reach it over Zenoh (--connect, default tcp/127.0.0.1:7447).
 Run 'hrc <command> --help' for the options of one command."""
+
+NAMED = {"q_s": [1.57, -0.4, 1.17, 0.0, 1.57, 0.0], "q_g": [-1.57, -0.4, 1.17, 0.0, 1.57, 0.0],
+         "home": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}
 
 
 def _positive_float(text: str) -> float:
@@ -58,6 +66,37 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", type=Path, default=None, metavar="DIR",
                       help="write summary.json into this folder")
     demo.add_argument("--quiet", action="store_true", help="print only the summary")
+
+    def cell_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--connect", default="tcp/127.0.0.1:7447", metavar="ENDPOINT",
+                       help="a Zenoh endpoint of the running cell (default tcp/127.0.0.1:7447)")
+        p.add_argument("--prefix", default="hrc/cell1", help="key prefix of the cell (default hrc/cell1)")
+        p.add_argument("--timeout", type=_positive_float, default=3.0, metavar="SECONDS",
+                       help="how long to wait for the cell (default 3)")
+
+    goal = sub.add_parser("goal", help="send a goal configuration to the planner",
+                          description="Send a goal to the planner: six joint angles in rad, or one of "
+                                      f"{', '.join(NAMED)}. Waits until the planner is reachable first.")
+    goal.add_argument("q", nargs="+", metavar="Q", help="six joint angles (rad) or a name")
+    goal.add_argument("--id", type=int, default=None, help="goal id (default: from the clock)")
+    cell_options(goal)
+    human = sub.add_parser("human", help="publish human poses to the tracker")
+    human_sub = human.add_subparsers(dest="human_command", metavar="<what>")
+    inject = human_sub.add_parser("inject", help="one capsule, once or moving at a constant velocity",
+                                  description="Publish a human capsule (end points A and B, radius) as raw tracker "
+                                              "data, once, or moving at --velocity for --duration seconds at --rate Hz.")
+    inject.add_argument("a", nargs=3, type=float, metavar=("AX", "AY", "AZ"), help="capsule end A (m, base frame)")
+    inject.add_argument("b", nargs=3, type=float, metavar=("BX", "BY", "BZ"), help="capsule end B (m)")
+    inject.add_argument("--radius", type=_positive_float, default=0.06, help="capsule radius (m, default 0.06)")
+    inject.add_argument("--velocity", type=float, nargs=3, default=None, metavar=("VX", "VY", "VZ"),
+                        help="constant velocity (m/s) while --duration lasts")
+    inject.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS")
+    inject.add_argument("--rate", type=_positive_float, default=100.0, metavar="HZ")
+    cell_options(inject)
+    status = sub.add_parser("status", help="what the running cell is doing",
+                            description="Listen to the cell for --timeout seconds and report which services are "
+                                        "alive, the robot's state, the scaler and the safety monitor.")
+    cell_options(status)
     return parser
 
 
@@ -127,6 +166,148 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0 if summary["violations"] == 0 else 1
 
 
+def _session(args: argparse.Namespace):
+    from shared.keys import KeySpace
+    from shared.zenoh_session import open_session
+
+    keys = KeySpace(args.prefix)
+    return open_session("peer", connect=[args.connect]), keys
+
+
+def _await_service(session, keys, service: str, timeout: float) -> bool:
+    """Peers do not forward: wait until the service is linked to us (its liveliness token is visible)."""
+    import time
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if list(session.liveliness().get(keys.alive(service), timeout=0.3)):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def cmd_goal(args: argparse.Namespace) -> int:
+    import time
+
+    import numpy as np
+
+    from shared.messages import Goal, encode
+    from shared.robot_model import default_robot
+
+    if len(args.q) == 1 and args.q[0] in NAMED:
+        name, q = args.q[0], np.array(NAMED[args.q[0]])
+    elif len(args.q) == 6:
+        try:
+            q = np.array([float(v) for v in args.q])
+        except ValueError:
+            raise GoalArgumentError(f"joint angles must be numbers, got {' '.join(args.q)}") from None
+        name = ""
+    else:
+        raise GoalArgumentError(f"give six joint angles (rad) or one of {', '.join(NAMED)}, got {' '.join(args.q)}")
+    lim = default_robot().limits
+    if not np.all(np.isfinite(q)) or not lim.within(q):
+        raise GoalArgumentError(f"goal outside the joint limits (+-{', '.join(f'{u:.3f}' for u in lim.upper)} rad)")
+    session, keys = _session(args)
+    try:
+        if not _await_service(session, keys, "planner", args.timeout):
+            print(f"hrc goal: error: no planner reachable at {args.connect} within {args.timeout:.0f} s",
+                  file=sys.stderr)
+            return 1
+        goal_id = args.id if args.id is not None else int(time.time() * 1000) % (2 ** 31)
+        session.put(keys.goal, encode(Goal(goal_id=goal_id, name=name, q=q, stamp=time.monotonic())))
+        print(f"hrc goal: sent goal {goal_id} {name or ''} {np.round(q, 4).tolist()}".replace("  ", " "))
+    finally:
+        session.close()
+    return 0
+
+
+def cmd_human(args: argparse.Namespace) -> int:
+    import time
+
+    import numpy as np
+
+    from shared.messages import HumanRaw, encode
+
+    if args.human_command != "inject":
+        print("hrc human: error: choose what to do: 'hrc human inject ...' (see --help)", file=sys.stderr)
+        return 2
+    a, b = np.array(args.a), np.array(args.b)
+    velocity = np.zeros(3) if args.velocity is None else np.array(args.velocity)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(velocity))):
+        print("hrc human inject: error: positions and velocity must be finite numbers", file=sys.stderr)
+        return 2
+    if args.velocity is not None and args.duration is None:
+        print("hrc human inject: error: --velocity needs --duration", file=sys.stderr)
+        return 2
+    session, keys = _session(args)
+    try:
+        if not _await_service(session, keys, "tracker_ingest", args.timeout):
+            print(f"hrc human inject: error: no tracker_ingest reachable at {args.connect}", file=sys.stderr)
+            return 1
+        pub = session.declare_publisher(keys.human_raw)
+        start = time.monotonic()
+        steps = 1 if args.duration is None else max(1, int(args.duration * args.rate))
+        for k in range(steps):
+            t = time.monotonic()
+            offset = velocity * (t - start)
+            pub.put(encode(HumanRaw(source="hrc", sample_time=t, segments=np.array([[a + offset, b + offset]]),
+                                    radii=np.array([args.radius]), seq=k, stamp=t)))
+            if steps > 1:
+                time.sleep(max(0.0, start + (k + 1) / args.rate - time.monotonic()))
+        print(f"hrc human inject: published {steps} pose(s)")
+    finally:
+        session.close()
+    return 0
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    import time
+
+    from shared.keys import SERVICES
+    from shared.messages import JointState, SafetyEvent, ScalerStatus, decode
+    from shared.errors import MessageError
+
+    session, keys = _session(args)
+    latest: dict = {}
+
+    def keep(kind):
+        def on_sample(sample):
+            try:
+                msg = decode(sample.payload.to_bytes(), kind)
+            except MessageError:
+                return
+            if kind is SafetyEvent and msg.event != "monitor_summary":
+                return
+            latest[kind] = msg
+        return on_sample
+
+    subs = [session.declare_subscriber(keys.joint_state, keep(JointState)),
+            session.declare_subscriber(keys.scaler_status, keep(ScalerStatus)),
+            session.declare_subscriber(keys.safety_events, keep(SafetyEvent))]
+    try:
+        time.sleep(args.timeout)
+        alive = sorted({str(r.ok.key_expr).rsplit("/", 1)[-1] for r in session.liveliness().get(keys.alive_all, timeout=1.0)
+                        if r.ok is not None})
+        print(f"cell {args.prefix} at {args.connect}")
+        print("  services: " + ", ".join(f"{s} {'up' if s in alive else 'down'}" for s in SERVICES if s != "cli"))
+        js = latest.get(JointState)
+        print(f"  robot:    {js.drive_state if js else 'no joint state'}"
+              + (f", q = {[round(float(v), 3) for v in js.q]}" if js else ""))
+        st = latest.get(ScalerStatus)
+        print("  scaler:   " + (f"alpha {st.alpha:.2f} (safe {st.safe_alpha:.2f}), beta {int(st.beta)}, trajectory "
+                                 f"{st.trajectory_version}, s {st.s:.2f}, {st.status}" if st else "no status"))
+        ev = latest.get(SafetyEvent)
+        print(f"  monitor:  {ev.text if ev else 'no summary'}")
+    finally:
+        for sub in subs:
+            sub.undeclare()
+        session.close()
+    return 0
+
+
+class GoalArgumentError(HrcError):
+    """A goal given on the command line is not six finite angles within the limits, nor a known name."""
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -134,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return {"demo": cmd_demo}[args.command](args)
+        return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status}[args.command](args)
     except HrcError as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 2

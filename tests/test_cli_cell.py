@@ -1,0 +1,107 @@
+"""The hrc commands that talk to a running cell, against a stand-in cell on loopback (a Zenoh session
+that declares the services' liveliness tokens and records what arrives)."""
+
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from shared.keys import KeySpace
+from shared.messages import Goal, HumanRaw, JointState, decode, encode
+from shared.zenoh_session import open_session
+
+ROOT = Path(__file__).resolve().parents[1]
+KEYS = KeySpace("clitest/cell")
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def cell():
+    port = free_port()
+    session = open_session("peer", listen=[f"tcp/127.0.0.1:{port}"])
+    received = {"goal": [], "raw": []}
+    subs = [session.declare_subscriber(KEYS.goal, lambda s: received["goal"].append(decode(s.payload.to_bytes(), Goal))),
+            session.declare_subscriber(KEYS.human_raw, lambda s: received["raw"].append(decode(s.payload.to_bytes(), HumanRaw)))]
+    tokens = [session.liveliness().declare_token(KEYS.alive(name)) for name in ("planner", "tracker_ingest")]
+    yield port, received, session
+    for t in tokens:
+        t.undeclare()
+    for s in subs:
+        s.undeclare()
+    session.close()
+
+
+def hrc(port, *args):
+    return subprocess.run([sys.executable, "-m", "services.cli", *args, "--connect", f"tcp/127.0.0.1:{port}",
+                           "--prefix", KEYS.prefix, "--timeout", "3"], cwd=ROOT, capture_output=True, text=True,
+                          timeout=60)
+
+
+def wait_for(predicate, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not predicate():
+        time.sleep(0.02)
+    return predicate()
+
+
+def test_goal_by_name_and_by_angles(cell):
+    port, received, _ = cell
+    out = hrc(port, "goal", "q_g")
+    assert out.returncode == 0, out.stderr
+    out = hrc(port, "goal", "0.1", "-0.2", "0.3", "0", "0.5", "0")
+    assert out.returncode == 0, out.stderr
+    assert wait_for(lambda: len(received["goal"]) == 2)
+    assert received["goal"][0].name == "q_g" and np.allclose(received["goal"][0].q, [-1.57, -0.4, 1.17, 0, 1.57, 0])
+    assert np.allclose(received["goal"][1].q, [0.1, -0.2, 0.3, 0, 0.5, 0])
+
+
+@pytest.mark.parametrize("q, text", [(["1", "2", "3"], "six joint angles"), (["q_x"], "six joint angles"),
+                                     (["3", "0", "0", "0", "0", "0"], "joint limits"),
+                                     (["a", "0", "0", "0", "0", "0"], "must be numbers"),
+                                     (["nan", "0", "0", "0", "0", "0"], "joint limits")])
+def test_bad_goals_are_refused_with_a_message(cell, q, text):
+    out = hrc(cell[0], "goal", *q)
+    assert out.returncode == 2 and text in out.stderr and "Traceback" not in out.stderr
+
+
+def test_goal_without_a_planner_says_so():
+    out = hrc(free_port(), "goal", "home")
+    assert out.returncode == 1 and "no planner reachable" in out.stderr
+
+
+def test_human_inject_once_and_moving(cell):
+    port, received, _ = cell
+    assert hrc(port, "human", "inject", "-0.8", "0", "0.9", "-0.8", "0", "1.4").returncode == 0
+    out = hrc(port, "human", "inject", "-0.8", "0", "0.9", "-0.8", "0", "1.4", "--velocity", "0.5", "0", "0",
+              "--duration", "0.3", "--rate", "50")
+    assert out.returncode == 0, out.stderr
+    assert wait_for(lambda: len(received["raw"]) >= 10)
+    xs = [m.segments[0, 0, 0] for m in received["raw"][1:]]
+    assert xs[-1] > xs[0] + 0.05                    # it moved along +x
+    assert hrc(port, "human", "inject", "1", "2", "3", "4", "5", "nan").returncode == 2
+    assert hrc(port, "human", "inject", "0", "0", "0", "0", "0", "1", "--velocity", "1", "0", "0").returncode == 2
+
+
+def test_status_reports_what_the_cell_publishes(cell):
+    port, _, session = cell
+    pub = session.declare_publisher(KEYS.joint_state)
+    proc = subprocess.Popen([sys.executable, "-m", "services.cli", "status", "--connect", f"tcp/127.0.0.1:{port}",
+                             "--prefix", KEYS.prefix, "--timeout", "2"], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 2.5
+    while time.monotonic() < end:
+        pub.put(encode(JointState(q=np.zeros(6), qd=np.zeros(6), drive_state="running:operation_enabled",
+                                  enabled=True, fault=False)))
+        time.sleep(0.05)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    assert "planner up" in out and "scaler down" in out and "running:operation_enabled" in out
