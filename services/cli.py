@@ -25,6 +25,7 @@ monitoring). Subcommands:
   hrc goal Q1 .. Q6 | NAME      send a goal configuration (rad) or a named one (q_s, q_g, home) to
                                  the planner of a running cell
   hrc human inject X Y Z ...     publish a human pose (a capsule) once, or moving at a velocity
+  hrc human replay FILE          replay a recorded or scripted motion (CSV or JSON) at its own rate
   hrc status                     which services are alive, the robot, the scaler, the monitor
 The cell's commands reach it over Zenoh (--connect, default tcp/127.0.0.1:7447).
 Run 'hrc <command> --help' for the options of one command."""
@@ -93,6 +94,12 @@ def build_parser() -> argparse.ArgumentParser:
     inject.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS")
     inject.add_argument("--rate", type=_positive_float, default=100.0, metavar="HZ")
     cell_options(inject)
+    replay = human_sub.add_parser("replay", help="a recorded or scripted motion (CSV or JSON) at its own rate",
+                                  description="Publish the frames of a replay file (see shared/replay.py for the "
+                                              "CSV and JSON formats) as raw tracker data at their own times.")
+    replay.add_argument("file", type=Path, help="a .csv or .json replay file")
+    replay.add_argument("--speed", type=_positive_float, default=1.0, help="playback speed factor (default 1)")
+    cell_options(replay)
     status = sub.add_parser("status", help="what the running cell is doing",
                             description="Listen to the cell for --timeout seconds and report which services are "
                                         "alive, the robot's state, the scaler and the safety monitor.")
@@ -227,8 +234,11 @@ def cmd_human(args: argparse.Namespace) -> int:
 
     from shared.messages import HumanRaw, encode
 
+    if args.human_command == "replay":
+        return _replay(args)
     if args.human_command != "inject":
-        print("hrc human: error: choose what to do: 'hrc human inject ...' (see --help)", file=sys.stderr)
+        print("hrc human: error: choose what to do: 'hrc human inject ...' or 'hrc human replay FILE'",
+              file=sys.stderr)
         return 2
     a, b = np.array(args.a), np.array(args.b)
     velocity = np.zeros(3) if args.velocity is None else np.array(args.velocity)
@@ -254,6 +264,32 @@ def cmd_human(args: argparse.Namespace) -> int:
             if steps > 1:
                 time.sleep(max(0.0, start + (k + 1) / args.rate - time.monotonic()))
         print(f"hrc human inject: published {steps} pose(s)")
+    finally:
+        session.close()
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    import time
+
+    from shared.messages import HumanRaw, encode
+    from shared.replay import load_replay
+
+    frames = load_replay(args.file)              # ConfigError: a clear message and exit 2 (main)
+    session, keys = _session(args)
+    try:
+        if not _await_service(session, keys, "tracker_ingest", args.timeout):
+            print(f"hrc human replay: error: no tracker_ingest reachable at {args.connect}", file=sys.stderr)
+            return 1
+        pub = session.declare_publisher(keys.human_raw)
+        start, t0 = time.monotonic(), frames[0].t
+        for k, frame in enumerate(frames):
+            due = start + (frame.t - t0) / args.speed
+            time.sleep(max(0.0, due - time.monotonic()))
+            now = time.monotonic()
+            pub.put(encode(HumanRaw(source=f"replay:{args.file.name}", sample_time=now, segments=frame.segments,
+                                    radii=frame.radii, seq=k, stamp=now)))
+        print(f"hrc human replay: {len(frames)} frames over {(frames[-1].t - t0) / args.speed:.2f} s")
     finally:
         session.close()
     return 0

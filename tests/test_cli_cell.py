@@ -105,3 +105,18 @@ def test_status_reports_what_the_cell_publishes(cell):
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
     assert "planner up" in out and "scaler down" in out and "running:operation_enabled" in out
+
+
+def test_human_replay(cell, tmp_path):
+    port, received, _ = cell
+    path = tmp_path / "walk.csv"
+    rows = ["t,ax,ay,az,bx,by,bz,radius"] + [f"{k * 0.02:.2f},{-1.5 + 0.01 * k},0,0.9,{-1.5 + 0.01 * k},0,1.45,0.17"
+                                              for k in range(10)]
+    path.write_text("\n".join(rows) + "\n")
+    out = hrc(port, "human", "replay", str(path), "--speed", "2")
+    assert out.returncode == 0, out.stderr
+    assert wait_for(lambda: len(received["raw"]) == 10)
+    assert received["raw"][-1].segments[0, 0, 0] == pytest.approx(-1.41)
+    path.write_text("t,ax\n1,2\n")
+    out = hrc(port, "human", "replay", str(path))
+    assert out.returncode == 2 and "line 1" in out.stderr and "Traceback" not in out.stderr
