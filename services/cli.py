@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -22,6 +23,8 @@ monitoring). Subcommands:
                   scaling layer keeps every link below its ISO/TS 15066 speed limit and the planning
                   layer replans around the arm (--no-beta: without the replan requests, as in the
                   paper's ablation; --no-planner: scaling only).
+  hrc up / hrc down              start / stop the whole cell (PRBT emulator and every service) under
+                                 supervisord; without kernel CAN inside a private network namespace
   hrc goal Q1 .. Q6 | NAME      send a goal configuration (rad) or a named one (q_s, q_g, home) to
                                  the planner of a running cell
   hrc human inject X Y Z ...     publish a human pose (a capsule) once, or moving at a velocity
@@ -68,9 +71,21 @@ def build_parser() -> argparse.ArgumentParser:
                       help="write summary.json into this folder")
     demo.add_argument("--quiet", action="store_true", help="print only the summary")
 
+    upp = sub.add_parser("up", help="start the cell under supervisord",
+                         description="Start the PRBT emulator and every service under supervisord "
+                                     "(deploy/supervisord.conf). Without kernel CAN the bus is udp_multicast "
+                                     "inside a private network namespace; the other hrc commands enter it.")
+    upp.add_argument("--interface", default=None, help="CAN interface (default: socketcan on vcan0 if present, "
+                                                        "else udp_multicast in a namespace)")
+    upp.add_argument("--port", type=int, default=7447, help="first of six loopback ports (default 7447)")
+    upp.add_argument("--prefix", default="hrc/cell1")
+    downp = sub.add_parser("down", help="stop the cell", description="Stop supervisord and every service.")
+    downp.add_argument("--prefix", default="hrc/cell1")
+
     def cell_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--connect", default="tcp/127.0.0.1:7447", metavar="ENDPOINT",
-                       help="a Zenoh endpoint of the running cell (default tcp/127.0.0.1:7447)")
+        p.add_argument("--connect", default=None, metavar="ENDPOINT",
+                       help="a Zenoh endpoint of the running cell (default: the port `hrc up` used, else "
+                            "tcp/127.0.0.1:7447)")
         p.add_argument("--prefix", default="hrc/cell1", help="key prefix of the cell (default hrc/cell1)")
         p.add_argument("--timeout", type=_positive_float, default=3.0, metavar="SECONDS",
                        help="how long to wait for the cell (default 3)")
@@ -174,11 +189,44 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _session(args: argparse.Namespace):
+    from services.cell import run_dir
     from shared.keys import KeySpace
     from shared.zenoh_session import open_session
 
+    if args.connect is None:
+        port_file = run_dir(args.prefix) / "cell.port"
+        args.connect = f"tcp/127.0.0.1:{port_file.read_text().strip() if port_file.exists() else 7447}"
     keys = KeySpace(args.prefix)
     return open_session("peer", connect=[args.connect]), keys
+
+
+def cmd_up(args: argparse.Namespace) -> int:
+    import os
+
+    from services.cell import run_dir, up
+
+    interface = args.interface or ("socketcan" if os.path.exists("/sys/class/net/vcan0") else "udp_multicast")
+    if not 1024 <= args.port <= 65530:
+        print(f"hrc up: error: --port must be in 1024..65530, got {args.port}", file=sys.stderr)
+        return 2
+    try:
+        pid = up(args.prefix, interface, args.port)
+    except RuntimeError as exc:
+        print(f"hrc up: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"hrc up: cell {args.prefix} starting under supervisord (pid {pid}, CAN {interface}, Zenoh "
+          f"tcp/127.0.0.1:{args.port}); logs in {run_dir(args.prefix)}; `hrc status` to follow it")
+    return 0
+
+
+def cmd_down(args: argparse.Namespace) -> int:
+    from services.cell import down
+
+    if not down(args.prefix):
+        print(f"hrc down: no running cell {args.prefix}", file=sys.stderr)
+        return 1
+    print(f"hrc down: cell {args.prefix} stopped")
+    return 0
 
 
 def _await_service(session, keys, service: str, timeout: float) -> bool:
@@ -350,8 +398,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
+    if args.command in ("goal", "human", "status") and not os.environ.get("HRC_IN_CELL"):
+        from services.cell import reenter_argv
+        argv2 = reenter_argv(args.prefix, [sys.executable, "-m", "services.cli", *(argv or sys.argv[1:])])
+        if argv2 is not None:            # the cell runs in its own network namespace: run there
+            os.execvpe(argv2[0], argv2, dict(os.environ, HRC_IN_CELL="1"))
     try:
-        return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status}[args.command](args)
+        return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
+                "down": cmd_down}[args.command](args)
     except HrcError as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 2

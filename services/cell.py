@@ -1,0 +1,89 @@
+"""Starting and stopping a whole cell under supervisord (the thin shell behind `hrc up` and `hrc down`).
+
+Where the kernel has no CAN the bus is udp_multicast, which may only run in a private network namespace:
+`up` then starts supervisord under `unshare -rn` (only lo, multicast on, a route on lo) and writes the
+namespace's PID to <run>/cell.pid. Every other `hrc` command run outside it re-enters that namespace
+with nsenter (`reenter_argv`), so it reaches the cell's loopback Zenoh. `down` ends supervisord by that
+PID, and supervisord stops every service cleanly.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CONF = ROOT / "deploy" / "supervisord.conf"
+
+
+def run_dir(prefix: str) -> Path:
+    base = Path(os.environ.get("XDG_RUNTIME_DIR") or "/tmp")
+    return base / f"hrc-{prefix.replace('/', '_')}"
+
+
+def cell_pid(prefix: str) -> int | None:
+    try:
+        pid = int((run_dir(prefix) / "cell.pid").read_text())
+        os.kill(pid, 0)
+        return pid
+    except (OSError, ValueError):
+        return None
+
+
+def up(prefix: str, interface: str, port: int) -> int:
+    """Start the cell; returns the PID of supervisord (which is also the namespace holder)."""
+    if cell_pid(prefix) is not None:
+        raise RuntimeError(f"a cell with prefix {prefix} is already up (pid {cell_pid(prefix)})")
+    run = run_dir(prefix)
+    run.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ, HRC_RUN=str(run), HRC_PYTHON=sys.executable, HRC_CAN=interface, HRC_PREFIX=prefix,
+               PYTHONPATH=str(ROOT), **{f"HRC_PORT{k if k else ''}": str(port + k) for k in range(6)})
+    supervisord = [sys.executable, "-c", "from supervisor.supervisord import main; main()", "-c", str(CONF)]
+    if interface == "udp_multicast":
+        setup = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$@\""
+        argv = ["unshare", "-rn", "sh", "-c", setup, "sh", *supervisord]
+    else:
+        argv = supervisord
+    log = open(run / "up.log", "w")
+    proc = subprocess.Popen(argv, env=env, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    (run / "cell.pid").write_text(str(proc.pid))
+    (run / "cell.port").write_text(str(port))
+    time.sleep(0.5)
+    if proc.poll() is not None:
+        raise RuntimeError(f"supervisord did not start; see {run / 'up.log'}")
+    return proc.pid
+
+
+def down(prefix: str, timeout: float = 20.0) -> bool:
+    pid = cell_pid(prefix)
+    if pid is None:
+        return False
+    os.kill(pid, signal.SIGTERM)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except OSError:
+            break
+        time.sleep(0.1)
+    else:
+        os.kill(pid, signal.SIGKILL)
+    (run_dir(prefix) / "cell.pid").unlink(missing_ok=True)
+    return True
+
+
+def reenter_argv(prefix: str, argv: list[str]) -> list[str] | None:
+    """The command line that runs argv inside the cell's namespace, or None when no re-entry is needed."""
+    pid = cell_pid(prefix)
+    if pid is None:
+        return None
+    try:
+        if os.readlink(f"/proc/{pid}/ns/net") == os.readlink("/proc/self/ns/net"):
+            return None
+    except OSError:
+        return None
+    return ["nsenter", "--preserve-credentials", "-U", "-n", "-t", str(pid), *argv]

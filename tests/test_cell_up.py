@@ -1,0 +1,98 @@
+"""The whole cell under supervisord, as a user runs it: hrc up (udp_multicast in a private namespace),
+hrc status, hrc human inject, hrc goal, a service killed and restarted by the supervisor, hrc down."""
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from services.cell import CONF, cell_pid, run_dir
+from tests.test_hil import _namespace_reason
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def hrc(*args, timeout=60):
+    return subprocess.run([sys.executable, "-m", "services.cli", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+
+
+def free_port_block():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return min(s.getsockname()[1], 60000)
+
+
+def status(prefix):
+    return hrc("status", "--prefix", prefix, "--timeout", "1").stdout
+
+
+def wait_status(prefix, pattern, timeout):
+    deadline = time.monotonic() + timeout
+    text = ""
+    while time.monotonic() < deadline:
+        text = status(prefix)
+        if re.search(pattern, text, re.S):
+            return text
+        time.sleep(0.5)
+    raise AssertionError(f"status never matched {pattern!r}:\n{text}")
+
+
+@pytest.fixture
+def cell():
+    reason = _namespace_reason()
+    if reason:
+        print(f"SKIP: no private network namespace ({reason})")
+        pytest.skip(reason)
+    prefix = f"test/up{os.getpid()}"
+    out = hrc("up", "--prefix", prefix, "--port", str(free_port_block()))
+    assert out.returncode == 0, out.stderr
+    pid = cell_pid(prefix)
+    yield prefix
+    hrc("down", "--prefix", prefix)
+    assert cell_pid(prefix) is None
+    with pytest.raises(OSError):
+        os.kill(pid, 0)                       # supervisord is gone, and with it every service
+
+
+def test_a_user_session(cell):
+    prefix = cell
+    wait_status(prefix, r"tracker_ingest up.*planner up.*scaler up.*robot_driver up.*safety_monitor up.*running",
+                timeout=60)
+    person = subprocess.Popen([sys.executable, "-m", "services.cli", "human", "inject", "-2.5", "0", "0.9", "-2.5", "0",
+                               "1.45", "--radius", "0.17", "--velocity", "0", "0", "0", "--duration", "25",
+                               "--prefix", prefix], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        out = hrc("goal", "q_g", "--prefix", prefix)
+        assert out.returncode == 0, out.stderr
+        wait_status(prefix, r"q = \[-1\.5[67]", timeout=20)            # reached q_g = [-1.57, ...]
+        # kill -9 the scaler: the driver stops the drives (stale commands), supervisord restarts it
+        env = dict(os.environ, HRC_RUN=str(run_dir(prefix)), HRC_PYTHON=sys.executable, HRC_CAN="udp_multicast",
+                   HRC_PREFIX=prefix, **{f"HRC_PORT{k if k else ''}": "0" for k in range(6)})
+        ctl = [sys.executable, "-c", "from supervisor.supervisorctl import main; main()", "-c", str(CONF)]
+        pid = int(subprocess.run(ctl + ["pid", "scaler"], capture_output=True, text=True, env=env).stdout.strip())
+        os.kill(pid, signal.SIGKILL)
+        text = wait_status(prefix, r"robot:\s+stopped", timeout=10)
+        assert "monitor:" in text
+        new_pid = None
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            out = subprocess.run(ctl + ["pid", "scaler"], capture_output=True, text=True, env=env).stdout.strip()
+            if out.isdigit() and int(out) not in (0, pid):
+                new_pid = int(out)
+                break
+            time.sleep(0.5)
+        assert new_pid is not None, "supervisord did not restart the scaler"
+        wait_status(prefix, r"scaler up", timeout=20)
+        text = status(prefix)
+        assert re.search(r"monitor:\s+\d+ checks, 0 violations", text), text
+    finally:
+        person.terminate()
+        person.wait(10)
