@@ -3,6 +3,7 @@ hrc status, hrc human inject, hrc goal, a service killed and restarted by the su
 
 import os
 import re
+import shutil
 import signal
 import socket
 import subprocess
@@ -59,6 +60,7 @@ def cell():
     assert cell_pid(prefix) is None
     with pytest.raises(OSError):
         os.kill(pid, 0)                       # supervisord is gone, and with it every service
+    shutil.rmtree(run_dir(prefix), ignore_errors=True)
 
 
 def test_a_user_session(cell):
