@@ -39,7 +39,10 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser, default_listen: str | N
 
 
 class ServiceShell:
-    """Session, keys, liveliness token and decoding for one named service."""
+    """Session, keys, liveliness token and decoding for one named service.
+
+    The liveliness token means "ready to serve": a service declares it with ``announce()`` only once it
+    has warmed up and subscribed, so a client that waits for it never sends into a gap."""
 
     def __init__(self, name: str, args: argparse.Namespace) -> None:
         self.name = name
@@ -47,7 +50,7 @@ class ServiceShell:
         self.keys = KeySpace(args.prefix)
         self.session = open_session(args.mode, listen=args.listen if args.mode == "peer" else [],
                                     connect=args.connect, allow_remote=args.allow_remote)
-        self.token = self.session.liveliness().declare_token(self.keys.alive(name))
+        self.token = None
         self.bad_messages = 0
         self._last_bad_log = -1e9
         self._subscribers = []
@@ -74,10 +77,15 @@ class ServiceShell:
                 handler(msg)
         self._subscribers.append(self.session.declare_subscriber(key, on_sample))
 
+    def announce(self) -> None:
+        """Declare the liveliness token: from now on this service is up (call it last in the set-up)."""
+        self.token = self.session.liveliness().declare_token(self.keys.alive(self.name))
+
     def close(self) -> None:
         for sub in self._subscribers:
             sub.undeclare()
-        self.token.undeclare()
+        if self.token is not None:
+            self.token.undeclare()
         self.session.close()
 
 

@@ -118,10 +118,10 @@ class PlannerService:
     def work_once(self, now: float, state: dict) -> None:
         with self.lock:
             goal, new_goal, humans, q, status = self.goal, self.new_goal, self.humans, self.q, self.status
-            self.new_goal = False
             human_seq = self.human_seq
-        if goal is None or q is None:
-            return
+            if goal is None or q is None:        # keep a goal until the robot's position is known
+                return
+            self.new_goal = False
         version = (self.trajectory.version + 1) if self.trajectory is not None else 1
         following = self._following()
         started = time.perf_counter()
@@ -196,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: (stop.set(), service.wake.set()))
     signal.signal(signal.SIGINT, lambda *_: (stop.set(), service.wake.set()))
+    shell.announce()                 # up = warmed up and subscribed
     print(f"planner: RRT-Connect, scene with {len(scene.names)} obstacles, keys {shell.keys.prefix}/", flush=True)
     service.run(stop)
     shell.close()

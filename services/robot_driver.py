@@ -255,6 +255,7 @@ async def serve(args: argparse.Namespace) -> int:
     stopped = asyncio.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         loop.add_signal_handler(sig, stopped.set)
+    shell.announce()
     print("robot_driver: drives up, " + ", ".join(f"node {i['node']} fw {i['firmware']!r}" for i in master.identity),
           flush=True)
     await stopped.wait()

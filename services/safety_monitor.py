@@ -100,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
+    shell.announce()                 # up = warmed up and subscribed
     print(f"safety_monitor: ISO/TS 15066 SSM on every joint state, keys {shell.keys.prefix}/", flush=True)
     run_paced(1.0, service.summary, stop)
     shell.close()

@@ -126,6 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
+    shell.announce()                 # up = warmed up and subscribed
     print(f"scaler: {1 / config.scaling.period:.0f} Hz, solver {config.scaling.solver}, keys {shell.keys.prefix}/",
           flush=True)
     run_paced(config.scaling.period, scaler.tick, stop)

@@ -83,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
+    shell.announce()                 # up = warmed up and subscribed
     print(f"tracker_ingest: least-squares velocity over {args.window * 1000:.0f} ms, dropout "
           f"{args.dropout * 1000:.0f} ms, keys {shell.keys.prefix}/", flush=True)
     run_paced(0.01, service.check, stop)
