@@ -276,11 +276,9 @@ def cmd_goal(args: argparse.Namespace) -> int:
 
 
 def cmd_human(args: argparse.Namespace) -> int:
-    import time
 
     import numpy as np
 
-    from shared.messages import HumanRaw, encode
 
     if args.human_command == "replay":
         return _replay(args)
@@ -296,51 +294,45 @@ def cmd_human(args: argparse.Namespace) -> int:
     if args.velocity is not None and args.duration is None:
         print("hrc human inject: error: --velocity needs --duration", file=sys.stderr)
         return 2
+    steps = 1 if args.duration is None else max(1, int(args.duration * args.rate))
+    radii = np.array([args.radius])
+    return _publish_raw(args, "inject", ((k / args.rate, lambda t: np.array([[a + velocity * t, b + velocity * t]]), radii)
+                                         for k in range(steps)))
+
+
+def _publish_raw(args: argparse.Namespace, what: str, frames) -> int:
+    """Publish (sample_time_offset, segments, radii) frames as raw tracker data, each at its offset from
+    now, once tracker_ingest is reachable (exit 1 if it is not)."""
+    import time
+
+    from shared.messages import HumanRaw, encode
+
     session, keys = _session(args)
     try:
         if not _await_service(session, keys, "tracker_ingest", args.timeout):
-            print(f"hrc human inject: error: no tracker_ingest reachable at {args.connect}", file=sys.stderr)
+            print(f"hrc human {what}: error: no tracker_ingest reachable at {args.connect}", file=sys.stderr)
             return 1
         pub = session.declare_publisher(keys.human_raw)
         start = time.monotonic()
-        steps = 1 if args.duration is None else max(1, int(args.duration * args.rate))
-        for k in range(steps):
-            t = time.monotonic()
-            offset = velocity * (t - start)
-            pub.put(encode(HumanRaw(source="hrc", sample_time=t, segments=np.array([[a + offset, b + offset]]),
-                                    radii=np.array([args.radius]), seq=k, stamp=t)))
-            if steps > 1:
-                time.sleep(max(0.0, start + (k + 1) / args.rate - time.monotonic()))
-        print(f"hrc human inject: published {steps} pose(s)")
+        count = 0
+        for k, (offset, segments, radii) in enumerate(frames):
+            time.sleep(max(0.0, start + offset - time.monotonic()))
+            now = time.monotonic()
+            pub.put(encode(HumanRaw(source=f"hrc {what}", sample_time=now, segments=segments(now - start),
+                                    radii=radii, seq=k, stamp=now)))
+            count += 1
+        print(f"hrc human {what}: published {count} pose(s)")
     finally:
         session.close()
     return 0
 
 
 def _replay(args: argparse.Namespace) -> int:
-    import time
-
-    from shared.messages import HumanRaw, encode
     from shared.replay import load_replay
 
     frames = load_replay(args.file)              # ConfigError: a clear message and exit 2 (main)
-    session, keys = _session(args)
-    try:
-        if not _await_service(session, keys, "tracker_ingest", args.timeout):
-            print(f"hrc human replay: error: no tracker_ingest reachable at {args.connect}", file=sys.stderr)
-            return 1
-        pub = session.declare_publisher(keys.human_raw)
-        start, t0 = time.monotonic(), frames[0].t
-        for k, frame in enumerate(frames):
-            due = start + (frame.t - t0) / args.speed
-            time.sleep(max(0.0, due - time.monotonic()))
-            now = time.monotonic()
-            pub.put(encode(HumanRaw(source=f"replay:{args.file.name}", sample_time=now, segments=frame.segments,
-                                    radii=frame.radii, seq=k, stamp=now)))
-        print(f"hrc human replay: {len(frames)} frames over {(frames[-1].t - t0) / args.speed:.2f} s")
-    finally:
-        session.close()
-    return 0
+    t0 = frames[0].t
+    return _publish_raw(args, "replay", (((f.t - t0) / args.speed, lambda t, f=f: f.segments, f.radii) for f in frames))
 
 
 def cmd_status(args: argparse.Namespace) -> int:

@@ -109,3 +109,37 @@ def run_paced(period: float, tick, stop: threading.Event) -> None:
         if now - deadline > period:
             deadline = now
         tick(now)
+
+
+def open_service(name: str, args: argparse.Namespace):
+    """(cell config, shell) of a service, or None after printing a clear error (the caller exits 2)."""
+    from shared.config import load_config
+    from shared.errors import HrcError
+
+    try:
+        config = load_config(getattr(args, "config", None))
+        return config, ServiceShell(name, args)
+    except HrcError as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        return None
+
+
+def serve(shell: ServiceShell, ready: str, loop, on_stop=None) -> int:
+    """Stop on SIGTERM / SIGINT, announce the service (it is ready), print its ready line, run
+    loop(stop) until stopped, close. on_stop() is called from the signal handler (e.g. to wake a worker)."""
+    import signal
+
+    stop = threading.Event()
+
+    def handler(*_):
+        stop.set()
+        if on_stop is not None:
+            on_stop()
+
+    signal.signal(signal.SIGTERM, handler)
+    signal.signal(signal.SIGINT, handler)
+    shell.announce()
+    print(ready, flush=True)
+    loop(stop)
+    shell.close()
+    return 0

@@ -17,7 +17,6 @@ planner, severity info): why, and how long it took.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 import time
@@ -25,9 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from services.common import ServiceShell, add_zenoh_arguments, setup_logging
+from services.common import ServiceShell, add_zenoh_arguments, open_service, serve, setup_logging
 from shared.collision import CollisionModel
-from shared.config import load_config
 from shared.convert import humans_from_msg, trajectory_to_msg
 from shared.errors import HrcError
 from shared.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
@@ -177,13 +175,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     try:
-        config = load_config(args.config)
         scene = load_scene(args.scene) if args.scene else (load_scene(DEFAULT_SCENE) if DEFAULT_SCENE.exists()
                                                            else Scene(floor_z=0.0))
-        shell = ServiceShell("planner", args)
     except HrcError as exc:
         print(f"planner: error: {exc}", file=sys.stderr)
         return 2
+    opened = open_service("planner", args)
+    if opened is None:
+        return 2
+    config, shell = opened
     collision = CollisionModel(default_robot(), scene, config.ssm.min_separation)
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm)
     lim = collision.robot.limits
@@ -193,15 +193,8 @@ def main(argv: list[str] | None = None) -> int:
     except (PlanningError, TimingError):
         pass
     service = PlannerService(shell, replanner)
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: (stop.set(), service.wake.set()))
-    signal.signal(signal.SIGINT, lambda *_: (stop.set(), service.wake.set()))
-    shell.announce()                 # up = warmed up and subscribed
-    print(f"planner: RRT-Connect, scene with {len(scene.names)} obstacles, keys {shell.keys.prefix}/", flush=True)
-    service.run(stop)
-    shell.close()
-    return 0
-
+    return serve(shell, f"planner: RRT-Connect, scene with {len(scene.names)} obstacles, keys {shell.keys.prefix}/",
+                 service.run, on_stop=service.wake.set)
 
 if __name__ == "__main__":
     sys.exit(main())

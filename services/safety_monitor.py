@@ -13,7 +13,6 @@ and the smallest margin seen). It commands nothing: it is the witness, not the g
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 import time
@@ -21,10 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
-from shared.config import load_config
+from services.common import ServiceShell, add_zenoh_arguments, open_service, run_paced, serve, setup_logging
 from shared.convert import humans_from_msg
-from shared.errors import HrcError
 from shared.messages import HumanState, JointState, SafetyEvent, encode
 from shared.monitor import ReactionWindow, SafetyMonitor
 from shared.robot_model import default_robot
@@ -90,21 +87,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
-    try:
-        config = load_config(args.config)
-        shell = ServiceShell("safety_monitor", args)
-    except HrcError as exc:
-        print(f"safety_monitor: error: {exc}", file=sys.stderr)
+    opened = open_service("safety_monitor", args)
+    if opened is None:
         return 2
+    config, shell = opened
     service = MonitorService(shell, SafetyMonitor(default_robot(), config.ssm))
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    shell.announce()                 # up = warmed up and subscribed
-    print(f"safety_monitor: ISO/TS 15066 SSM on every joint state, keys {shell.keys.prefix}/", flush=True)
-    run_paced(1.0, service.summary, stop)
-    shell.close()
-    return 0
+    return serve(shell, f"safety_monitor: ISO/TS 15066 SSM on every joint state, keys {shell.keys.prefix}/",
+                 lambda stop: run_paced(1.0, service.summary, stop))
 
 
 if __name__ == "__main__":

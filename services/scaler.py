@@ -15,17 +15,14 @@ and its status. Rules of the shell:
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 from pathlib import Path
 
 import numpy as np
 
-from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
-from shared.config import load_config
+from services.common import ServiceShell, add_zenoh_arguments, open_service, run_paced, serve, setup_logging
 from shared.convert import humans_from_msg, trajectory_from_msg
-from shared.errors import HrcError
 from shared.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, encode
 from shared.robot_model import default_robot
 from shared.scaling_layer import ScalingLayer
@@ -114,24 +111,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
-    try:
-        config = load_config(args.config)
-        shell = ServiceShell("scaler", args)
-    except HrcError as exc:
-        print(f"scaler: error: {exc}", file=sys.stderr)
+    opened = open_service("scaler", args)
+    if opened is None:
         return 2
+    config, shell = opened
     layer = ScalingLayer(default_robot(), config.ssm, config.scaling)
     layer.warm_up()                  # compile before the first deadline, not at it
     scaler = Scaler(shell, layer)
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    shell.announce()                 # up = warmed up and subscribed
-    print(f"scaler: {1 / config.scaling.period:.0f} Hz, solver {config.scaling.solver}, keys {shell.keys.prefix}/",
-          flush=True)
-    run_paced(config.scaling.period, scaler.tick, stop)
-    shell.close()
-    return 0
+    return serve(shell, f"scaler: {1 / config.scaling.period:.0f} Hz, solver {config.scaling.solver}, keys "
+                        f"{shell.keys.prefix}/", lambda stop: run_paced(config.scaling.period, scaler.tick, stop))
 
 
 if __name__ == "__main__":

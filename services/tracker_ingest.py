@@ -11,15 +11,13 @@ sample has arrived within the dropout bound, so a silent tracker is announced, n
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 import time
 
 
-from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
+from services.common import ServiceShell, add_zenoh_arguments, open_service, run_paced, serve, setup_logging
 from shared.convert import humans_to_msg
-from shared.errors import HrcError
 from shared.humans import HumanCapsules
 from shared.messages import HumanRaw, HumanState, SafetyEvent, encode
 from shared.tracking import HumanTracker, TrackerParameters
@@ -74,22 +72,14 @@ def main(argv: list[str] | None = None) -> int:
     if not (0 < args.dropout <= 1.0 and 0 < args.window <= 1.0):
         print("tracker_ingest: error: --dropout and --window must be in (0, 1] s", file=sys.stderr)
         return 2
-    try:
-        shell = ServiceShell("tracker_ingest", args)
-    except HrcError as exc:
-        print(f"tracker_ingest: error: {exc}", file=sys.stderr)
+    opened = open_service("tracker_ingest", args)
+    if opened is None:
         return 2
+    _, shell = opened
     service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=args.window, dropout=args.dropout)))
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    shell.announce()                 # up = warmed up and subscribed
-    print(f"tracker_ingest: least-squares velocity over {args.window * 1000:.0f} ms, dropout "
-          f"{args.dropout * 1000:.0f} ms, keys {shell.keys.prefix}/", flush=True)
-    run_paced(0.01, service.check, stop)
-    shell.close()
-    return 0
-
+    return serve(shell, f"tracker_ingest: least-squares velocity over {args.window * 1000:.0f} ms, dropout "
+                        f"{args.dropout * 1000:.0f} ms, keys {shell.keys.prefix}/",
+                 lambda stop: run_paced(0.01, service.check, stop))
 
 if __name__ == "__main__":
     sys.exit(main())
