@@ -45,7 +45,8 @@ class EmulatedNode:
         self.drive.boot(position)
         self.node = canopen.LocalNode(node_id, canopen.import_od(str(EDS_PATH), node_id))
         network.add_node(self.node)
-        # re-entrant: writing an OD value runs the node's write callbacks again, under this lock
+        # re-entrant, defensively: the node's own values bypass the write callbacks (_store), but an SDO
+        # write from the bus runs them on the same thread that may already hold this lock
         self.lock = threading.RLock()
         self.rng = rng
         self.drop = 0.0
@@ -95,7 +96,7 @@ class EmulatedNode:
                 self._emcy(self.drive.on_controlword(int(value)))
             elif index == 0x6060:
                 self.drive.mode = int(value)
-                self.node.sdo[0x6061].raw = int(value)
+                self._store(0x6061, 0, int(value))
             elif index == 0x60C1 and subindex == 1:
                 self.drive.on_setpoint(int(value))
             elif index == 0x2F00:
@@ -123,29 +124,38 @@ class EmulatedNode:
         for code in codes:
             register = 0 if code == 0 else 0x01
             self.node.emcy.send(code, register)
-            self.node.sdo[0x1001].raw = register
+            self._store(0x1001, 0, register)
             log.warning("node %d: EMCY 0x%04X (%s)", self.id, code, self.drive.state.value)
 
-    def _publish(self) -> None:
-        d, od = self.drive, self.node.sdo
-        od[0x6041].raw = d.statusword()
-        od[0x6061].raw = d.mode
-        od[0x6064].raw = to_counts(d.position)
-        od[0x606C].raw = to_counts(d.velocity)
-        od[0x606B].raw = to_counts(d.velocity)
+    def _store(self, index: int, subindex: int, value: int) -> None:
+        """Put one of the node's own values into its object dictionary, where SDO reads find it. Not through
+        the SDO path: that would run the write callbacks, which are for writes that come from the bus."""
+        obj = self.node.object_dictionary[index]
+        obj = obj[subindex] if subindex else obj
+        self.node.data_store.setdefault(index, {})[subindex] = obj.encode_raw(value)
+
+    def _publish(self) -> dict[tuple[int, int], int]:
+        """The drive's reported values, stored in the object dictionary and returned for the TPDOs."""
+        d = self.drive
+        values = {(0x6041, 0): d.statusword(), (0x6061, 0): d.mode, (0x6064, 0): to_counts(d.position),
+                  (0x606C, 0): to_counts(d.velocity), (0x606B, 0): to_counts(d.velocity)}
+        for (index, subindex), value in values.items():
+            self._store(index, subindex, value)
+        return values
 
     def on_sync(self, now: float) -> None:
         if self._lost():
             return
         with self.lock:
             self._emcy(self.drive.on_sync(now))
-            self._publish()
+            values = self._publish()
         if self.node.nmt.state != "OPERATIONAL":
             return
         for n in (1, 2, 3):
             tpdo = self.node.tpdo[n]
             for var in tpdo:
-                var.raw = self.node.sdo[var.index][var.subindex].raw if var.subindex else self.node.sdo[var.index].raw
+                key = (var.index, var.subindex)
+                var.raw = values[key] if key in values else self.node.sdo[var.index][var.subindex].raw
             if not self._lost():
                 tpdo.transmit()
 
