@@ -5,7 +5,6 @@ import os
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -14,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from services.cell import CONF, cell_pid, run_dir
-from tests.test_hil import _namespace_reason
+from tests.util import free_port, require_namespace
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -22,12 +21,6 @@ ROOT = Path(__file__).resolve().parents[1]
 def hrc(*args, timeout=60):
     return subprocess.run([sys.executable, "-m", "services.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout, env=dict(os.environ, PYTHONPATH=str(ROOT)))
-
-
-def free_port_block():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return min(s.getsockname()[1], 60000)
 
 
 def status(prefix):
@@ -47,12 +40,9 @@ def wait_status(prefix, pattern, timeout):
 
 @pytest.fixture
 def cell():
-    reason = _namespace_reason()
-    if reason:
-        print(f"SKIP: no private network namespace ({reason})")
-        pytest.skip(reason)
+    require_namespace("the services are covered one by one in tests/test_system.py")
     prefix = f"test/up{os.getpid()}"
-    out = hrc("up", "--prefix", prefix, "--port", str(free_port_block()))
+    out = hrc("up", "--prefix", prefix, "--port", str(min(free_port(), 60000)))     # six ports from there
     assert out.returncode == 0, out.stderr
     pid = cell_pid(prefix)
     yield prefix

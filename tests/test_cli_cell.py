@@ -1,7 +1,6 @@
 """The hrc commands that talk to a running cell, against a stand-in cell on loopback (a Zenoh session
 that declares the services' liveliness tokens and records what arrives)."""
 
-import socket
 import subprocess
 import sys
 import time
@@ -13,15 +12,10 @@ import pytest
 from shared.keys import KeySpace
 from shared.messages import Goal, HumanRaw, JointState, decode, encode
 from shared.zenoh_session import open_session
+from tests.util import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 KEYS = KeySpace("clitest/cell")
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture

@@ -7,23 +7,17 @@ has not. tests/hil/harness.py starts both processes, drives them, and reports ea
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from tests.util import require_namespace
+
 HARNESS = Path(__file__).parent / "hil" / "harness.py"
 SCENARIOS = ["enable", "follow", "stale_command", "heartbeat_loss", "drive_fault", "frozen_node", "dropped_frames",
              "bad_messages", "emulator_watchdog", "garbage_frames"]
-
-
-def _namespace_reason() -> str | None:
-    if not shutil.which("unshare") or not shutil.which("ip"):
-        return "unshare or ip (iproute2) is not installed"
-    probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True, text=True)
-    return None if probe.returncode == 0 else f"unshare -rn is not permitted here: {probe.stderr.strip()}"
 
 
 def run_harness(prefix: list[str], extra: list[str]) -> dict:
@@ -35,11 +29,7 @@ def run_harness(prefix: list[str], extra: list[str]) -> dict:
 
 @pytest.fixture(scope="module")
 def udp_results():
-    reason = _namespace_reason()
-    if reason:
-        print(f"SKIP: no private network namespace ({reason}); the driver core is covered in lockstep by "
-              "tests/test_driver_core.py")
-        pytest.skip(reason)
+    require_namespace("the driver core is covered in lockstep by tests/test_driver_core.py")
     return run_harness(["unshare", "-rn"], ["--interface", "udp_multicast"])
 
 

@@ -7,7 +7,8 @@ state, counts no violation."""
 
 import pytest
 
-from tests.test_hil import _namespace_reason, run_harness
+from tests.test_hil import run_harness
+from tests.util import require_namespace
 
 # system_replan (planner as a fourth process; an arm steps across the path) is in the harness but not run
 # here yet: the planner replans around the arm and the robot stays safe, but it stalls next to the arm
@@ -17,11 +18,7 @@ SCENARIOS = ["system_goal", "system_stale_humans", "system_near_human", "monitor
 
 @pytest.fixture(scope="module")
 def results():
-    reason = _namespace_reason()
-    if reason:
-        print(f"SKIP: no private network namespace ({reason}); the scaler core is covered by "
-              "tests/test_scaling_layer.py")
-        pytest.skip(reason)
+    require_namespace("the scaler core is covered by tests/test_scaling_layer.py")
     return run_harness(["unshare", "-rn"], ["--interface", "udp_multicast", "--with-tracker", "--scenarios", *SCENARIOS])
 
 

@@ -1,7 +1,6 @@
 """Zenoh deployment: the safe config, the shipped config files, and clients meeting through the router."""
 
 import re
-import socket
 import subprocess
 import sys
 import time
@@ -11,14 +10,9 @@ import pytest
 
 from shared.errors import ConfigError
 from shared.zenoh_session import check_endpoints, open_session
+from tests.util import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.mark.parametrize("endpoint", ["tcp/10.0.0.5:7447", "tcp/0.0.0.0:7447", "udp/127.0.0.1:7447",

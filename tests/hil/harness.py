@@ -16,7 +16,6 @@ import math
 import os
 import random
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -35,6 +34,7 @@ from shared.canbus import open_bus  # noqa: E402
 from shared.keys import KeySpace  # noqa: E402
 from shared.messages import DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode  # noqa: E402
 from shared.zenoh_session import open_session  # noqa: E402
+from tests.util import free_port  # noqa: E402
 
 Q0 = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
 PERIOD = 0.01
@@ -42,12 +42,6 @@ PERIOD = 0.01
 
 def _die_with_parent() -> None:
     ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)     # PR_SET_PDEATHSIG
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Cell:
