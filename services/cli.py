@@ -230,14 +230,9 @@ def cmd_down(args: argparse.Namespace) -> int:
 
 
 def _await_service(session, keys, service: str, timeout: float) -> bool:
-    """Peers do not forward: wait until the service is linked to us (its liveliness token is visible)."""
-    import time
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if list(session.liveliness().get(keys.alive(service), timeout=0.3)):
-            return True
-        time.sleep(0.05)
-    return False
+    from shared.zenoh_session import await_liveliness
+
+    return await_liveliness(session, keys.alive(service), timeout)
 
 
 def cmd_goal(args: argparse.Namespace) -> int:

@@ -44,3 +44,16 @@ def open_session(mode: str = "peer", listen: list[str] = (), connect: list[str] 
                  allow_remote: bool = False) -> zenoh.Session:
     """Open a Zenoh session with the safe config (see module docstring)."""
     return zenoh.open(make_config(mode, listen, connect, allow_remote))
+
+
+def await_liveliness(session: zenoh.Session, key: str, timeout: float) -> bool:
+    """Wait until a liveliness token on key is visible to this session; False after timeout seconds.
+    Peers do not forward, so a service's token is visible exactly when a one-off put would reach it."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if list(session.liveliness().get(key, timeout=0.3)):
+            return True
+        time.sleep(0.05)
+    return False

@@ -33,7 +33,7 @@ from hwsim.emulator import EDS_PATH, NODE_IDS  # noqa: E402
 from shared.canbus import open_bus  # noqa: E402
 from shared.keys import KeySpace  # noqa: E402
 from shared.messages import DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode  # noqa: E402
-from shared.zenoh_session import open_session  # noqa: E402
+from shared.zenoh_session import await_liveliness, open_session  # noqa: E402
 from tests.util import free_port  # noqa: E402
 
 Q0 = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
@@ -117,12 +117,8 @@ class Cell:
         self.tool.subscribe(0x80, lambda cid, data, ts: self.sync_stamps.append(ts))     # receive timestamps
 
     def _await_token(self, service: str, timeout: float = 10.0) -> None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if list(self.session.liveliness().get(self.keys.alive(service), timeout=0.5)):
-                return
-            time.sleep(0.05)
-        raise RuntimeError(f"no liveliness token from {service} within {timeout:.0f} s")
+        if not await_liveliness(self.session, self.keys.alive(service), timeout):
+            raise RuntimeError(f"no liveliness token from {service} within {timeout:.0f} s")
 
     def _expect_line(self, name: str, text: str, timeout: float = 20.0) -> None:
         proc = self.procs[name]
