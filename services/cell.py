@@ -20,6 +20,15 @@ ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "deploy" / "supervisord.conf"
 
 
+NAMESPACE_SETUP = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$@\""
+
+
+def in_new_namespace(argv: list[str]) -> list[str]:
+    """argv run in a new private network namespace (unshare -rn: unprivileged, only lo, multicast on lo):
+    the only place udp_multicast CAN may run."""
+    return ["unshare", "-rn", "sh", "-c", NAMESPACE_SETUP, "sh", *argv]
+
+
 def run_dir(prefix: str) -> Path:
     base = Path(os.environ.get("XDG_RUNTIME_DIR") or "/tmp")
     return base / f"hrc-{prefix.replace('/', '_')}"
@@ -43,11 +52,7 @@ def up(prefix: str, interface: str, port: int) -> int:
     env = dict(os.environ, HRC_RUN=str(run), HRC_PYTHON=sys.executable, HRC_CAN=interface, HRC_PREFIX=prefix,
                PYTHONPATH=str(ROOT), **{f"HRC_PORT{k if k else ''}": str(port + k) for k in range(6)})
     supervisord = [sys.executable, "-c", "from supervisor.supervisord import main; main()", "-c", str(CONF)]
-    if interface == "udp_multicast":
-        setup = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$@\""
-        argv = ["unshare", "-rn", "sh", "-c", setup, "sh", *supervisord]
-    else:
-        argv = supervisord
+    argv = in_new_namespace(supervisord) if interface == "udp_multicast" else supervisord
     log = open(run / "up.log", "w")
     proc = subprocess.Popen(argv, env=env, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     (run / "cell.pid").write_text(str(proc.pid))

@@ -53,10 +53,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="<command>")
     demo = sub.add_parser("demo", help="run the paper's experiment on the built-in scenario",
                           description="Shuttle the PRBT between q_s and q_g next to a scripted human going "
-                                      "through the paper's four phases, in-process on a simulated clock; "
-                                      "print progress and a JSON summary (and write it with --out).")
+                                      "through the paper's four phases. By default on the real processes: the "
+                                      "PRBT emulator on CAN (vcan0, else udp_multicast in a private network "
+                                      "namespace made for it) and every service over Zenoh; progress while it "
+                                      "runs, then a report folder (--out): summary.json, a per-cycle trace "
+                                      "(format: docs/report-format.md) and the paper's figures as PNG. --sim: "
+                                      "both layers in-process on a simulated clock instead (deterministic, fast).",
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
     demo.add_argument("--duration", type=_positive_float, default=24.0, metavar="SECONDS",
-                      help="simulated seconds to run (default 24: all four phases)")
+                      help="seconds to run (default 24: all four phases)")
     demo.add_argument("--phase-length", type=_positive_float, default=6.0, metavar="SECONDS",
                       help="length of each of the four human phases (default 6)")
     demo.add_argument("--config", type=Path, default=None, metavar="FILE",
@@ -64,11 +69,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--scene", type=Path, default=None, metavar="FILE",
                       help="static cell (floor, table, fixtures) for the planner (default deploy/scene.yaml)")
     demo.add_argument("--no-beta", action="store_true",
-                      help="do not replan when the scaling layer asks (alpha below alpha_min)")
-    demo.add_argument("--no-planner", action="store_true", help="scaling layer only: straight shuttles")
+                      help="do not replan when the scaling layer asks (alpha below alpha_min): the paper's ablation")
+    demo.add_argument("--sim", action="store_true",
+                      help="in-process on a simulated clock (no processes, no CAN, no Zenoh)")
+    demo.add_argument("--no-planner", action="store_true", help="with --sim: scaling layer only, straight shuttles")
     demo.add_argument("--seed", type=int, default=1, help="seed of the planner's random sampling (default 1)")
-    demo.add_argument("--out", type=Path, default=None, metavar="DIR",
-                      help="write summary.json into this folder")
+    demo.add_argument("--out", type=Path, default=Path("hrc-demo-report"), metavar="DIR",
+                      help="report folder (default ./hrc-demo-report)")
     demo.add_argument("--quiet", action="store_true", help="print only the summary")
 
     upp = sub.add_parser("up", help="start the cell under supervisord",
@@ -138,6 +145,45 @@ def _scene(path: Path | None):
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    if not args.sim:
+        return _demo_processes(args)
+    return _demo_sim(args)
+
+
+def _demo_processes(args: argparse.Namespace) -> int:
+    from services import demo
+    from shared.config import load_config
+    from shared.robot_model import default_robot
+
+    if args.no_planner:
+        raise DemoArgumentError("--no-planner needs --sim (the running cell always has its planner)")
+    if args.scene is not None:
+        raise DemoArgumentError("--scene needs --sim (the planner service reads deploy/scene.yaml)")
+    config = load_config(args.config)              # a bad file is refused here, before anything starts
+    try:
+        code = demo.reexec_in_namespace([sys.executable, "-m", "services.cli", *args.argv])
+    except RuntimeError as exc:
+        print(f"hrc demo: error: {exc}", file=sys.stderr)
+        return 1
+    if code is not None:
+        return code
+    try:
+        summary = demo.run(args.out, args.duration, args.phase_length, args.config, args.seed, args.no_beta,
+                           args.quiet, default_robot(), config)
+    except RuntimeError as exc:
+        print(f"hrc demo: error: {exc}", file=sys.stderr)
+        return 1
+    print(json.dumps({k: v for k, v in summary.items() if k not in ("replan_stall_ms", "replans")}
+                     | {"replans": len(summary["replans"]), "replan_stall_ms": {
+                         k: summary["replan_stall_ms"][k] for k in ("median", "max")}}))
+    print(f"hrc demo: report in {args.out}/ (summary.json, trace.csv, figures: {', '.join(summary['figures'])})")
+    if summary["violations"] is None:
+        print("hrc demo: error: no summary from the safety monitor", file=sys.stderr)
+        return 1
+    return 0 if summary["violations"] == 0 else 1
+
+
+def _demo_sim(args: argparse.Namespace) -> int:
     from shared.config import load_config
     from shared.robot_model import default_robot
     from shared.scenarios import Q_GOAL, Q_START, paper_phases
@@ -170,7 +216,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if not args.quiet:
         layers = "scaling layer only" if replanner is None else \
             "scaling + planning layers" + (" (no beta replans)" if args.no_beta else "")
-        print(f"hrc demo: {layers} on the built-in scenario (in-process, simulated clock)")
+        print(f"hrc demo --sim: {layers} on the built-in scenario (in-process, simulated clock)")
 
     def replanned(event) -> None:
         if not args.quiet:
@@ -375,6 +421,10 @@ def cmd_status(args: argparse.Namespace) -> int:
     return 0
 
 
+class DemoArgumentError(HrcError):
+    """An option of hrc demo that does not fit the chosen mode."""
+
+
 class GoalArgumentError(HrcError):
     """A goal given on the command line is not six finite angles within the limits, nor a known name."""
 
@@ -382,6 +432,7 @@ class GoalArgumentError(HrcError):
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
     if args.command is None:
         parser.print_help()
         return 2

@@ -41,8 +41,8 @@ DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
 
 class PlannerService:
     def __init__(self, shell: ServiceShell, replanner: Replanner, horizon_period: float = 0.02,
-                 beta_cooldown: float = 0.5) -> None:
-        self.shell, self.replanner = shell, replanner
+                 beta_cooldown: float = 0.5, beta_replans: bool = True) -> None:
+        self.shell, self.replanner, self.beta_replans = shell, replanner, beta_replans
         self.horizon_period, self.beta_cooldown = horizon_period, beta_cooldown
         self.lock = threading.Lock()
         self.wake = threading.Event()
@@ -84,9 +84,10 @@ class PlannerService:
             self.wake.set()
 
     # ------------------------------------------------------------------------------------- outputs
-    def _event(self, event: str, text: str) -> None:
+    def _event(self, event: str, text: str, ms: float | None = None) -> None:
+        """An event on <prefix>/safety/events; value: the planning time in ms, where there was one."""
         self.seq += 1
-        self.event_pub.put(encode(SafetyEvent(source="planner", event=event, severity="info", text=text,
+        self.event_pub.put(encode(SafetyEvent(source="planner", event=event, severity="info", text=text, value=ms,
                                               seq=self.seq, stamp=time.monotonic())))
         self.shell.log.info("%s: %s", event, text)
 
@@ -96,7 +97,8 @@ class PlannerService:
         self.seq += 1
         self.traj_pub.put(encode(trajectory_to_msg(traj, self.goal_id, reason, junction, base_version,
                                                    seq=self.seq, stamp=time.monotonic())))
-        self._event(f"trajectory_{reason}", f"version {traj.version} in {ms:.0f} ms, junction s={junction:.2f}; {detail}")
+        self._event(f"trajectory_{reason}", f"version {traj.version} in {ms:.0f} ms, junction s={junction:.2f}; {detail}",
+                    ms)
 
     # ------------------------------------------------------------------------------------- work
     def _following(self) -> tuple[Trajectory, float] | None:
@@ -133,18 +135,19 @@ class PlannerService:
                     self._apply(self.replanner.replan(following[0], following[1], goal.q, humans, "goal"),
                                 following[0], started)
             except (PlanningError, TimingError, ReplanFailed) as exc:
-                self._event("plan_refused", f"goal {goal.goal_id}: {type(exc).__name__}: {exc}")
+                self._event("plan_refused", f"goal {goal.goal_id}: {type(exc).__name__}: {exc}",
+                            (time.perf_counter() - started) * 1e3)
             return
         if following is None:
             return
         traj, s = following
-        if status is not None and status.beta and now >= state["next_beta"]:
+        if self.beta_replans and status is not None and status.beta and now >= state["next_beta"]:
             state["next_beta"] = now + self.beta_cooldown
             speed = float(np.abs(traj.sample(s)[1]).max() * status.alpha)
             try:
                 self._apply(self.replanner.on_beta(traj, s, goal.q, humans, speed), traj, started)
             except ReplanFailed as exc:
-                self._event("replan_refused", f"beta: {exc}"[:500])
+                self._event("replan_refused", f"beta: {exc}"[:500], (time.perf_counter() - started) * 1e3)
             return
         if human_seq != state["human_seq"] and now >= state["next_horizon"]:
             state["human_seq"] = human_seq
@@ -155,7 +158,7 @@ class PlannerService:
                     self._apply(result, traj, started)
             except ReplanFailed as exc:
                 state["next_horizon"] = now + self.beta_cooldown / 2
-                self._event("replan_refused", f"horizon: {exc}"[:500])
+                self._event("replan_refused", f"horizon: {exc}"[:500], (time.perf_counter() - started) * 1e3)
 
     def run(self, stop: threading.Event) -> None:
         state = {"next_beta": 0.0, "next_horizon": 0.0, "human_seq": -1}
@@ -172,6 +175,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
     parser.add_argument("--scene", type=Path, default=None, help="static cell (default deploy/scene.yaml)")
     parser.add_argument("--seed", type=int, default=None, help="seed of OMPL's sampling (default: random)")
+    parser.add_argument("--no-beta", action="store_true",
+                        help="ignore the scaling layer's replan requests (the paper's ablation)")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     try:
@@ -192,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         replanner.plan_fresh(mid, mid + 0.05, None, 0)
     except (PlanningError, TimingError):
         pass
-    service = PlannerService(shell, replanner)
+    service = PlannerService(shell, replanner, beta_replans=not args.no_beta)
     return serve(shell, f"planner: RRT-Connect, scene with {len(scene.names)} obstacles, keys {shell.keys.prefix}/",
                  service.run, on_stop=service.wake.set)
 

@@ -12,6 +12,9 @@ Thin shell around ``services.driver_core.DriverCore``:
 * a command that arrives while running goes on the bus at once (RPDO1 is synchronous: the drives take
   the latest setpoint at the next SYNC), clamped and rate-limited exactly as the cycle will, so a command
   waits for the SYNC inside the drive instead of in this process;
+* every first command computed from a new human sample closes a latency chain (sample into
+  tracker_ingest -> target frame on the bus, see shared.latency): once a second the chains go out as a
+  LatencyReport on <prefix>/diag/latency, and a warning event when their p99 exceeds the configured T_r;
 * asyncio main: Zenoh subscriptions (joint commands, stop / recover requests), liveliness token,
   SIGTERM. A malformed message is logged and dropped; the service goes on.
 
@@ -29,6 +32,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import canopen
 import numpy as np
@@ -39,7 +43,9 @@ from services.driver_core import DriverCore, Feedback
 from shared.canbus import BusError, describe, open_bus
 from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
 from shared.errors import HrcError
-from shared.messages import DriverRequest, JointCommand, JointState, SafetyEvent, encode
+from shared.config import load_config
+from shared.latency import LatencyMeter
+from shared.messages import DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent, encode
 from shared.robot_model import default_robot
 
 log = logging.getLogger("robot_driver")
@@ -181,8 +187,13 @@ class CanMaster:
 class Driver:
     """Ties the master, the core and Zenoh together."""
 
-    def __init__(self, master: CanMaster, core: DriverCore, shell: ServiceShell, period: float) -> None:
+    def __init__(self, master: CanMaster, core: DriverCore, shell: ServiceShell, period: float,
+                 latency: LatencyMeter) -> None:
         self.master, self.core, self.shell, self.period = master, core, shell, period
+        self.latency, self.latency_lock = latency, threading.Lock()
+        self.report_every = max(1, int(round(1.0 / period)))      # a latency report a second
+        self.cycles = 0
+        self.latency_pub = shell.session.declare_publisher(shell.keys.latency)
         self.core_lock = threading.Lock()
         self.stop = threading.Event()
         self.state_pub = shell.session.declare_publisher(shell.keys.joint_state)
@@ -199,6 +210,10 @@ class Driver:
             early = self.core.command(msg.q, time.monotonic())
         if early is not None:           # on the bus now; the drives take the latest setpoint at the next SYNC
             self.master.send(None, early, sync=False)
+            if msg.human_sample_stamp is not None:          # the end of a sample -> frame chain
+                elapsed = time.monotonic() - msg.human_sample_stamp
+                with self.latency_lock:
+                    self.latency.add(elapsed, elapsed - (msg.human_wait or 0.0))
 
     def on_request(self, msg: DriverRequest) -> None:
         log.info("request %s from %s", msg.action, msg.source)
@@ -225,6 +240,23 @@ class Driver:
         self.last_output = out
         for event in out.events:
             self._publish_event(event)
+        self.cycles += 1
+        if self.cycles % self.report_every == 0:
+            self._report_latency()
+
+    def _report_latency(self) -> None:
+        """The chains measured since the last report, and a warning when their p99 exceeds T_r."""
+        with self.latency_lock:
+            sample_to_frame, processing = self.latency.drain()
+            verdict = self.latency.check()
+        if sample_to_frame.size:
+            with self.pub_lock:
+                self.seq += 1
+                self.latency_pub.put(encode(LatencyReport(source="robot_driver", sample_to_frame=sample_to_frame,
+                                                          processing=processing, seq=self.seq,
+                                                          stamp=time.monotonic())))
+        if verdict is not None:
+            self._publish_event(verdict)
 
     def publish_state(self, q: np.ndarray, qd: np.ndarray) -> None:
         """Every drive has answered this SYNC: the joint state goes out now (from the CAN thread)."""
@@ -240,6 +272,7 @@ class Driver:
 
 
 async def serve(args: argparse.Namespace) -> int:
+    config = load_config(args.config)
     bus = open_bus(args.interface, args.channel)
     print(f"robot_driver: CANopen master on {describe(args.interface, args.channel)}, SYNC every "
           f"{args.period * 1000:.1f} ms", flush=True)
@@ -247,7 +280,7 @@ async def serve(args: argparse.Namespace) -> int:
     await asyncio.to_thread(master.bring_up)
     shell = ServiceShell("robot_driver", args)
     core = DriverCore(default_robot().limits, args.period, args.command_timeout)
-    driver = Driver(master, core, shell, args.period)
+    driver = Driver(master, core, shell, args.period, LatencyMeter(config.ssm.reaction_time))
     thread = threading.Thread(target=run_paced, args=(args.period, driver.cycle, driver.stop), name="can-cycle",
                               daemon=True)
     thread.start()
@@ -273,6 +306,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--channel", default=None)
     add_zenoh_arguments(parser, default_listen="tcp/127.0.0.1:7447")
     parser.add_argument("--period", type=float, default=0.01, help="SYNC period (s), default 0.01")
+    parser.add_argument("--config", type=Path, default=None,
+                        help="cell configuration YAML (its T_r is checked against the measured latency)")
     parser.add_argument("--command-timeout", type=float, default=0.05,
                         help="a command older than this stops the drives (s), default 0.05")
     args = parser.parse_args(argv)

@@ -1,7 +1,8 @@
 """safety_monitor: an independent process that checks every measured joint state against the latest
 human state (shared.monitor: coal distances, pinocchio Jacobians, the standard's closest-point check)
-and counts violations of the ISO/TS 15066 speed limit (an exceedance that outlasts the reaction time
-T_r: the standard's allowance for reacting to new information) and of d_min (at once).
+and counts violations of the ISO/TS 15066 speed limit (an exceedance the robot does not answer as the
+formula assumes: react within T_r, then brake to a stop within T_s; see shared.monitor.ReactionWindow)
+and of d_min (at once).
 
 Each violation goes out as a SafetyEvent (event 'ssm_violation', severity stop; at most ten a second),
 and once a second a summary (event 'monitor_summary', value = violations so far, text with the checks
@@ -30,7 +31,7 @@ from shared.robot_model import default_robot
 class MonitorService:
     def __init__(self, shell: ServiceShell, monitor: SafetyMonitor) -> None:
         self.shell, self.monitor = shell, monitor
-        self.window = ReactionWindow(monitor.ssm.reaction_time)
+        self.window = ReactionWindow(monitor.ssm.reaction_time, monitor.ssm.stopping_time)
         self.lock = threading.Lock()
         self.humans = None
         self.checks = 0

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,8 @@ class Scaler:
         self.lock = threading.Lock()
         self.humans = None                 # HumanCapsules, or None
         self.human_stamp = -np.inf         # monotonic time of the human sample
+        self.human_arrival = -np.inf       # when its state reached this process
+        self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
         self.pending: TrajectoryMsg | None = None
         self.version = -1
@@ -51,6 +54,7 @@ class Scaler:
         with self.lock:
             self.humans = humans_from_msg(msg)
             self.human_stamp = msg.sample_stamp if msg.valid else -np.inf
+            self.human_arrival = time.monotonic()
 
     def on_joints(self, msg: JointState) -> None:
         with self.lock:
@@ -87,14 +91,20 @@ class Scaler:
             if self.pending is not None:
                 self._take_pending()
             humans, age, q_meas = self.humans, now - self.human_stamp, self.joint_q
+            stamp, arrival = self.human_stamp, self.human_arrival
         if self.layer.trajectory is None and q_meas is not None:
             self.layer.hold(q_meas)
         if self.layer.trajectory is None:
             return
         step = self.layer.step(humans, age if humans is not None else np.inf)
         self.seq += 1
+        fresh = np.isfinite(stamp) and stamp != self.reported_stamp      # first command from this sample
+        if fresh:
+            self.reported_stamp = stamp
         self.cmd_pub.put(encode(JointCommand(q=step.q_command, qd=step.qd_command,
                                              trajectory_version=step.trajectory_version, s=step.s,
+                                             human_sample_stamp=stamp if fresh else None,
+                                             human_wait=max(0.0, now - arrival) if fresh else None,
                                              seq=self.seq, stamp=now)))
         finite = lambda v: v if np.isfinite(v) else None
         self.status_pub.put(encode(ScalerStatus(

@@ -11,6 +11,7 @@ Every service takes its keys from here, so the topic layout lives in one place:
     <prefix>/robot/joint_state    robot_driver -> scaler, planner, monitor     JointState
     <prefix>/robot/request        CLI -> robot_driver              DriverRequest (stop, recover)
     <prefix>/safety/events        every service -> CLI, logs       SafetyEvent
+    <prefix>/diag/latency         robot_driver -> CLI, benchmarks  LatencyReport
     <prefix>/alive/<service>      liveliness token of each service
 """
 
@@ -83,6 +84,10 @@ class KeySpace:
     @property
     def safety_events(self) -> str:
         return self._key("safety/events")
+
+    @property
+    def latency(self) -> str:
+        return self._key("diag/latency")
 
     def alive(self, service: str) -> str:
         """Liveliness token key of a service."""

@@ -143,15 +143,23 @@ class TrajectoryMsg(Message):
 
 @dataclass(frozen=True)
 class JointCommand(Message):
-    """The scaler's joint command for the driver: position (rad) and velocity (rad/s)."""
+    """The scaler's joint command for the driver: position (rad) and velocity (rad/s).
+
+    For the end-to-end latency (a human sample entering tracker_ingest -> the target frame on CAN), the
+    first command computed from a new human state carries that state's sample_stamp and how long it
+    waited in the scaler for the tick (s): the driver subtracts the wait to get the processing time.
+    Both are None on every other command."""
 
     KIND: ClassVar[str] = "joint_command"
     SPEC: ClassVar[dict[str, Spec]] = {"q": Q, "qd": Q, "trajectory_version": Spec("int", minimum=-1),
-                                       "s": F}
+                                       "s": F, "human_sample_stamp": Spec("float", optional=True),
+                                       "human_wait": Spec("float", optional=True, minimum=0.0)}
     q: np.ndarray
     qd: np.ndarray
     trajectory_version: int
     s: float
+    human_sample_stamp: float | None = None
+    human_wait: float | None = None
 
 
 @dataclass(frozen=True)
@@ -221,8 +229,26 @@ class DriverRequest(Message):
             raise MessageError(f"driver_request.action: expected stop or recover, got {self.action!r}")
 
 
+@dataclass(frozen=True)
+class LatencyReport(Message):
+    """The robot driver's latency measurements since its last report (s): for each human sample that
+    reached the bus, from its arrival at tracker_ingest to its target frame on CAN, and the part of that
+    which was processing (the rest is waiting for the scaler's tick). p99 is checked against T_r."""
+
+    KIND: ClassVar[str] = "latency_report"
+    SPEC: ClassVar[dict[str, Spec]] = {"source": S, "sample_to_frame": Spec("farray", (-1,), minimum=0.0),
+                                       "processing": Spec("farray", (-1,))}
+    source: str
+    sample_to_frame: np.ndarray
+    processing: np.ndarray
+
+    def check(self) -> None:
+        _same_rows(self, "sample_to_frame", "processing")
+
+
 MESSAGE_TYPES: dict[str, type[Message]] = {cls.KIND: cls for cls in (
-    HumanRaw, HumanState, Goal, TrajectoryMsg, JointCommand, ScalerStatus, JointState, SafetyEvent, DriverRequest)}
+    HumanRaw, HumanState, Goal, TrajectoryMsg, JointCommand, ScalerStatus, JointState, SafetyEvent, DriverRequest,
+    LatencyReport)}
 
 
 def _same_rows(msg: Message, *names: str) -> None:

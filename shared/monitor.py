@@ -10,8 +10,9 @@ For every robot link i and human capsule j: separation d_ij (coal), unit directi
 closest point to the human's, the robot point's velocity v_r = J_i(q, p) qd, the human point's velocity
 interpolated between the capsule's end points, human approach speed max(0, -n . v_h) (or the ISO 13855
 speed when untracked). An exceedance: n . v_r > max(v_r_max(d, v_h), 0) + tolerance, or d < d_min. ``ReactionWindow`` then counts
-a speed exceedance as a violation only once it outlasts the reaction time T_r, as the standard does. (Overlapping capsules are always
-a separation violation; coal's penetration witness points give no meaningful direction there.)
+a speed exceedance as a violation only when the robot does not react and brake as the formula assumes
+(within T_r, then to a stop within T_s). (Overlapping capsules are always a separation violation; coal's
+penetration witness points give no meaningful direction there.)
 """
 
 from __future__ import annotations
@@ -52,6 +53,8 @@ class Violation:
 class MonitorResult:
     min_separation: float = np.inf
     min_margin: float = np.inf          # min over pairs of max(limit, 0) - approach speed (m/s)
+    approach_speed: float = 0.0         # the robot's approach speed (m/s) at the pair of min_margin ...
+    limit: float = np.inf               # ... and its ISO/TS 15066 limit there (m/s)
     violations: list[Violation] = field(default_factory=list)
 
 
@@ -105,7 +108,8 @@ class SafetyMonitor:
                 limit = float(velocity_limit(d, v_h, self.ssm))
                 margin = max(limit, 0.0) - approach
                 result.min_separation = min(result.min_separation, float(d))
-                result.min_margin = min(result.min_margin, margin)
+                if margin < result.min_margin:
+                    result.min_margin, result.approach_speed, result.limit = margin, approach, limit
                 if margin < -self.tolerance:
                     result.violations.append(Violation(link, j, "speed", float(d), approach, limit))
                 if d < self.ssm.min_separation - self.tolerance:
@@ -114,20 +118,38 @@ class SafetyMonitor:
 
 
 class ReactionWindow:
-    """Turns instantaneous speed exceedances into violations the way the standard counts them.
+    """Turns instantaneous speed exceedances into violations the way the standard's formula allows them.
 
-    ISO/TS 15066 gives the system its reaction time T_r: when new information lowers the limit at once (a
-    person appears, a velocity becomes unknown), the robot may keep its speed for up to T_r before it must
-    be braking within the limit. So a speed exceedance of a (link, capsule) pair is a violation only when
-    it has lasted longer than T_r; a separation below d_min is a violation at once.
+    ISO/TS 15066's S_p = v_h (T_r + T_s) + v_r T_r + B + C + Z_d + Z_r assumes that, once the separation
+    reaches S_p, the robot reacts within T_r (it may keep its speed) and then brakes to a stop within T_s.
+    So when the limit falls below a pair's approach speed (a person appears, or comes faster than the
+    robot can be slowed by one command), the robot is allowed, for that (link, capsule) pair:
+    * up to T_r at the speed it had (v_ref: the highest approach speed seen in the first T_r), then
+    * a braking envelope down to zero over T_s: v_ref (1 - (t - T_r) / T_s).
+    An exceedance that rises above the envelope (it did not brake), or outlasts T_r + T_s (it did not stop),
+    is a violation. A separation below d_min is a violation at once.
     """
 
-    def __init__(self, reaction_time: float) -> None:
-        self.reaction_time = reaction_time
-        self._since: dict[tuple[str, int], float] = {}
+    def __init__(self, reaction_time: float, stopping_time: float, tolerance: float = 0.01) -> None:
+        self.reaction_time, self.stopping_time, self.tolerance = reaction_time, stopping_time, tolerance
+        self._episodes: dict[tuple[str, int], tuple[float, float]] = {}      # pair -> (start, v_ref)
+
+    def allowed(self, elapsed: float, v_ref: float) -> float:
+        """The approach speed (m/s) the formula still allows `elapsed` seconds into an exceedance."""
+        if elapsed <= self.reaction_time:
+            return np.inf
+        return v_ref * max(0.0, 1.0 - (elapsed - self.reaction_time) / self.stopping_time) + self.tolerance
 
     def update(self, now: float, result: MonitorResult) -> list[Violation]:
         speeding = {(v.link, v.capsule): v for v in result.violations if v.kind == "speed"}
-        self._since = {pair: self._since.get(pair, now) for pair in speeding}
-        late = [v for pair, v in speeding.items() if now - self._since[pair] > self.reaction_time]
+        episodes, late = {}, []
+        for pair, v in speeding.items():
+            start, v_ref = self._episodes.get(pair, (now, v.approach_speed))
+            elapsed = now - start
+            if elapsed <= self.reaction_time:
+                v_ref = max(v_ref, v.approach_speed)
+            episodes[pair] = (start, v_ref)
+            if elapsed > self.reaction_time + self.stopping_time or v.approach_speed > self.allowed(elapsed, v_ref):
+                late.append(v)
+        self._episodes = episodes
         return late + [v for v in result.violations if v.kind == "separation"]

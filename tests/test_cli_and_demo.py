@@ -1,4 +1,4 @@
-"""The hrc command line and the in-process demo of the paper's experiment."""
+"""The hrc command line and the in-process demo of the paper's experiment (`hrc demo --sim`)."""
 
 import json
 import subprocess
@@ -17,7 +17,7 @@ def hrc(*args):
 
 
 def test_demo_runs_and_prints_a_json_summary(tmp_path):
-    out = hrc("demo", "--duration", "3", "--quiet", "--out", str(tmp_path))
+    out = hrc("demo", "--sim", "--duration", "3", "--quiet", "--out", str(tmp_path))
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout.strip().splitlines()[-1])
     assert summary["violations"] == 0 and summary["cycles"] == 300
@@ -29,6 +29,7 @@ def test_demo_runs_and_prints_a_json_summary(tmp_path):
     (["demo", "--duration", "nan"], "positive"),
     (["demo", "--duration", "soon"], "expected a number"),
     (["demo", "--config", "/nonexistent/cell.yaml"], "cannot read"),
+    (["demo", "--no-planner"], "needs --sim"),
     (["fly"], "invalid choice"),
 ])
 def test_bad_arguments_exit_nonzero_with_a_clear_message(args, text):

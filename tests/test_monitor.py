@@ -68,14 +68,22 @@ def test_every_command_of_the_paper_phases_passes_the_independent_monitor():
     assert [entry for entry in bad if entry[1]] == []
 
 
-def test_speed_exceedances_count_only_after_the_reaction_time():
+def test_speed_exceedances_count_only_when_the_robot_does_not_react_and_brake():
     from shared.monitor import MonitorResult, ReactionWindow, Violation
-    window = ReactionWindow(0.1)
-    speeding = MonitorResult(violations=[Violation("prbt_link_4", 0, "speed", 0.5, 0.3, 0.1)])
-    assert window.update(0.00, speeding) == []
-    assert window.update(0.08, speeding) == []                  # still reacting
-    assert len(window.update(0.11, speeding)) == 1              # failed to react in time
-    assert window.update(0.12, MonitorResult()) == []           # cleared ...
-    assert window.update(0.13, speeding) == []                  # ... and the clock starts again
+
+    def speeding(v):
+        return MonitorResult(violations=[Violation("prbt_link_4", 0, "speed", 0.5, v, 0.1)])
+
+    window = ReactionWindow(0.1, 0.3)
+    assert window.update(0.00, speeding(0.6)) == []
+    assert window.update(0.08, speeding(0.6)) == []             # reacting: may keep its speed for T_r
+    assert window.update(0.25, speeding(0.25)) == []            # braking: under 0.6 (1 - 0.15 / 0.3) = 0.3
+    assert len(window.update(0.26, speeding(0.5))) == 1         # not braking: above the envelope
+    assert window.update(0.27, MonitorResult()) == []           # cleared ...
+    assert window.update(0.28, speeding(0.6)) == []             # ... and the clock starts again
+    slow = ReactionWindow(0.1, 0.3)
+    assert slow.update(0.0, speeding(0.01)) == []
+    assert slow.update(0.39, speeding(0.005)) == []             # within the envelope's tolerance
+    assert len(slow.update(0.41, speeding(0.005))) == 1         # still approaching after T_r + T_s
     too_close = MonitorResult(violations=[Violation("prbt_link_4", 0, "separation", 0.01, 0.0, -1.0)])
-    assert len(window.update(0.14, too_close)) == 1             # d_min at once
+    assert len(window.update(0.29, too_close)) == 1             # d_min at once
