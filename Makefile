@@ -25,6 +25,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/scaling.py
 	$(BIN)/python bench/planning.py
 	$(BIN)/python bench/can_loop.py
+	$(BIN)/python bench/end_to_end.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

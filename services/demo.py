@@ -142,7 +142,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
         _direct(session, keys, recorder, rec, duration, say)
         feed.running = False
         time.sleep(1.2)                             # the monitor's last summary (once a second)
-        alive = cell.alive()
+        alive, cpu = cell.alive(), cell.cpu_seconds()
     except LaunchError as exc:
         raise RuntimeError(f"the cell did not start: {exc}") from None
     finally:
@@ -154,6 +154,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
         session.close()
     say(f"hrc demo: cell stopped (exit codes {codes}); writing the report to {out}")
     extra = {"mode": "processes", "can": interface, "services_alive_at_end": alive, "exit_codes": codes,
+             "cpu_s": cpu, "cpus": os.cpu_count(),
              "bad_messages_seen": recorder.bad, "no_beta": no_beta}
     return write_report(out, robot, config, rec, extra)
 

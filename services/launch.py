@@ -113,6 +113,18 @@ class CellProcesses:
                 if time.monotonic() > deadline:
                     raise LaunchError(f"{name} not up within {timeout:.0f} s:\n{self._tail(name)}")
 
+    def cpu_seconds(self) -> dict[str, float]:
+        """CPU time (user + system, s) each live child has used so far (/proc/<pid>/stat)."""
+        tick = os.sysconf("SC_CLK_TCK")
+        out = {}
+        for name, proc in self.procs.items():
+            try:
+                fields = Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+                out[name] = round((int(fields[11]) + int(fields[12])) / tick, 2)
+            except (OSError, IndexError, ValueError):
+                pass
+        return out
+
     def alive(self) -> dict[str, bool]:
         return {name: proc.poll() is None for name, proc in self.procs.items()}
 

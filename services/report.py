@@ -22,7 +22,7 @@ from shared.messages import (HumanState, JointCommand, JointState, LatencyReport
 from shared.monitor import SafetyMonitor
 from shared.robot_model import RobotModel
 
-MOVING_ALPHA = 0.05          # a stall ends once the robot moves on at more than this fraction of its speed
+MOVING_ALPHA = 0.01          # a stall ends once the robot moves on at more than this fraction of its speed
 
 
 @dataclass
