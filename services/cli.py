@@ -30,6 +30,7 @@ monitoring). Subcommands:
   hrc human inject X Y Z ...     publish a human pose (a capsule) once, or moving at a velocity
   hrc human replay FILE          replay a recorded or scripted motion (CSV or JSON) at its own rate
   hrc status                     which services are alive, the robot, the scaler, the monitor
+  hrc recover                    after a stop: ask the driver to reset and re-enable the drives
 The cell's commands reach it over Zenoh (--connect, default tcp/127.0.0.1:7447).
 Run 'hrc <command> --help' for the options of one command."""
 
@@ -103,6 +104,12 @@ def build_parser() -> argparse.ArgumentParser:
     goal.add_argument("q", nargs="+", metavar="Q", help="six joint angles (rad) or a name")
     goal.add_argument("--id", type=int, default=None, help="goal id (default: from the clock)")
     cell_options(goal)
+    recover = sub.add_parser("recover", help="ask the robot driver to reset and re-enable the drives",
+                             description="After a stop (a stale command, a lost heartbeat, a drive fault, a "
+                                         "restarted service) the driver holds the drives stopped until asked: "
+                                         "this asks it to reset faults and enable again. It refuses while the "
+                                         "cause is still there (see hrc status and the driver's events).")
+    cell_options(recover)
     human = sub.add_parser("human", help="publish human poses to the tracker")
     human_sub = human.add_subparsers(dest="human_command", metavar="<what>")
     inject = human_sub.add_parser("inject", help="one capsule, once or moving at a constant velocity",
@@ -316,6 +323,24 @@ def cmd_goal(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_recover(args: argparse.Namespace) -> int:
+    import time
+
+    from shared.messages import DriverRequest, encode
+
+    session, keys = _session(args)
+    try:
+        if not _await_service(session, keys, "robot_driver", args.timeout):
+            print(f"hrc recover: error: no robot_driver reachable at {args.connect}", file=sys.stderr)
+            return 1
+        session.put(keys.driver_request, encode(DriverRequest(action="recover", source="hrc recover",
+                                                              stamp=time.monotonic())))
+        print("hrc recover: asked the robot driver to reset and re-enable the drives")
+    finally:
+        session.close()
+    return 0
+
+
 def cmd_human(args: argparse.Namespace) -> int:
 
     import numpy as np
@@ -436,14 +461,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    if args.command in ("goal", "human", "status") and not os.environ.get("HRC_IN_CELL"):
+    if args.command in ("goal", "human", "status", "recover") and not os.environ.get("HRC_IN_CELL"):
         from services.cell import reenter_argv
         argv2 = reenter_argv(args.prefix, [sys.executable, "-m", "services.cli", *(argv or sys.argv[1:])])
         if argv2 is not None:            # the cell runs in its own network namespace: run there
             os.execvpe(argv2[0], argv2, dict(os.environ, HRC_IN_CELL="1"))
     try:
         return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
-                "down": cmd_down}[args.command](args)
+                "down": cmd_down, "recover": cmd_recover}[args.command](args)
     except HrcError as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 2
