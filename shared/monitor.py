@@ -9,10 +9,12 @@ condition). Only the ISO formula itself (shared.ssm.velocity_limit) is common: i
 For every robot link i and human capsule j: separation d_ij (coal), unit direction n_ij from the robot's
 closest point to the human's, the robot point's velocity v_r = J_i(q, p) qd, the human point's velocity
 interpolated between the capsule's end points, human approach speed max(0, -n . v_h) (or the ISO 13855
-speed when untracked). An exceedance: n . v_r > max(v_r_max(d, v_h), 0) + tolerance, or d < d_min. ``ReactionWindow`` then counts
+speed when untracked). An exceedance: n . v_r > max(v_r_max(d, v_h), 0) + tolerance, or d < d_min while
+the robot's point still approaches (n . v_r > tolerance; a person who walks into a robot that has
+stopped, or that is moving away, is not the robot's approach: SSM governs the robot's motion). ``ReactionWindow`` then counts
 a speed exceedance as a violation only when the robot does not react and brake as the formula assumes
-(within T_r, then to a stop within T_s). (Overlapping capsules are always a separation violation; coal's
-penetration witness points give no meaningful direction there.)
+(within T_r, then to a stop within T_s). (Overlapping capsules give no meaningful direction, coal's penetration
+witness points being arbitrary: there any motion of the robot's point counts as approaching.)
 """
 
 from __future__ import annotations
@@ -112,7 +114,7 @@ class SafetyMonitor:
                     result.min_margin, result.approach_speed, result.limit = margin, approach, limit
                 if margin < -self.tolerance:
                     result.violations.append(Violation(link, j, "speed", float(d), approach, limit))
-                if d < self.ssm.min_separation - self.tolerance:
+                if d < self.ssm.min_separation - self.tolerance and approach > self.tolerance:
                     result.violations.append(Violation(link, j, "separation", float(d), approach, limit))
         return result
 

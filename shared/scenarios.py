@@ -118,3 +118,83 @@ def paper_phases(period: float = 6.0) -> ScriptedHuman:
         Keyframe(3.8 * p, -0.9, 0.1, 1.0, IN_PATH, "leaving", lean=1.0),
         Keyframe(4 * p, -2.8, 0.0, 0.0, IN_PATH, "leaving"),
     ])
+
+
+# ------------------------------------------------------------------------------- seeded random scenarios
+class Crowd:
+    """Several scripted humans at once: their capsules together; the phase is the first one's."""
+
+    def __init__(self, humans: list[ScriptedHuman]) -> None:
+        self.humans = humans
+
+    def at(self, t: float) -> HumanCapsules:
+        parts = [h.at(t) for h in self.humans]
+        return HumanCapsules(np.concatenate([p.segments for p in parts]), np.concatenate([p.radii for p in parts]),
+                             np.concatenate([p.velocities for p in parts]),
+                             np.concatenate([p.velocity_known for p in parts]))
+
+    def phase(self, t: float) -> str:
+        return self.humans[0].phase(t)
+
+
+WALK_SPEED = 1.6             # m/s, ISO 13855's walking speed: no scripted walk is faster
+
+
+def _walk(points: list[tuple[float, float, float, float]], label: str, speed: float = WALK_SPEED,
+          pause: float = 0.0) -> ScriptedHuman:
+    """Keyframes through (x, y, reach, lean) points at `speed`, pausing `pause` s at each."""
+    frames, t = [], 0.0
+    for k, (x, y, reach, lean) in enumerate(points):
+        if k:
+            px, py = points[k - 1][:2]
+            t += max(np.hypot(x - px, y - py) / speed, 0.3)
+        frames.append(Keyframe(t, x, y, reach, IN_PATH, label, lean))
+        if pause > 0:
+            t += pause
+            frames.append(Keyframe(t, x, y, reach, IN_PATH, label, lean))
+    return ScriptedHuman(frames)
+
+
+def crossing(rng: np.random.Generator, duration: float) -> ScriptedHuman:
+    """A person crossing the workspace at 1.6 m/s, back and forth, 0.9 to 1.6 m from the robot's axis."""
+    x = -float(rng.uniform(0.9, 1.6))
+    side = float(rng.choice([-1.0, 1.0]))
+    points = [(x, side * 2.5 * (-1) ** k, 0.0, 0.0) for k in range(int(duration / 3.0) + 2)]
+    return _walk(points, "crossing at 1.6 m/s")
+
+
+def standing_in_path(rng: np.random.Generator, duration: float) -> ScriptedHuman:
+    """A person walking up and standing next to the path, reaching into it, the whole time."""
+    x, y = -float(rng.uniform(0.95, 1.3)), float(rng.uniform(-0.5, 0.5))
+    reach, lean = float(rng.uniform(0.4, 1.0)), float(rng.uniform(0.2, 0.8))
+    arrive = float(np.hypot(x + 2.6, 0.0)) / 1.2
+    label = "standing in the path"
+    return ScriptedHuman([Keyframe(0.0, -2.6, y, 0.0, IN_PATH, label), Keyframe(arrive, x, y, reach, IN_PATH, label, lean),
+                          Keyframe(arrive + duration, x, y, reach, IN_PATH, label, lean)])
+
+
+def random_walk(rng: np.random.Generator, duration: float) -> ScriptedHuman:
+    """A person wandering around the robot's working side: random stops 0.8 to 2.5 m from its axis, at
+    most 1.6 m/s, sometimes reaching towards the path."""
+    points = []
+    for _ in range(int(duration / 1.5) + 2):
+        r, angle = float(rng.uniform(0.8, 2.5)), float(rng.uniform(0.55 * np.pi, 1.45 * np.pi))
+        reach = float(rng.uniform(0.0, 1.0)) if r < 1.4 else 0.0
+        points.append((r * np.cos(angle), r * np.sin(angle), reach, 0.5 * reach))
+    return _walk(points, "random walk", speed=float(rng.uniform(0.6, WALK_SPEED)), pause=float(rng.uniform(0, 1)))
+
+
+def two_humans(rng: np.random.Generator, duration: float) -> Crowd:
+    """One crossing, one wandering."""
+    return Crowd([crossing(rng, duration), random_walk(rng, duration)])
+
+
+SCENARIO_KINDS = {"paper": lambda rng, d: paper_phases(d / 4.0), "crossing": crossing,
+                  "standing": standing_in_path, "two_humans": two_humans, "random_walk": random_walk}
+
+
+def make_scenario(kind: str, seed: int, duration: float):
+    """The scripted human(s) of one seeded scenario: the same (kind, seed, duration) gives the same motion."""
+    if kind not in SCENARIO_KINDS:
+        raise ValueError(f"unknown scenario kind {kind!r}; known: {sorted(SCENARIO_KINDS)}")
+    return SCENARIO_KINDS[kind](np.random.default_rng(seed), duration)

@@ -4,10 +4,16 @@ The robot shuttles between two configurations; a scripted human moves through th
 period the scaling layer runs exactly as in the scaler service. The planning layer, when given, runs the
 horizon check on every human sample (Alg. 1), replans and merges when the path ahead is blocked (Alg. 2)
 and when the scaling layer raises beta, and plans each new shuttle around the humans. Every command is
-checked against the ISO/TS 15066 limit at the state it commands, counting violations. The robot is taken
-to follow its command exactly (the drive model comes with the CAN emulator), and a new trajectory is
-taken over in the same cycle (the planner's compute time is measured and reported, not yet charged to
-the simulated clock).
+judged at the state it commands by the independent monitor's rule (shared.monitor: coal distances,
+the ISO limit at the closest points, the react-within-T_r-then-brake allowance), counting violations;
+`command_exceedances` counts, stricter, every command whose conservative end-point bound exceeds the
+limit at all. The robot is taken to follow its command exactly (the drive model comes with the CAN
+emulator). With charge_planning, the planner's measured compute time passes on the simulated clock
+before its result is used (the robot keeps executing the old trajectory meanwhile, and a new shuttle
+waits for its plan); without it, results are used in the cycle that asked for them.
+
+The speed policy is a parameter: the scaling layer (default), or any ScalingLayer subclass such as the
+zone-based baseline (shared.zones). Same core code as the services: ScalingLayer, Replanner.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from shared.planner import PlanningError
 from shared.replanning import ReplanFailed, Replanner
 from shared.timing import TimingError
 from shared.robot_model import RobotModel
+from shared.monitor import MonitorResult, ReactionWindow, SafetyMonitor
 from shared.scaling_layer import ScalingLayer, ScalingStep, StepStatus
 from shared.scenarios import ScriptedHuman
 from shared.ssm import pair_ssm
@@ -54,7 +61,9 @@ class SimResult:
     replans: list[ReplanEvent] = field(default_factory=list)
     shuttles: int = 0
     violations: int = 0
+    command_exceedances: int = 0
     beta_requests: int = 0
+    progress: float = 0.0        # shuttles completed plus the fraction of the current one's path
 
     def summary(self) -> dict:
         steps = [r.step for r in self.records]
@@ -69,6 +78,7 @@ class SimResult:
             "cycles": len(steps),
             "shuttles_completed": self.shuttles,
             "shuttles_per_min": round(60.0 * self.shuttles / duration, 2) if duration else 0.0,
+            "shuttle_progress": round(self.progress, 4),
             "mean_alpha": round(float(alpha.mean()), 4),
             "stopped_fraction": round(float(np.mean(alpha < 1e-6)), 4),
             "beta_requests": self.beta_requests,
@@ -78,6 +88,7 @@ class SimResult:
             "min_separation_m": round(min(seps), 4) if seps else None,
             "min_margin_m_s": round(min(margins), 4) if margins else None,
             "violations": self.violations,
+            "command_exceedances": self.command_exceedances,
             "compute_us": {"p50": round(float(np.percentile(compute, 50)), 1),
                            "p99": round(float(np.percentile(compute, 99)), 1)},
         }
@@ -85,13 +96,18 @@ class SimResult:
 
 def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a: np.ndarray, q_b: np.ndarray,
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
-                beta_cooldown: float = 0.5, on_replan=None) -> SimResult:
+                beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
+                charge_planning: bool = False, monitor: SafetyMonitor | None = None) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
     replanner: the planning layer (None: scaling only, straight shuttles). beta_replans: answer the
     scaling layer's replan requests (the paper's ablation switches this off). on_record / on_replan: called
-    with each SimRecord / ReplanEvent as it happens."""
-    layer = ScalingLayer(robot, config.ssm, config.scaling)
+    with each SimRecord / ReplanEvent as it happens. layer: the speed policy (default: a new ScalingLayer).
+    charge_planning: planning takes its measured time on the simulated clock. monitor: the judge (default:
+    a SafetyMonitor of this robot; pass one to reuse it across runs)."""
+    layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
+    monitor = monitor or SafetyMonitor(robot, config.ssm)
+    window = ReactionWindow(config.ssm.reaction_time, config.ssm.stopping_time)
     period = config.scaling.period
     lim = robot.limits
     ends = [np.asarray(q_a, dtype=float), np.asarray(q_b, dtype=float)]
@@ -101,6 +117,9 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     beta_before = False
     next_beta_try = next_horizon_try = 0.0
     pending_leg = False
+    busy_until = -1.0                 # charge_planning: the planner is computing until then
+    waiting: tuple | None = None      # (ready at, ReplanResult or Trajectory, reason, compute ms)
+    t = 0.0
 
     def log_replan(event: ReplanEvent) -> None:
         result.replans.append(event)
@@ -108,15 +127,25 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             on_replan(event)
 
     def replan(t: float, reason: str, action, *args) -> None:
+        nonlocal busy_until, waiting
         started = time.perf_counter()
         try:
             res = action(*args)
         except ReplanFailed as exc:
-            log_replan(ReplanEvent(t, reason, False, (time.perf_counter() - started) * 1e3, str(exc)))
-            return
-        if res is None:
+            elapsed = (time.perf_counter() - started) * 1e3
+            busy_until = t + elapsed * 1e-3 if charge_planning else busy_until
+            log_replan(ReplanEvent(t, reason, False, elapsed, str(exc)))
             return
         elapsed = (time.perf_counter() - started) * 1e3
+        if res is None:
+            return
+        if charge_planning:
+            busy_until = t + elapsed * 1e-3
+            waiting = (busy_until, res, reason, elapsed)
+            return
+        take(t, res, reason, elapsed)
+
+    def take(t: float, res, reason: str, elapsed: float) -> None:
         if res.from_rest:
             here = layer.trajectory.sample(layer.s)[0]
             if np.abs(here - res.trajectory.positions[0]).max() > 1e-3:
@@ -135,13 +164,30 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         t = k * period
         humans = human.at(t)
         goal = ends[(leg + 1) % 2]
-        if pending_leg and replanner is not None:          # a new shuttle, planned around the humans
+        if waiting is not None and t >= waiting[0]:         # a charged result is ready now
+            ready, res, reason, elapsed = waiting
+            waiting = None
+            if reason == "goal":
+                layer.set_trajectory(res)
+                pending_leg = False
+            else:
+                take(t, res, reason, elapsed)
+        if t < busy_until:
+            pass                                            # the planner is still computing
+        elif pending_leg and replanner is not None:        # a new shuttle, planned around the humans
+            started = time.perf_counter()
             try:
                 traj = replanner.plan_fresh(layer.trajectory.positions[-1], goal, humans,
                                             layer.trajectory.version + 1)
-                layer.set_trajectory(traj)
-                pending_leg = False
+                if charge_planning:
+                    busy_until = t + time.perf_counter() - started
+                    waiting = (busy_until, traj, "goal", 0.0)
+                else:
+                    layer.set_trajectory(traj)
+                    pending_leg = False
             except (PlanningError, TimingError) as exc:   # goal blocked for now: hold and try again
+                if charge_planning:
+                    busy_until = t + time.perf_counter() - started
                 log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
         elif replanner is not None and layer.s < layer.trajectory.duration and t >= next_horizon_try:
             failures = len(result.replans)
@@ -152,16 +198,19 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         if step.beta and not beta_before:
             result.beta_requests += 1
         beta_before = step.beta
-        if step.beta and beta_replans and replanner is not None and t >= next_beta_try:
+        if step.beta and beta_replans and replanner is not None and t >= next_beta_try and t >= busy_until:
             next_beta_try = t + beta_cooldown
             speed = float(np.abs(step.qd_command).max())
             replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed)
-        # independent check of the commanded motion: approach speed of every link against its limit
+        # the commanded motion against the limit: the conservative end-point bound first (fast); where it
+        # comes near, the independent monitor judges (its ReactionWindow sees every cycle)
         points, jac = robot.capsule_kinematics(step.q_command)
         check = pair_ssm(points, robot.radii, jac @ step.qd_command, humans, config.ssm)
         margin = float(check.margin.min()) if check.margin.size else float("inf")
         if margin < -1e-9:
-            result.violations += 1
+            result.command_exceedances += 1
+        judged = monitor.check(step.q_command, step.qd_command, humans) if margin < 0.02 else MonitorResult()
+        result.violations += len(window.update(t, judged))
         if step.status is StepStatus.FINISHED and not pending_leg:
             result.shuttles += 1
             leg += 1
@@ -171,6 +220,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                                                               version=layer.trajectory.version + 1))
             else:
                 pending_leg = True
+        traj = layer.trajectory
+        result.progress = result.shuttles + (0.0 if pending_leg or traj.duration <= 0 else layer.s / traj.duration)
         record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
         result.records.append(record)
         if on_record is not None:

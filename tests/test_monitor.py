@@ -34,8 +34,12 @@ def test_a_fast_link_next_to_a_person_is_a_violation_and_a_still_one_is_not():
     assert any(v.kind == "speed" for v in moving.violations)
     still = MONITOR.check(q, np.zeros(6), person)
     assert not any(v.kind == "speed" for v in still.violations)
-    close = HumanCapsules.from_arrays([[flange + [0, 0, 0.1], flange + [0, 0, 0.4]]], [0.05])
-    assert any(v.kind == "separation" for v in MONITOR.check(q, np.zeros(6), close).violations)
+    close = HumanCapsules.from_arrays([[flange + [0, 0, 0.1], flange + [0, 0, 0.4]]], [0.05], np.zeros((1, 2, 3)),
+                                      [True])
+    up = np.linalg.lstsq(jac[-1, 0], np.array([0, 0, 0.3]), rcond=None)[0]      # the flange rising into it
+    assert any(v.kind == "separation" for v in MONITOR.check(q, up, close).violations)
+    # a person who walks into a robot at rest is not a separation violation: SSM governs the robot's motion
+    assert not MONITOR.check(q, np.zeros(6), close).violations
 
 
 @settings(max_examples=40)

@@ -1,0 +1,136 @@
+"""Side by side: zone-based SSM (as deployed today), scaling only, and the full architecture, on the same
+seeded scenarios in the deterministic simulation (shared.sim, shared.strategies; not a test: it prints
+figures). Scenario kinds: the paper's four phases, a person crossing at 1.6 m/s, a person standing in
+the path, two people, random walks near the robot. Per strategy: shuttles per minute (over all scenarios),
+time stopped (shuttles count fractionally: the part of the current shuttle's path done at the end), the smallest margin to the limit (conservative end-point bound, m), and violations counted
+by the independent monitor's rule. The full architecture pays its planning time on the simulated clock.
+Writes a plot (compare.png) into --out. The last line is one JSON object.
+
+    python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from shared.scenarios import SCENARIO_KINDS  # noqa: E402
+from shared.strategies import STRATEGIES, Strategies  # noqa: E402
+
+_WORKER: Strategies | None = None
+
+
+def _init() -> None:
+    global _WORKER
+    from shared.scene import load_scene
+    _WORKER = Strategies(scene=load_scene(ROOT / "deploy" / "scene.yaml"))
+
+
+def _run(task: tuple[str, int, float]) -> dict:
+    kind, seed, duration = task
+    out = {"kind": kind, "seed": seed}
+    for strategy in STRATEGIES:
+        started = time.perf_counter()
+        res = _WORKER.run(strategy, kind, seed, duration)
+        s = res.summary()
+        out[strategy] = {"shuttles": s["shuttle_progress"], "completed": s["shuttles_completed"],
+                         "duration_s": s["duration_s"],
+                         "stopped_fraction": s["stopped_fraction"], "min_margin_m_s": s["min_margin_m_s"],
+                         "violations": s["violations"], "command_exceedances": s["command_exceedances"],
+                         "wall_s": time.perf_counter() - started}
+    return out
+
+
+def aggregate(rows: list[dict], horizon: float) -> dict:
+    result = {}
+    for strategy in STRATEGIES:
+        runs = [r[strategy] for r in rows]
+        minutes = sum(r["duration_s"] for r in runs) / 60.0
+        margins = [r["min_margin_m_s"] for r in runs if r["min_margin_m_s"] is not None]
+        result[strategy] = {
+            "shuttles_per_min": round(sum(r["shuttles"] for r in runs) / minutes, 3) if minutes else 0.0,
+            "stopped_fraction": round(float(np.mean([r["stopped_fraction"] for r in runs])), 4),
+            "min_margin_m": round(min(margins) * horizon, 4) if margins else None,
+            "violations": int(sum(r["violations"] for r in runs)),
+            "command_exceedances": int(sum(r["command_exceedances"] for r in runs)),
+            "wall_s_per_scenario": round(float(np.mean([r["wall_s"] for r in runs])), 3)}
+    return result
+
+
+def plot(rows: list[dict], out: Path, horizon: float) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    kinds = sorted({r["kind"] for r in rows})
+    per_kind = {k: aggregate([r for r in rows if r["kind"] == k], horizon) for k in kinds}
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
+    width = 0.27
+    x = np.arange(len(kinds))
+    for i, strategy in enumerate(STRATEGIES):
+        axes[0].bar(x + (i - 1) * width, [per_kind[k][strategy]["shuttles_per_min"] for k in kinds], width,
+                    label=strategy)
+        axes[1].bar(x + (i - 1) * width, [per_kind[k][strategy]["stopped_fraction"] for k in kinds], width,
+                    label=strategy)
+    for ax, title in zip(axes, ("shuttles per minute (higher is better)", "fraction of time stopped")):
+        ax.set_xticks(x, kinds)
+        ax.set_title(title)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"{len(rows)} seeded scenarios; violations (monitor): "
+                 + ", ".join(f"{s} {sum(r[s]['violations'] for r in rows)}" for s in STRATEGIES))
+    fig.tight_layout()
+    fig.savefig(out / "compare.png", dpi=80)
+    plt.close(fig)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenarios", type=int, default=1000)
+    parser.add_argument("--duration", type=float, default=12.0, help="simulated seconds per scenario")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--out", type=Path, default=ROOT / "reports" / "compare")
+    parser.add_argument("--seed", type=int, default=0, help="first scenario seed")
+    args = parser.parse_args()
+    if args.scenarios < 1 or args.duration <= 0 or args.workers < 1:
+        parser.error("--scenarios and --workers must be >= 1, --duration > 0")
+    kinds = sorted(SCENARIO_KINDS)
+    tasks = [(kinds[k % len(kinds)], args.seed + k, args.duration) for k in range(args.scenarios)]
+    started = time.perf_counter()
+    with ProcessPoolExecutor(args.workers, initializer=_init) as pool:
+        rows = []
+        for k, row in enumerate(pool.map(_run, tasks, chunksize=4)):
+            rows.append(row)
+            if (k + 1) % 100 == 0:
+                print(f"{k + 1}/{len(tasks)} scenarios, {time.perf_counter() - started:.0f} s", flush=True)
+    from shared.ssm import SsmParameters
+    horizon = SsmParameters().horizon
+    strategies = aggregate(rows, horizon)
+    args.out.mkdir(parents=True, exist_ok=True)
+    plot(rows, args.out, horizon)
+    (args.out / "scenarios.json").write_text(json.dumps(rows))
+    for kind in kinds:
+        per = aggregate([r for r in rows if r["kind"] == kind], horizon)
+        print(f"{kind:<12} " + "  ".join(f"{s}: {per[s]['shuttles_per_min']:6.2f}/min stopped "
+                                          f"{per[s]['stopped_fraction']:.2f} viol {per[s]['violations']}"
+                                          for s in STRATEGIES))
+    print(f"{len(rows)} scenarios x {args.duration:.0f} s in {time.perf_counter() - started:.0f} s on "
+          f"{args.workers} workers; plot and per-scenario results in {args.out}")
+    full, zones, scale = (strategies[s]["shuttles_per_min"] for s in ("full", "zones", "scale_only"))
+    print(json.dumps({"bench": "compare", "scenarios": len(rows), "strategies": strategies,
+                      "speedup_vs_zones": round(full / zones, 3) if zones else None,
+                      "speedup_vs_scale_only": round(full / scale, 3) if scale else None}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
