@@ -99,6 +99,7 @@ class ZoneScalingLayer(ScalingLayer):
         if status in (StepStatus.NO_HUMAN_DATA, StepStatus.STALE_HUMAN_DATA):
             alpha = 0.0                                          # no data: stop at once, as the scaler does
         alpha = min(max(alpha, 0.0), 1.0)
+        alpha = 0.0 if alpha < 1e-9 else alpha                   # the ramp's rounding is not motion
         self.sdot = alpha
         self.s = min(self.s + alpha * self.params.period, traj.duration)
         q_c, dq_c, _ = traj.sample(self.s)

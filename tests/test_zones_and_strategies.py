@@ -1,0 +1,89 @@
+"""The zone-based baseline, the seeded scenarios, and the three strategies on one simulation."""
+
+import numpy as np
+import pytest
+
+from shared.config import CellConfig
+from shared.humans import HumanCapsules
+from shared.robot_model import default_robot
+from shared.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario
+from shared.ssm import SsmParameters
+from shared.strategies import Strategies
+from shared.trajectory import straight_line_trajectory
+from shared.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
+
+ROBOT = default_robot()
+
+
+def person_at(distance_from_axis: float) -> HumanCapsules:
+    x = -distance_from_axis
+    return HumanCapsules.from_arrays([[[x, 0.0, 0.9], [x, 0.0, 1.45]]], [0.17], np.zeros((1, 2, 3)), [True])
+
+
+def zone_layer():
+    lim = ROBOT.limits
+    layer = ZoneScalingLayer(ROBOT, SpeedZones.sized(SsmParameters(), 0.72))
+    layer.set_trajectory(straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration))
+    return layer
+
+
+def test_zones_are_sized_with_the_iso_formula_for_the_worst_case():
+    ssm = SsmParameters()
+    zones = SpeedZones.sized(ssm, robot_speed=0.72)
+    assert zones.stop == pytest.approx((2.0 + 0.25) * ssm.horizon + ssm.fixed_distance)
+    assert zones.full == pytest.approx((2.0 + 0.72) * ssm.horizon + ssm.fixed_distance)
+
+
+def test_reduced_zone_caps_every_point_at_the_reduced_speed():
+    layer = zone_layer()
+    q, dq, _ = layer.trajectory.sample(1.0)
+    separation = (layer.zones.stop + layer.zones.full) / 2
+    alpha = layer.target_alpha(separation, q, dq)
+    assert 0 < alpha < 1 and fastest_point_speed(ROBOT, q, alpha * dq) == pytest.approx(0.25)
+    assert layer.target_alpha(layer.zones.full + 0.01, q, dq) == 1.0
+    assert layer.target_alpha(layer.zones.stop - 0.01, q, dq) == 0.0
+
+
+def test_stop_zone_ramps_to_rest_within_the_stopping_time_and_no_data_stops_at_once():
+    layer = zone_layer()
+    far = person_at(4.0)
+    for _ in range(60):
+        step = layer.step(far, 0.0)
+    assert step.alpha == 1.0
+    near = person_at(0.9)
+    alphas = [layer.step(near, 0.0).alpha for _ in range(40)]
+    assert alphas[0] > 0.9                                          # a category 2 stop, not a jump ...
+    assert alphas[29] == 0.0 and max(alphas[30:]) == 0.0            # ... at rest within T_s = 0.3 s
+    layer.step(far, 0.0)
+    assert layer.step(None, 0.0).alpha == 0.0 and layer.step(far, 1.0).alpha == 0.0
+
+
+@pytest.mark.parametrize("kind", sorted(SCENARIO_KINDS))
+def test_scenarios_are_seeded_and_walk_no_faster_than_iso_13855(kind):
+    a, b = make_scenario(kind, 5, 12.0), make_scenario(kind, 5, 12.0)
+    for t in np.arange(0.0, 12.0, 0.5):
+        assert np.array_equal(a.at(t).segments, b.at(t).segments)
+    torso_speed = max(np.linalg.norm(a.at(t).velocities[0, 0, :2]) for t in np.arange(0.0, 12.0, 0.05))
+    assert torso_speed <= 1.6 + 1e-6 or kind == "paper"
+    with pytest.raises(ValueError):
+        make_scenario("flying", 1, 1.0)
+
+
+@pytest.fixture(scope="module")
+def strategies():
+    return Strategies(CellConfig())
+
+
+def test_zone_and_scaling_runs_are_deterministic(strategies):
+    for strategy in ("zones", "scale_only"):
+        first = strategies.run(strategy, "crossing", 3, 5.0).summary()
+        second = strategies.run(strategy, "crossing", 3, 5.0).summary()
+        first.pop("compute_us"), second.pop("compute_us")
+        assert first == second
+
+
+def test_all_three_strategies_stay_safe_and_direction_awareness_pays(strategies):
+    results = {s: strategies.run(s, "random_walk", 2, 8.0).summary() for s in ("zones", "scale_only", "full")}
+    assert all(r["violations"] == 0 for r in results.values()), results
+    assert results["scale_only"]["shuttle_progress"] > results["zones"]["shuttle_progress"]
+    assert results["full"]["command_exceedances"] == 0 and results["scale_only"]["command_exceedances"] == 0
