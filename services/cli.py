@@ -115,8 +115,9 @@ def build_parser() -> argparse.ArgumentParser:
     inject = human_sub.add_parser("inject", help="one capsule, once or moving at a constant velocity",
                                   description="Publish a human capsule (end points A and B, radius) as raw tracker "
                                               "data, once, or moving at --velocity for --duration seconds at --rate Hz.")
-    inject.add_argument("a", nargs=3, type=float, metavar=("AX", "AY", "AZ"), help="capsule end A (m, base frame)")
-    inject.add_argument("b", nargs=3, type=float, metavar=("BX", "BY", "BZ"), help="capsule end B (m)")
+    # a single-string metavar: argparse (3.11) fails on tuple metavars when it reports missing positionals
+    inject.add_argument("a", nargs=3, type=float, metavar="A", help="capsule end A: x y z (m, base frame)")
+    inject.add_argument("b", nargs=3, type=float, metavar="B", help="capsule end B: x y z (m)")
     inject.add_argument("--radius", type=_positive_float, default=0.06, help="capsule radius (m, default 0.06)")
     inject.add_argument("--velocity", type=float, nargs=3, default=None, metavar=("VX", "VY", "VZ"),
                         help="constant velocity (m/s) while --duration lasts")
@@ -461,7 +462,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    if args.command in ("goal", "human", "status", "recover") and not os.environ.get("HRC_IN_CELL"):
+    if args.command in ("goal", "human", "status", "recover") and getattr(args, "prefix", None) \
+            and not os.environ.get("HRC_IN_CELL"):
         from services.cell import reenter_argv
         argv2 = reenter_argv(args.prefix, [sys.executable, "-m", "services.cli", *(argv or sys.argv[1:])])
         if argv2 is not None:            # the cell runs in its own network namespace: run there
