@@ -13,7 +13,7 @@ from tests.util import require_namespace
 # system_replan (planner as a fourth process; an arm steps across the path) is in the harness but not run
 # here yet: the planner replans around the arm and the robot stays safe, but it stalls next to the arm
 # instead of reaching the goal (see the issue notes). `python tests/hil/harness.py --with-planner` runs it.
-SCENARIOS = ["system_goal", "system_stale_humans", "system_near_human", "monitor_report"]
+SCENARIOS = ["system_goal", "system_stale_humans", "system_near_human", "garbage_everywhere", "monitor_report"]
 
 
 @pytest.fixture(scope="module")

@@ -514,7 +514,37 @@ def system_replan(cell: Cell) -> dict:
             "reached_after_s": reached, "planner_events": events[:6], "texts": texts[:8], "closest_to_arm_m": closest}
 
 
-SYSTEM_SCENARIOS = {"system_goal": system_goal, "system_stale_humans": system_stale_humans,
+def garbage_everywhere(cell: Cell) -> dict:
+    """Garbage on every key a service reads (raw and filtered human data, goals, trajectories, commands,
+    scaler status, joint states, driver requests) for a second, between good human samples: every
+    service lives on, the robot does not move, and afterwards a goal is still followed."""
+    import msgpack
+    feed = HumanFeed(cell)
+    _wait(lambda: cell.latest().enabled, 5.0)
+    keys = cell.keys
+    targets = [keys.human_raw, keys.human_state, keys.goal, keys.trajectory, keys.command, keys.scaler_status,
+               keys.joint_state, keys.driver_request]
+    rng = random.Random(11)
+    garbage = [b"", b"\x00", b"\xff" * 64, msgpack.packb({"kind": "human_state", "v": 1}),
+               msgpack.packb({"kind": "trajectory", "v": 1, "seq": 0, "stamp": 0.0, "times": b"\x00" * 7}),
+               msgpack.packb([1, 2, 3]), bytes(rng.randrange(256) for _ in range(300))]
+    q0 = cell.latest().q.copy()
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 1.0:
+        for key in targets:
+            cell.session.put(key, rng.choice(garbage))
+        time.sleep(0.002)
+    time.sleep(0.2)
+    drift = float(np.abs(cell.latest().q - q0).max())
+    alive = {name: proc.poll() is None for name, proc in cell.procs.items()}
+    traj = _publish_trajectory(cell, q0 + np.array([-0.3, 0.1, 0.0, 0.0, 0.0, 0.2]), 9)
+    reached = _wait(lambda: np.abs(cell.latest().q - traj.positions[-1]).max() < 0.005, traj.duration + 3.0)
+    feed.running = False
+    return {"ok": all(alive.values()) and drift < 1e-3 and reached is not None, "alive": alive,
+            "drift_rad": drift, "goal_after_s": reached}
+
+
+SYSTEM_SCENARIOS = {"garbage_everywhere": garbage_everywhere, "system_goal": system_goal, "system_stale_humans": system_stale_humans,
                     "system_replan": system_replan, "system_near_human": system_near_human,
                     "monitor_report": monitor_report}
 
