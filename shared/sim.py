@@ -119,7 +119,6 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     pending_leg = False
     busy_until = -1.0                 # charge_planning: the planner is computing until then
     waiting: tuple | None = None      # (ready at, ReplanResult or Trajectory, reason, compute ms)
-    t = 0.0
 
     def log_replan(event: ReplanEvent) -> None:
         result.replans.append(event)
