@@ -10,6 +10,7 @@ PID, and supervisord stops every service cleanly.
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -27,6 +28,14 @@ def in_new_namespace(argv: list[str]) -> list[str]:
     """argv run in a new private network namespace (unshare -rn: unprivileged, only lo, multicast on lo):
     the only place udp_multicast CAN may run."""
     return ["unshare", "-rn", "sh", "-c", NAMESPACE_SETUP, "sh", *argv]
+
+
+def namespace_reason() -> str | None:
+    """Why no private network namespace can be made here, or None when one can."""
+    if not shutil.which("unshare") or not shutil.which("ip"):
+        return "unshare or ip (iproute2) is not installed"
+    probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True, text=True)
+    return None if probe.returncode == 0 else f"unshare -rn is not permitted here: {probe.stderr.strip()}"
 
 
 def run_dir(prefix: str) -> Path:

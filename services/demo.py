@@ -14,7 +14,6 @@ where there is one, else on udp_multicast inside a private network namespace tha
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import threading
 import time
@@ -100,16 +99,13 @@ def choose_bus() -> tuple[str, str | None]:
 def reexec_in_namespace(argv: list[str]) -> int | None:
     """When udp_multicast is needed and this process is not in a private namespace: run argv in a new one
     and return its exit code; None when no re-run is needed. Raises RuntimeError when none can be made."""
-    from services.cell import in_new_namespace
+    from services.cell import in_new_namespace, namespace_reason
 
     if choose_bus()[0] != "udp_multicast" or in_private_namespace():
         return None
-    if not shutil.which("unshare") or not shutil.which("ip"):
-        raise RuntimeError("no kernel CAN (vcan0) and no unshare/ip to make a private network namespace for "
-                           "udp_multicast; run 'hrc demo --sim' (in-process) instead")
-    probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True, text=True)
-    if probe.returncode:
-        raise RuntimeError(f"no kernel CAN (vcan0) and unshare -rn is not permitted here ({probe.stderr.strip()}); "
+    reason = namespace_reason()
+    if reason:
+        raise RuntimeError(f"no kernel CAN (vcan0), and no private network namespace for udp_multicast ({reason}); "
                            "run 'hrc demo --sim' (in-process) instead")
     return subprocess.call(in_new_namespace(argv))
 

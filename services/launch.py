@@ -35,7 +35,8 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def _die_with_parent() -> None:
+def die_with_parent() -> None:
+    """In a child before exec: the kernel sends it SIGKILL when its parent dies (PR_SET_PDEATHSIG)."""
     ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)     # PR_SET_PDEATHSIG
 
 
@@ -67,7 +68,7 @@ class CellProcesses:
         env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
         log = open(self.run / f"{name}.log", "w")
         self.procs[name] = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", *argv], cwd=ROOT, env=env,
-                                            stdout=log, stderr=subprocess.STDOUT, preexec_fn=_die_with_parent)
+                                            stdout=log, stderr=subprocess.STDOUT, preexec_fn=die_with_parent)
         log.close()
 
     def _tail(self, name: str, lines: int = 12) -> str:

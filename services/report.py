@@ -206,6 +206,18 @@ def write_trace(out: Path, rec: Recording) -> None:
          "velocities": m.velocities.tolist()} for m in rec.trajectories]))
 
 
+def _save(fig, path: Path, legends=()) -> str:
+    """Legends on the given axes, layout, PNG, close; the file's name."""
+    import matplotlib.pyplot as plt
+
+    for ax in legends:
+        ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path.name
+
+
 def write_figures(out: Path, rec: Recording, series: dict, config: CellConfig) -> list[str]:
     """The paper's figures as PNG; returns their file names."""
     import matplotlib
@@ -245,10 +257,7 @@ def write_figures(out: Path, rec: Recording, series: dict, config: CellConfig) -
     axes[0, 1].set_title("joint velocities: nominal (dashed) vs executed (measured)")
     axes[-1, 0].set_xlabel("t (s)")
     axes[-1, 1].set_xlabel("t (s)")
-    fig.tight_layout()
-    fig.savefig(out / "joints.png", dpi=80)
-    plt.close(fig)
-    names.append("joints.png")
+    names.append(_save(fig, out / "joints.png"))
 
     hs = [h for h in rec.human_states if h.valid and h.radii.size]
     fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
@@ -263,12 +272,7 @@ def write_figures(out: Path, rec: Recording, series: dict, config: CellConfig) -
     axes[1].set_ylabel("speed (m/s)")
     axes[1].set_xlabel("t (s)")
     axes[0].set_title("human position and velocity (tracker_ingest output)")
-    for a in axes:
-        a.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "human.png", dpi=80)
-    plt.close(fig)
-    names.append("human.png")
+    names.append(_save(fig, out / "human.png", legends=axes))
 
     t_s = np.array([s.stamp - rec.t0 for s in rec.statuses])
     fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
@@ -284,12 +288,7 @@ def write_figures(out: Path, rec: Recording, series: dict, config: CellConfig) -
     axes[1].set_ylabel("beta")
     axes[1].set_xlabel("t (s); green lines: replans")
     axes[0].set_title("scaling factor and replan request")
-    for a in axes:
-        a.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "scaling.png", dpi=80)
-    plt.close(fig)
-    names.append("scaling.png")
+    names.append(_save(fig, out / "scaling.png", legends=axes))
 
     fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
     lim = np.where(np.isfinite(series["limit"]), series["limit"], np.nan)
@@ -303,12 +302,7 @@ def write_figures(out: Path, rec: Recording, series: dict, config: CellConfig) -
     axes[1].set_ylabel("m")
     axes[1].set_xlabel("t (s)")
     axes[0].set_title("velocity towards the human against its ISO/TS 15066 limit (measured joint states)")
-    for a in axes:
-        a.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "ssm.png", dpi=80)
-    plt.close(fig)
-    names.append("ssm.png")
+    names.append(_save(fig, out / "ssm.png", legends=axes))
     return names
 
 

@@ -170,6 +170,15 @@ class ScalingLayer:
             alpha, lowered = bound * (1.0 - 1e-9), True
         return 0.0, True
 
+    def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool) -> StepStatus:
+        """What this cycle may do with its inputs: stop for missing or stale human data (the age check
+        also catches NaN), finished at the end of the path, else running."""
+        if humans is None:
+            return StepStatus.NO_HUMAN_DATA
+        if not human_age <= self.params.human_timeout:
+            return StepStatus.STALE_HUMAN_DATA
+        return StepStatus.RUNNING if running else StepStatus.FINISHED
+
     def step(self, humans: HumanCapsules | None, human_age: float,
              q_measured: np.ndarray | None = None) -> ScalingStep:
         """One control cycle. humans=None means no human data has ever arrived; human_age in seconds.
@@ -188,14 +197,10 @@ class ScalingLayer:
         running = self.s < traj.duration
         alpha, safe_alpha, method = 0.0, 0.0, "none"
         min_sep = min_margin = math.inf
-        if humans is None:
-            status = StepStatus.NO_HUMAN_DATA
-        elif not human_age <= self.params.human_timeout:           # also catches NaN
-            status = StepStatus.STALE_HUMAN_DATA
-        elif not running:
-            status, alpha, safe_alpha = StepStatus.FINISHED, 1.0, 1.0
-        else:
-            status = StepStatus.RUNNING
+        status = self.input_status(humans, human_age, running)
+        if status is StepStatus.FINISHED:
+            alpha, safe_alpha = 1.0, 1.0
+        elif status is StepStatus.RUNNING:
             rows = build_rows(self.robot, q_kin, dq, ddq, 1.0, self.sdot, humans, self.ssm, self.params.period)
             solution = solve(rows, self.params.acceleration_weight, self._piqp)
             alpha, safe_alpha, method = solution.alpha, rows.upper, solution.method

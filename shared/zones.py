@@ -80,15 +80,9 @@ class ZoneScalingLayer(ScalingLayer):
             return super().step(humans, human_age, q_measured)
         q_nom, dq, _ = traj.sample(self.s)
         running = self.s < traj.duration
-        separation = math.inf
-        if humans is None:
-            status, target = StepStatus.NO_HUMAN_DATA, 0.0
-        elif not human_age <= self.params.human_timeout:
-            status, target = StepStatus.STALE_HUMAN_DATA, 0.0
-        elif not running:
-            status, target = StepStatus.FINISHED, 0.0
-        else:
-            status = StepStatus.RUNNING
+        separation, target = math.inf, 0.0
+        status = self.input_status(humans, human_age, running)
+        if status is StepStatus.RUNNING:
             if humans.count:
                 pairs = capsule_pair_distances(self.robot.capsule_segments(q_nom), self.robot.radii,
                                                humans.segments, humans.radii)

@@ -10,7 +10,6 @@ dies with it (PR_SET_PDEATHSIG) and is ended by PID at the end.
 from __future__ import annotations
 
 import argparse
-import ctypes
 import json
 import math
 import os
@@ -34,14 +33,11 @@ from shared.canbus import open_bus  # noqa: E402
 from shared.keys import KeySpace  # noqa: E402
 from shared.messages import DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode  # noqa: E402
 from shared.zenoh_session import await_liveliness, open_session  # noqa: E402
+from services.launch import die_with_parent  # noqa: E402
 from tests.util import free_port  # noqa: E402
 
 Q0 = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
 PERIOD = 0.01
-
-
-def _die_with_parent() -> None:
-    ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)     # PR_SET_PDEATHSIG
 
 
 class Cell:
@@ -64,7 +60,7 @@ class Cell:
         env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
         self.procs[name] = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", *args], cwd=ROOT, env=env,
                                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                            preexec_fn=_die_with_parent)
+                                            preexec_fn=die_with_parent)
 
     def start(self) -> None:
         bus_args = ["--interface", self.interface] + (["--channel", self.channel] if self.channel else [])
