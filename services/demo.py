@@ -5,7 +5,8 @@ where there is one, else on udp_multicast inside a private network namespace tha
 (it re-runs itself under `unshare -rn`). Then, as the cell's operator and witness:
 * a scripted human (shared.scenarios.paper_phases) goes out as raw tracker data at 120 Hz;
 * goals shuttle the robot between q_s and q_g: the next goal when the robot has arrived, the same goal
-  again when the planner refused it (the way may be blocked for now);
+  again when the robot is not following a plan for it (refused, or dropped after a stop); see
+  services.operator;
 * everything the cell publishes is recorded; progress twice a second;
 * at the end, the report folder (services.report; format in docs/report-format.md).
 `--no-beta` runs the planner with replans on the scaling layer's request switched off.
@@ -15,80 +16,20 @@ from __future__ import annotations
 
 import os
 import subprocess
-import threading
 import time
 from pathlib import Path
 
-import numpy as np
 
 from services.launch import CellProcesses, LaunchError, free_port
+from services.operator import HumanFeed, Recorder, Shuttle
 from services.report import Recording, write_report
 from shared.canbus import in_private_namespace
-from shared.errors import MessageError
 from shared.keys import KeySpace
-from shared.messages import (DriverRequest, Goal, HumanRaw, HumanState, JointCommand, JointState, LatencyReport,
-                             SafetyEvent, ScalerStatus, TrajectoryMsg, decode, encode)
-from shared.scenarios import Q_GOAL, Q_START, ScriptedHuman, paper_phases
+from shared.messages import JointState, ScalerStatus
+from shared.scenarios import paper_phases
 from shared.zenoh_session import open_session
 
 PREFIX = "hrc/demo"
-HUMAN_RATE = 120.0          # Hz, raw tracker samples
-ARRIVED = 0.01              # rad: the robot is at its goal
-GOAL_RETRY = 1.0            # s without a trajectory for the current goal: send it again
-
-
-class Recorder:
-    """Subscribes to every key of the cell and keeps what arrives (bad messages are counted, not kept)."""
-
-    def __init__(self, session, keys: KeySpace, rec: Recording) -> None:
-        self.rec, self.lock, self.bad = rec, threading.Lock(), 0
-        self.latest: dict[type, object] = {}
-        table = [(keys.scaler_status, ScalerStatus, rec.statuses), (keys.command, JointCommand, rec.commands),
-                 (keys.joint_state, JointState, rec.joint_states), (keys.human_state, HumanState, rec.human_states),
-                 (keys.trajectory, TrajectoryMsg, rec.trajectories), (keys.safety_events, SafetyEvent, rec.events),
-                 (keys.latency, LatencyReport, rec.latency)]
-        self.subs = [session.declare_subscriber(key, self._keeper(kind, store)) for key, kind, store in table]
-
-    def _keeper(self, kind, store: list):
-        def on_sample(sample):
-            try:
-                msg = decode(sample.payload.to_bytes(), kind)
-            except MessageError:
-                with self.lock:
-                    self.bad += 1
-                return
-            with self.lock:
-                store.append(msg)
-                self.latest[kind] = msg
-        return on_sample
-
-    def get(self, kind):
-        with self.lock:
-            return self.latest.get(kind)
-
-    def close(self) -> None:
-        for sub in self.subs:
-            sub.undeclare()
-
-
-class HumanFeed(threading.Thread):
-    """Publishes the scripted human as raw tracker data at HUMAN_RATE, time measured from t0."""
-
-    def __init__(self, session, keys: KeySpace, human: ScriptedHuman, t0: float) -> None:
-        super().__init__(daemon=True, name="human-feed")
-        self.pub = session.declare_publisher(keys.human_raw)
-        self.human, self.t0, self.running = human, t0, True
-
-    def run(self) -> None:
-        k = 0
-        while self.running:
-            k += 1
-            due = self.t0 + k / HUMAN_RATE
-            time.sleep(max(0.0, due - time.monotonic()))
-            now = time.monotonic()
-            caps = self.human.at(now - self.t0)
-            self.pub.put(encode(HumanRaw(source="hrc demo", sample_time=now, segments=caps.segments,
-                                         radii=caps.radii, seq=k, stamp=now)))
 
 
 def choose_bus() -> tuple[str, str | None]:
@@ -156,45 +97,20 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
 
 def _direct(session, keys: KeySpace, recorder: Recorder, rec: Recording, duration: float, say) -> None:
     """Shuttle goals, recovery requests and progress until duration has passed."""
-    goal_pub = session.declare_publisher(keys.goal)
-    req_pub = session.declare_publisher(keys.driver_request)
-    ends = [Q_START, Q_GOAL]
-    leg, goal_id = 0, 0
-    goal_sent = last_recover = last_print = -1e9
-
-    def send_goal(now: float) -> None:
-        nonlocal goal_sent
-        goal_sent = now
-        goal_pub.put(encode(Goal(goal_id=goal_id, name="q_g" if leg % 2 == 0 else "q_s", q=ends[(leg + 1) % 2],
-                                 seq=goal_id, stamp=now)))
-
-    goal_id = 1
-    send_goal(time.monotonic())
+    shuttle = Shuttle(session, keys, recorder, rec, say)
+    shuttle.start(time.monotonic())
     seen_events = 0
+    last_print = -1e9
     while (now := time.monotonic()) - rec.t0 < duration:
         with recorder.lock:
             new_events, seen_events = rec.events[seen_events:], len(rec.events)
         for e in new_events:
             if e.source == "planner" and e.event != "trajectory_goal" or e.severity != "info":
                 say(f"t={e.stamp - rec.t0:6.2f}s  {e.source}: {e.event}: {e.text[:110]}")
-        js, st = recorder.get(JointState), recorder.get(ScalerStatus)
-        with recorder.lock:
-            planned = any(t.goal_id == goal_id for t in rec.trajectories[-5:])
-        target = ends[(leg + 1) % 2]
-        if js is not None and st is not None and st.status == "finished" and np.abs(js.q - target).max() < ARRIVED \
-                and planned:
-            rec.shuttles += 1
-            leg += 1
-            goal_id += 1
-            send_goal(now)
-        elif not planned and now - goal_sent > GOAL_RETRY:
-            send_goal(now)
-        if js is not None and js.drive_state.startswith("stopped") and now - last_recover > 1.0:
-            last_recover = now
-            req_pub.put(encode(DriverRequest(action="recover", source="hrc demo", stamp=now)))
-            say(f"t={now - rec.t0:6.2f}s  robot stopped ({js.drive_state}): asking the driver to recover")
+        shuttle.step(now)
         if now - last_print >= 0.5:
             last_print = now
+            js, st = recorder.get(JointState), recorder.get(ScalerStatus)
             t = now - rec.t0
             sep = f"{st.min_separation:5.2f}" if st is not None and st.min_separation is not None else "  -  "
             say(f"t={t:6.2f}s  {rec.phase(t):<18} alpha={st.alpha if st else 0:4.2f} beta={int(st.beta) if st else 0} "

@@ -52,6 +52,7 @@ class PlannerService:
         self.human_seq = -1
         self.q = None
         self.status: ScalerStatus | None = None
+        self.highest_seen = 0              # the highest trajectory version the scaler reported following
         self.trajectory: Trajectory | None = None
         self.goal_id = 0
         self.seq = 0
@@ -80,6 +81,7 @@ class PlannerService:
     def on_status(self, msg: ScalerStatus) -> None:
         with self.lock:
             self.status = msg
+            self.highest_seen = max(self.highest_seen, msg.trajectory_version)
         if msg.beta:
             self.wake.set()
 
@@ -122,7 +124,9 @@ class PlannerService:
             if goal is None or q is None:        # keep a goal until the robot's position is known
                 return
             self.new_goal = False
-        version = (self.trajectory.version + 1) if self.trajectory is not None else 1
+        # above every version the scaler has seen: a restarted planner must not publish an old number
+        version = max(self.trajectory.version if self.trajectory is not None else 0,
+                      status.trajectory_version if status is not None else 0, self.highest_seen) + 1
         following = self._following()
         started = time.perf_counter()
         if new_goal:

@@ -7,7 +7,11 @@ and its status. Rules of the shell:
 * a new trajectory version is taken without a jump: a fresh plan (base_version -1) when the robot is at
   its start; a merged one when the follower has not passed its junction (it continues at the same s);
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
-  (the core's rule); an invalid or malformed message counts as no message.
+  (the core's rule); an invalid or malformed message counts as no message;
+* while the driver reports that the robot is not following (stopped, enabling: JointState.enabled false)
+  the trajectory is dropped and the measured position held: after a quick stop the robot stands off the
+  path, the driver re-enables only on a command where the robot is, and the planner (which sees
+  trajectory version -1 in the status) plans the next goal afresh from there.
 
     python -m services.scaler --connect tcp/127.0.0.1:7447 [--config deploy/cell.yaml]
 """
@@ -40,6 +44,7 @@ class Scaler:
         self.human_arrival = -np.inf       # when its state reached this process
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
+        self.robot_following = False       # the driver runs and follows commands (JointState.enabled)
         self.pending: TrajectoryMsg | None = None
         self.version = -1
         self.seq = 0
@@ -59,6 +64,7 @@ class Scaler:
     def on_joints(self, msg: JointState) -> None:
         with self.lock:
             self.joint_q = np.asarray(msg.q)
+            self.robot_following = msg.enabled
 
     def on_trajectory(self, msg: TrajectoryMsg) -> None:
         with self.lock:
@@ -91,8 +97,13 @@ class Scaler:
             if self.pending is not None:
                 self._take_pending()
             humans, age, q_meas = self.humans, now - self.human_stamp, self.joint_q
-            stamp, arrival = self.human_stamp, self.human_arrival
-        if self.layer.trajectory is None and q_meas is not None:
+            stamp, arrival, following = self.human_stamp, self.human_arrival, self.robot_following
+        if q_meas is not None and (self.layer.trajectory is None or not following):
+            if not following and self.layer.trajectory is not None and self.layer.trajectory.version != -1:
+                self.shell.log.warning("the robot is not following (driver stopped or enabling): trajectory %d "
+                                       "dropped, holding the measured position", self.layer.trajectory.version)
+                with self.lock:         # any fresh plan from where the robot stands may follow, whatever its number
+                    self.version = -1
             self.layer.hold(q_meas)
         if self.layer.trajectory is None:
             return
