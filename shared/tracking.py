@@ -7,7 +7,10 @@ shrinks as the window grows (about 0.03 m/s for 1 mm marker noise at 240 Hz over
 tuning beyond the window. Robustness:
 * a step faster than any human moves (max_speed) is a tracking glitch or a new person: the position is
   taken as it is (the person is where the tracker says now) but the velocity is marked unknown until
-  the window has refilled, so the SSM uses the ISO 13855 approach speeds meanwhile (conservative);
+  the window has refilled, so the SSM uses the ISO 13855 approach speeds meanwhile (conservative); and
+  until then the capsules of the sample before the step are reported too (velocity unknown): the person
+  is where the tracker says now *or* where they just were, so a one-sample glitch away from the robot
+  never lets it speed up towards where the person really is;
 * a change in the number of capsules restarts the filter the same way;
 * samples that arrive out of order (older than the last) are dropped;
 * no sample for longer than dropout: the track is invalid (the scaler then stops the robot).
@@ -39,6 +42,7 @@ class HumanTracker:
         self._radii = np.zeros(0)
         self._last_arrival = -np.inf
         self._trusted_from = np.inf          # sample time from which the window holds only clean samples
+        self._ghost: tuple[np.ndarray, np.ndarray] | None = None   # (segments, radii) before the last step
         self.glitches = 0
 
     def update(self, segments: np.ndarray, radii: np.ndarray, sample_time: float, arrival: float) -> HumanCapsules | None:
@@ -54,6 +58,7 @@ class HumanTracker:
             step = np.linalg.norm(seg - last, axis=2).max() if seg.size else 0.0
             if step > p.max_speed * (sample_time - t_last) + 0.01:
                 self.glitches += 1
+                self._ghost = (last, self._radii)
                 self._restart(sample_time)
         elif not self._samples:
             self._trusted_from = sample_time
@@ -74,7 +79,11 @@ class HumanTracker:
         m = pts.shape[1]
         enough = len(times) >= self.params.min_samples and times[0] >= self._trusted_from
         if not enough:
-            return HumanCapsules(pts[-1], self._radii, np.zeros_like(pts[-1]), np.zeros(m, dtype=bool))
+            seg, radii = pts[-1], self._radii
+            if self._ghost is not None:
+                seg, radii = np.concatenate([seg, self._ghost[0]]), np.concatenate([radii, self._ghost[1]])
+            return HumanCapsules(seg, radii, np.zeros_like(seg), np.zeros(len(radii), dtype=bool))
+        self._ghost = None
         dt = times - times.mean()
         slope = np.tensordot(dt, pts - pts.mean(axis=0), axes=(0, 0)) / float(dt @ dt)   # (M, 2, 3)
         # report the fitted position at the newest sample time (the fit's value, not the noisy sample)

@@ -49,6 +49,21 @@ def test_a_jump_faster_than_a_human_marks_the_velocity_unknown_and_takes_the_new
     h = tracker.update(np.array([[[1.0, 0, 0], [1.0, 0, 0.3]]]), [0.05], 20 * DT, 20 * DT)
     assert not h.velocity_known.any() and h.segments[0, 0, 0] == pytest.approx(1.0)
     assert tracker.glitches == 1
+    # where the person just was is reported too, until the filter trusts the new position
+    assert h.count == 2 and h.segments[1, 0, 0] == pytest.approx(0.0)
+    h = feed(tracker, [np.array([1.0, 0, 0])] * 12, t0=21 * DT)
+    assert h.count == 1 and h.velocity_known.all()
+
+
+def test_a_one_sample_glitch_away_never_hides_where_the_person_is():
+    tracker = HumanTracker()
+    near = np.array([0.4, 0.0, 0.0])
+    feed(tracker, [near] * 20)
+    far = tracker.update(np.array([[near + [2.0, 0, 0], near + [2.0, 0, 0.3]]]), [0.05], 20 * DT, 20 * DT)
+    back = tracker.update(np.array([[near, near + [0, 0, 0.3]]]), [0.05], 21 * DT, 21 * DT)
+    for h in (far, back):
+        assert np.linalg.norm(h.segments[:, 0] - near, axis=1).min() < 1e-9     # the near person is in every state
+        assert not h.velocity_known.any()
 
 
 def test_dropout_invalidates_the_track():
