@@ -66,6 +66,7 @@ def up(prefix: str, interface: str, port: int) -> int:
     proc = subprocess.Popen(argv, env=env, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     (run / "cell.pid").write_text(str(proc.pid))
     (run / "cell.port").write_text(str(port))
+    (run / "cell.can").write_text(interface)
     time.sleep(0.5)
     if proc.poll() is not None:
         raise RuntimeError(f"supervisord did not start; see {run / 'up.log'}")
@@ -101,3 +102,21 @@ def reenter_argv(prefix: str, argv: list[str]) -> list[str] | None:
     except OSError:
         return None
     return ["nsenter", "--preserve-credentials", "-U", "-n", "-t", str(pid), *argv]
+
+
+def supervisor(prefix: str):
+    """An XML-RPC proxy of the cell's supervisord (over its unix socket in the run folder)."""
+    import xmlrpc.client
+
+    from supervisor.xmlrpc import SupervisorTransport
+
+    socket_path = run_dir(prefix) / "supervisor.sock"
+    # the URL is a placeholder: the transport talks to the unix socket only
+    return xmlrpc.client.ServerProxy("http://localhost", transport=SupervisorTransport(None, None,
+                                                                                      f"unix://{socket_path}"))
+
+
+def service_info(prefix: str, name: str) -> tuple[int, str]:
+    """(pid, state name) of one program of the cell under supervisord (pid 0 when it is not running)."""
+    info = supervisor(prefix).supervisor.getProcessInfo(name)
+    return int(info["pid"]), str(info["statename"])

@@ -31,6 +31,8 @@ monitoring). Subcommands:
   hrc human replay FILE          replay a recorded or scripted motion (CSV or JSON) at its own rate
   hrc status                     which services are alive, the robot, the scaler, the monitor
   hrc recover                    after a stop: ask the driver to reset and re-enable the drives
+  hrc faults [--only F ..]       the fault campaign against a cell that is up: kill -9, SIGSTOP, CAN
+                                 faults, tracker faults; stop times, violations, recovery (a table)
 The cell's commands reach it over Zenoh (--connect, default tcp/127.0.0.1:7447).
 Run 'hrc <command> --help' for the options of one command."""
 
@@ -130,6 +132,19 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("file", type=Path, help="a .csv or .json replay file")
     replay.add_argument("--speed", type=_positive_float, default=1.0, help="playback speed factor (default 1)")
     cell_options(replay)
+    faults = sub.add_parser("faults", help="the fault campaign against a running cell (hrc up)",
+                            description="As the cell's operator (goals, a scripted person, recovery), inject each "
+                                        "fault while the robot moves: kill -9 and SIGSTOP of services, lost CAN "
+                                        "frames, a stopped heartbeat, a silent or NaN tracker, a person who jumps. "
+                                        "For each: time to stop against its bound, violations (the monitor's and "
+                                        "against the true person), the service back, the task resumed. Prints a "
+                                        "JSON line per fault and a table.")
+    faults.add_argument("--only", nargs="+", default=None, metavar="FAULT",
+                        help="these faults only (default: all, in order)")
+    faults.add_argument("--out", type=Path, default=None, metavar="DIR", help="write faults.json and faults.md here")
+    faults.add_argument("--config", type=Path, default=None, metavar="FILE", help="the cell configuration the "
+                        "services run with (default: built in)")
+    cell_options(faults)
     status = sub.add_parser("status", help="what the running cell is doing",
                             description="Listen to the cell for --timeout seconds and report which services are "
                                         "alive, the robot's state, the scaler and the safety monitor.")
@@ -447,6 +462,33 @@ def cmd_status(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_faults(args: argparse.Namespace) -> int:
+    from services import faults
+    from services.cell import cell_pid, run_dir
+    from shared.config import load_config
+    from shared.robot_model import default_robot
+
+    names = args.only or list(faults.FAULT_NAMES)
+    unknown = [n for n in names if n not in faults.FAULT_NAMES]
+    if unknown:
+        raise FaultArgumentError(f"unknown fault(s) {unknown}; known: {', '.join(faults.FAULT_NAMES)}")
+    if cell_pid(args.prefix) is None:
+        raise FaultArgumentError(f"no cell {args.prefix} is up under supervisord (start it with hrc up)")
+    config = load_config(args.config)
+    can_file = run_dir(args.prefix) / "cell.can"
+    interface = can_file.read_text().strip() if can_file.exists() else "udp_multicast"
+    channel = "vcan0" if interface == "socketcan" else None
+    if args.connect is None:
+        args.connect = f"tcp/127.0.0.1:{(run_dir(args.prefix) / 'cell.port').read_text().strip()}"
+    verdicts = faults.run_campaign(args.prefix, args.connect, interface, channel, config, default_robot(), names,
+                                   args.out, say=lambda text: print(text, flush=True))
+    return 0 if all(v.ok for v in verdicts) else 1
+
+
+class FaultArgumentError(HrcError):
+    """hrc faults was asked for a fault it does not know, or there is no cell to inject into."""
+
+
 class DemoArgumentError(HrcError):
     """An option of hrc demo that does not fit the chosen mode."""
 
@@ -462,7 +504,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    if args.command in ("goal", "human", "status", "recover") and getattr(args, "prefix", None) \
+    if args.command in ("goal", "human", "status", "recover", "faults") and getattr(args, "prefix", None) \
             and not os.environ.get("HRC_IN_CELL"):
         from services.cell import reenter_argv
         argv2 = reenter_argv(args.prefix, [sys.executable, "-m", "services.cli", *(argv or sys.argv[1:])])
@@ -470,7 +512,7 @@ def main(argv: list[str] | None = None) -> int:
             os.execvpe(argv2[0], argv2, dict(os.environ, HRC_IN_CELL="1"))
     try:
         return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
-                "down": cmd_down, "recover": cmd_recover}[args.command](args)
+                "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults}[args.command](args)
     except HrcError as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -67,10 +67,12 @@ class Recorder:
 @dataclass
 class FeedFault:
     """How the feed misbehaves: 'silent' (nothing is sent), 'nan' (every coordinate NaN), 'jump' (the person
-    is shown `offset` (m) away from where they are). kind None: a healthy feed."""
+    is shown `offset` (m) away from where they are; with `every` > 0 only in every every-th sample, a
+    glitch). kind None: a healthy feed."""
 
     kind: str | None = None
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    every: int = 0
 
 
 class HumanFeed(threading.Thread):
@@ -94,7 +96,8 @@ class HumanFeed(threading.Thread):
             fault = self.fault
             if fault.kind == "silent":
                 continue
-            segments = caps.segments + np.asarray(fault.offset) if fault.kind == "jump" else caps.segments
+            shifted = fault.kind == "jump" and (fault.every <= 0 or k % fault.every == 0)
+            segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
             payload = encode(HumanRaw(source=self.source, sample_time=now, segments=segments, radii=caps.radii,
                                       seq=k, stamp=now))
             self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)

@@ -55,9 +55,10 @@ def truth_violations(monitor: SafetyMonitor, samples: list[tuple[float, np.ndarr
 
 @dataclass
 class FaultVerdict:
-    """One fault's outcome. expect: 'stop' (the robot must stand still within bound_s) or 'continue' (no
-    stop is needed: the fault is outside the chain that keeps the robot safe, which goes on working).
-    stop_s: measured injection -> standstill (None: not observed). detected_s: injection -> the first
+    """One fault's outcome. expect: 'stop' (the robot must stand still within bound_s), 'slow' (the scaling
+    must take the fault's effect within bound_s; stop_s then holds that reaction time) or 'any' (no stop is
+    needed: the fault is outside the chain that keeps the robot safe, which goes on working, or either a
+    stop or going on is safe). stop_s: measured injection -> standstill (None: not observed). detected_s: injection -> the first
     protective reaction seen (a driver stop event, an EMCY, the scaler's alpha at 0). back: the service is
     running again (restarted under the supervisor, or resumed). resumed_s: lift -> the next completed
     shuttle. violations: the monitor service's reports plus the check against the true human."""
@@ -78,8 +79,8 @@ class FaultVerdict:
 
     @property
     def ok(self) -> bool:
-        stopped_in_time = self.expect != "stop" or (self.stop_s is not None and self.bound_s is not None
-                                                    and self.stop_s <= self.bound_s)
+        stopped_in_time = self.expect == "any" or (self.stop_s is not None and self.bound_s is not None
+                                                   and self.stop_s <= self.bound_s)
         return (self.moving_at_injection and stopped_in_time and self.back and self.resumed_s is not None
                 and self.monitor_violations == 0 and self.truth_violations == 0)
 
