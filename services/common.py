@@ -13,10 +13,12 @@ import os
 import sys
 import threading
 import time
+from pathlib import Path
 
 from shared.errors import MessageError
 from shared.keys import KeySpace
 from shared.messages import Message, decode
+from shared.pki import TlsIdentity
 from shared.zenoh_session import open_session
 
 LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s %(message)s"
@@ -35,6 +37,9 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser, default_listen: str | N
                         help="Zenoh mode: peer (one host, meshed) or client (of a router)")
     parser.add_argument("--allow-remote", action="store_true",
                         help="allow non-loopback endpoints (the multi-host deployment through a router)")
+    parser.add_argument("--tls-dir", type=Path, default=None, metavar="DIR",
+                        help="mutual TLS with the cell's certificates in DIR (ca.pem, <service>.pem, "
+                             "<service>-key.pem; made by `hrc certs`): use tls/ endpoints")
     parser.add_argument("--log-level", default="INFO")
 
 
@@ -48,8 +53,9 @@ class ServiceShell:
         self.name = name
         self.log = logging.getLogger(name)
         self.keys = KeySpace(args.prefix)
+        tls = TlsIdentity.from_dir(args.tls_dir, name) if getattr(args, "tls_dir", None) else None
         self.session = open_session(args.mode, listen=args.listen if args.mode == "peer" else [],
-                                    connect=args.connect, allow_remote=args.allow_remote)
+                                    connect=args.connect, allow_remote=args.allow_remote, tls=tls)
         self.token = None
         self.bad_messages = 0
         self._last_bad_log = -1e9
