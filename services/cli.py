@@ -31,6 +31,8 @@ monitoring). Subcommands:
   hrc human replay FILE          replay a recorded or scripted motion (CSV or JSON) at its own rate
   hrc status                     which services are alive, the robot, the scaler, the monitor
   hrc recover                    after a stop: ask the driver to reset and re-enable the drives
+  hrc certs --out DIR            the cell CA and a certificate per service, for mutual TLS and the
+                                 router's access control (several hosts; deploy/zenoh/secure-*.json5)
   hrc faults [--only F ..]       the fault campaign against a cell that is up: kill -9, SIGSTOP, CAN
                                  faults, tracker faults; stop times, violations, recovery (a table)
 The cell's commands reach it over Zenoh (--connect, default tcp/127.0.0.1:7447).
@@ -132,6 +134,14 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("file", type=Path, help="a .csv or .json replay file")
     replay.add_argument("--speed", type=_positive_float, default=1.0, help="playback speed factor (default 1)")
     cell_options(replay)
+    certs = sub.add_parser("certs", help="make the cell's TLS certificates (multi-host, secured)",
+                           description="Make the cell CA and one certificate per identity (every service, "
+                                       "operator, router) for mutual TLS and the router's access control "
+                                       "(deploy/zenoh/secure-router.json5). Copy to each host the CA and only "
+                                       "its own key; keep ca-key.pem off the cell.")
+    certs.add_argument("--out", type=Path, required=True, metavar="DIR", help="where to write the PEM files")
+    certs.add_argument("--hosts", nargs="+", default=["localhost", "127.0.0.1", "::1"], metavar="HOST",
+                       help="names and addresses the certificates are valid for (the router's; default loopback)")
     faults = sub.add_parser("faults", help="the fault campaign against a running cell (hrc up)",
                             description="As the cell's operator (goals, a scripted person, recovery), inject each "
                                         "fault while the robot moves: kill -9 and SIGSTOP of services, lost CAN "
@@ -462,6 +472,25 @@ def cmd_status(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_certs(args: argparse.Namespace) -> int:
+    from shared.acl import IDENTITIES
+    from shared.pki import make_cell_pki
+
+    if args.out.exists() and any(args.out.glob("*.pem")):
+        raise CertsArgumentError(f"{args.out} already holds certificates; refusing to replace the cell CA")
+    try:
+        make_cell_pki(args.out, list(IDENTITIES), tuple(args.hosts))
+    except OSError as exc:
+        raise CertsArgumentError(f"cannot write to {args.out}: {exc.strerror}") from None
+    print(f"hrc certs: CA and certificates for {', '.join(IDENTITIES)} in {args.out} (valid for "
+          f"{', '.join(args.hosts)}); move ca-key.pem off the cell")
+    return 0
+
+
+class CertsArgumentError(HrcError):
+    """hrc certs cannot write where it was asked to."""
+
+
 def cmd_faults(args: argparse.Namespace) -> int:
     from services import faults
     from services.cell import cell_pid, run_dir
@@ -512,7 +541,8 @@ def main(argv: list[str] | None = None) -> int:
             os.execvpe(argv2[0], argv2, dict(os.environ, HRC_IN_CELL="1"))
     try:
         return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
-                "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults}[args.command](args)
+                "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults,
+                "certs": cmd_certs}[args.command](args)
     except HrcError as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -47,6 +47,8 @@ def _san(hosts: tuple[str, ...]):
 
     names = []
     for host in hosts:
+        if not isinstance(host, str) or not host or any(c.isspace() for c in host):
+            raise ConfigError(f"host {host!r}: expected a host name or an address")
         try:
             names.append(x509.IPAddress(ipaddress.ip_address(host)))
         except ValueError:
