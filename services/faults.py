@@ -47,6 +47,7 @@ from shared.zenoh_session import await_liveliness, open_session
 
 HOLD = 1.5                      # s a fault stays active (kills: until the supervisor restarts the service)
 MOVING = 0.3                    # rad/s: the robot counts as moving (at speed) above this joint speed
+AHEAD = 1.2                     # rad still to go on the leg when a fault is injected (about a second)
 SETTLE = 25.0                   # s to wait for the robot to move before a fault
 RESUME = 45.0                   # s after a fault for the next shuttle to complete
 SYNC_TIMEOUT_EMCY = 0x8100
@@ -176,10 +177,13 @@ class Campaign:
         return float(np.abs(js.qd).max()) if js is not None and js.enabled else 0.0
 
     def wait_moving(self, timeout: float = SETTLE) -> bool:
+        """Wait until the robot moves at speed with most of a leg still ahead (so that a stop is the fault's
+        doing, not the end of the shuttle); False after timeout."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            st = self.recorder.get(ScalerStatus)
-            if self._speed() > MOVING and st is not None and st.alpha > 0.2:
+            st, js = self.recorder.get(ScalerStatus), self.recorder.get(JointState)
+            ahead = float(np.abs(js.q - self.shuttle.target).max()) if js is not None else 0.0
+            if self._speed() > MOVING and st is not None and st.alpha > 0.2 and ahead > AHEAD:
                 return True
             time.sleep(0.01)
         return False
@@ -213,6 +217,7 @@ class Campaign:
         exp = self.expect[name]
         verdict = FaultVerdict(name, exp.expect, exp.bound_s, exp.why)
         verdict.moving_at_injection = self.wait_moving()
+        verdict.t_inject = round(time.monotonic() - self.rec.t0, 3)
         service = name.split("_", 1)[1] if name.startswith(("kill_", "freeze_")) else None
         old_pid = service_info(self.prefix, service)[0] if service else 0
         before = self.recorder.get(ScalerStatus)

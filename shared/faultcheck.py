@@ -61,13 +61,15 @@ class FaultVerdict:
     stop or going on is safe). stop_s: measured injection -> standstill (None: not observed). detected_s: injection -> the first
     protective reaction seen (a driver stop event, an EMCY, the scaler's alpha at 0). back: the service is
     running again (restarted under the supervisor, or resumed). resumed_s: lift -> the next completed
-    shuttle. violations: the monitor service's reports plus the check against the true human."""
+    shuttle. t_inject: when (s since the campaign began; its logs are stamped). violations: the monitor
+    service's reports plus the check against the true human."""
 
     name: str
     expect: str
     bound_s: float | None
     bound_why: str
     moving_at_injection: bool = False
+    t_inject: float = 0.0                 # s since the campaign started (to find the fault in the logs)
     stop_s: float | None = None
     detected_s: float | None = None
     detected_by: str = ""
