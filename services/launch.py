@@ -35,6 +35,11 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+# Niceness of the processes outside the control path, as in deploy/supervisord.conf: a (re)starting planner
+# must not starve the driver's SYNC thread on a small machine.
+NICENESS = {"planner": 10, "safety_monitor": 5}
+
+
 def die_with_parent() -> None:
     """In a child before exec: the kernel sends it SIGKILL when its parent dies (PR_SET_PDEATHSIG)."""
     ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)     # PR_SET_PDEATHSIG
@@ -67,8 +72,13 @@ class CellProcesses:
     def _spawn(self, name: str, argv: list[str]) -> None:
         env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
         log = open(self.run / f"{name}.log", "w")
+        niceness = NICENESS.get(name, 0)
+
+        def prepare() -> None:
+            die_with_parent()
+            os.nice(niceness)
         self.procs[name] = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", *argv], cwd=ROOT, env=env,
-                                            stdout=log, stderr=subprocess.STDOUT, preexec_fn=die_with_parent)
+                                            stdout=log, stderr=subprocess.STDOUT, preexec_fn=prepare)
         log.close()
 
     def _tail(self, name: str, lines: int = 12) -> str:

@@ -32,7 +32,7 @@ from shared.planner import JointPlanner, PlanningError
 from shared.scaling import ssm_alpha_bound
 from shared.ssm import SsmParameters, protective_separation_distance
 from shared.timing import TimingError, parameterize
-from shared.trajectory import Trajectory
+from shared.trajectory import Trajectory, straight_line_trajectory
 
 
 @dataclass(frozen=True)
@@ -157,6 +157,17 @@ class Replanner:
                    inflation: float = 0.0) -> Trajectory:
         """A rest-to-rest trajectory to a new goal (raises PlanningError or TimingError)."""
         waypoints = self.planner.plan(q_start, q_goal, humans, inflation)
+        return self._from_rest(waypoints, humans, inflation, version)
+
+    def _from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, inflation: float,
+                   version: int) -> Trajectory:
+        """Rest to rest through waypoints. A direct connection (two waypoints, already checked free by the
+        planner) gets the exact trapezoid, which is time-optimal for a straight line and needs none of the
+        acceleration headroom toppra's grid calls for where a path bends (2 % faster on the paper's
+        shuttle); a bent path gets toppra."""
+        if len(waypoints) == 2:
+            return straight_line_trajectory(waypoints[0], waypoints[1], self.limits.velocity,
+                                            self.limits.acceleration, version=version)
         return parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
                             inflation=inflation, version=version)
 
@@ -315,9 +326,8 @@ class Replanner:
             try:
                 if at_rest:
                     kept = self._capped(inflation, np.vstack([q_now, q_goal]), humans)
-                    traj = parameterize(self._tail(q_now, q_goal, humans, inflation, kept), self.limits,
-                                        collision=self.collision, humans=humans, inflation=min(kept, 0.0),
-                                        version=old.version + 1)
+                    traj = self._from_rest(self._tail(q_now, q_goal, humans, inflation, kept), humans,
+                                           min(kept, 0.0), old.version + 1)
                     result = ReplanResult(traj, s_now, "beta", 0.0, kept, from_rest=True)
                     predicted = self.predicted_time(traj, 0.0, humans)
                 else:
