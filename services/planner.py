@@ -157,7 +157,8 @@ class PlannerService:
             state["human_seq"] = human_seq
             state["next_horizon"] = now + self.horizon_period
             try:
-                result = self.replanner.on_horizon(traj, s, goal.q, humans)
+                speed = float(np.abs(traj.sample(s)[1]).max() * status.alpha) if status is not None else None
+                result = self.replanner.on_horizon(traj, s, goal.q, humans, speed)
                 if result is not None:
                     self._apply(result, traj, started)
             except ReplanFailed as exc:

@@ -104,7 +104,8 @@ class ReplanOptions:
     beta replan must save; prediction_step: nominal seconds between the samples of that prediction;
     inflated_budget (s): RRT-Connect's time for an attempt with extra clearance (when such a path exists
     it is found fast; the bare-margin attempt keeps the planner's full budget);
-    rest_speed (rad/s): below it the robot counts as at rest for a beta replan; escape_*: how the escape
+    rest_speed (rad/s): below it the robot counts as at rest for a replan; extrapolation (s): how far
+    ahead the prediction moves people on at their tracked velocities; escape_*: how the escape
     waypoint is searched (random joint offsets of growing radius, seeded)."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
@@ -114,6 +115,7 @@ class ReplanOptions:
     alpha_floor: float = 0.02
     inflated_budget: float = 0.1
     rest_speed: float = 0.02
+    extrapolation: float = 1.0
     escape_radii: tuple[float, ...] = (0.2, 0.4, 0.8)
     escape_alpha: float = 0.2
     escape_samples: int = 64
@@ -248,14 +250,38 @@ class Replanner:
             raise ReplanFailed(f"{type(exc).__name__}: {exc}") from None
         return ReplanResult(merged, s_j, reason, time.perf_counter() - started, kept)
 
+    def passing(self, old: Trajectory, s_now: float, check: HorizonResult, humans: HumanCapsules) -> bool:
+        """The horizon is blocked now, but the people in the way are moving out of it: with their tracked
+        velocities, at the nominal time the robot would reach each blocked sample, none blocks any more
+        (a person crossing the path). Waiting for them (the scaling layer slows the robot as needed) is
+        then quicker than a detour."""
+        if humans is None or not humans.velocity_known.any():
+            return False
+        blocked = check.s[check.first_infeasible:]
+        q = old.sample(blocked)[0]
+        for qk, sk in zip(q, blocked):
+            later = humans.extrapolated(float(sk - s_now))
+            if self.collision.clearances(qk[None, :], later)[0] <= self.collision.margins.tolerance:
+                return False
+        return True
+
     def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray,
-                   humans: HumanCapsules | None) -> ReplanResult | None:
-        """Alg. 1 + 2: None when the horizon is clear; else a merged trajectory branching at the last
-        feasible horizon configuration (ReplanFailed when none can be built)."""
+                   humans: HumanCapsules | None, speed_now: float | None = None) -> ReplanResult | None:
+        """Alg. 1 + 2: None when the horizon is clear, or when the people in the way are passing
+        (``passing``); else a merged trajectory branching at the last feasible horizon configuration
+        (ReplanFailed when none can be built, saying why). speed_now: the robot's joint speed (rad/s); at rest, the new trajectory
+        starts from rest where the robot stands (a merge in nominal time would have to leave at the old
+        nominal speed, which a stopped robot cannot), and is kept only when predicted to reach the goal
+        sooner than waiting on the old one."""
+        started = time.perf_counter()
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
-        if check.first_infeasible is None:
+        # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
+        # a beta replan plans the way out, and only when it is predicted to pay)
+        if check.first_infeasible in (None, 0) or self.passing(old, s_now, check, humans):
             return None
         blocked = float(check.s[check.first_infeasible])
+        at_rest = speed_now is not None and speed_now < self.options.rest_speed
+        baseline = self.predicted_time(old, s_now, humans) if at_rest else np.inf
         # A path that only just clears the human is collision-free but slow: within the SSM's fixed distance
         # an approaching link gets alpha = 0. So the inflation ladder of a beta replan (the separation that
         # allows full speed, half of it, the bare margin), each branching at the last horizon sample that
@@ -264,22 +290,45 @@ class Replanner:
         full = self.full_speed_inflation()
         errors = []
         for inflation in (full, full / 2, 0.0):
-            ok = self.collision.clearances(q_horizon, humans, inflation) > self.collision.margins.tolerance
-            first_bad = int(np.argmin(ok)) if not ok.all() else len(ok)
-            s_branch = float(check.s[first_bad - 1]) if first_bad > 0 else s_now
-            if s_branch < s_now + self.options.lead:
-                # too close to branch in front of it: branch at the planning lead; the new path may not
-                # come closer to the human than that point is (the scaling layer keeps the speed safe)
-                s_branch = min(old.duration, s_now + self.options.lead)
             try:
-                result = self.replan(old, s_now, q_goal, humans, "horizon", inflation=inflation, s_branch=s_branch)
-            except ReplanFailed as exc:
+                if at_rest:
+                    result = self._rest_plan(old, s_now, q_goal, humans, inflation, "horizon")
+                else:
+                    ok = self.collision.clearances(q_horizon, humans, inflation) > self.collision.margins.tolerance
+                    first_bad = int(np.argmin(ok)) if not ok.all() else len(ok)
+                    s_branch = float(check.s[first_bad - 1]) if first_bad > 0 else s_now
+                    if s_branch < s_now + self.options.lead:
+                        # too close to branch in front of it: branch at the planning lead; the new path may not
+                        # come closer to the human than that point is (the scaling layer keeps the speed safe)
+                        s_branch = min(old.duration, s_now + self.options.lead)
+                    result = self.replan(old, s_now, q_goal, humans, "horizon", inflation=inflation,
+                                         s_branch=s_branch)
+            except (ReplanFailed, PlanningError, TimingError) as exc:
                 errors.append(f"inflation {inflation:.2f} m: {exc}")
                 continue
-            return ReplanResult(result.trajectory, result.junction, result.reason, result.plan_s, result.inflation,
-                                f"path blocked at s={blocked:.2f}, merged at s={result.junction:.2f}, "
-                                f"kept {result.inflation:.2f} m extra")
-        raise ReplanFailed("; ".join(errors))
+            # Moving, the old path runs into the person: any way round is taken. At rest, a new plan from
+            # where the robot stands must be predicted faster than waiting (people walk on: without this a
+            # stopped robot next to a moving person re-planned every few ticks, each plan blocked again)
+            predicted = self._worth_it(result, old, s_now, humans, baseline, gain=0.0) if at_rest else None
+            if at_rest and predicted is None:
+                errors.append(f"inflation {inflation:.2f} m: from rest not faster than the old {baseline:.2f} s")
+                continue
+            how = "from rest" if result.from_rest else f"merged at s={result.junction:.2f}"
+            told = f", predicted {predicted:.2f} s instead of {baseline:.2f} s" if predicted is not None else ""
+            return ReplanResult(result.trajectory, result.junction, result.reason, time.perf_counter() - started,
+                                result.inflation, f"path blocked at s={blocked:.2f}, {how}, kept "
+                                f"{result.inflation:.2f} m extra{told}", result.from_rest)
+        raise ReplanFailed(f"path blocked at s={blocked:.2f}; " + "; ".join(errors))
+
+    def _rest_plan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                   inflation: float, reason: str) -> ReplanResult:
+        """A trajectory from rest where the robot stands (old at s_now) to the goal, keeping `inflation`
+        extra clearance where it can (raises PlanningError or TimingError)."""
+        q_now = old.sample(float(s_now))[0]
+        kept = self._capped(inflation, np.vstack([q_now, q_goal]), humans)
+        traj = self._from_rest(self._tail(q_now, q_goal, humans, inflation, kept), humans, min(kept, 0.0),
+                               old.version + 1)
+        return ReplanResult(traj, s_now, reason, 0.0, kept, from_rest=True)
 
     # ------------------------------------------------------------------------------------ beta replans
     def full_speed_inflation(self, robot_speed: float = 1.0) -> float:
@@ -290,18 +339,32 @@ class Replanner:
 
     def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None) -> float:
         """Nominal remaining time stretched by the SSM: sum over samples of ds / alpha(s), alpha the
-        safe bound with the humans frozen where they are now (floored at alpha_floor, so a blocked path
-        costs a lot but stays finite)."""
+        safe bound with the humans where they will be when the robot gets there: moved on at their tracked
+        velocities for up to options.extrapolation seconds, then standing (unknown velocities: standing
+        from now). Floored at alpha_floor, so a blocked path costs a lot but stays finite."""
         step = self.options.prediction_step
         samples = np.arange(s_from, trajectory.duration, step)
         if humans is None or samples.size == 0:
             return max(0.0, trajectory.duration - s_from)
         q, dq, _ = trajectory.sample(samples)
         total = 0.0
+        moving = bool(humans.velocity_known.any()) and self.options.extrapolation > 0
         for qk, dqk in zip(q, dq):
-            alpha = ssm_alpha_bound(self.collision.robot, qk, dqk, humans, self.ssm)
+            there = humans.extrapolated(min(total, self.options.extrapolation)) if moving else humans
+            alpha = ssm_alpha_bound(self.collision.robot, qk, dqk, there, self.ssm)
             total += step / max(alpha, self.options.alpha_floor)
         return total
+
+    def _worth_it(self, result: ReplanResult, old: Trajectory, s_now: float, humans: HumanCapsules | None,
+                  baseline: float, gain: float | None = None) -> float | None:
+        """The new trajectory's predicted time to the goal when it beats baseline (the old one's) by
+        gain (default min_gain), else None."""
+        gain = self.options.min_gain if gain is None else gain
+        if result.from_rest:
+            predicted = self.predicted_time(result.trajectory, 0.0, humans)
+        else:
+            predicted = self.predicted_time(result.trajectory, result.junction, humans) + (result.junction - s_now)
+        return predicted if predicted <= (1.0 - gain) * baseline else None
 
     def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                 speed_now: float | None = None) -> ReplanResult:
@@ -319,27 +382,22 @@ class Replanner:
         at_rest = speed_now is not None and speed_now < self.options.rest_speed
         stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
         s_branch = min(old.duration, s_now + self.options.lead + stopping)
-        q_now = old.sample(float(s_now))[0]
         full = self.full_speed_inflation()
         tried = []
         for inflation in (full, full / 2, 0.0):
             try:
                 if at_rest:
-                    kept = self._capped(inflation, np.vstack([q_now, q_goal]), humans)
-                    traj = self._from_rest(self._tail(q_now, q_goal, humans, inflation, kept), humans,
-                                           min(kept, 0.0), old.version + 1)
-                    result = ReplanResult(traj, s_now, "beta", 0.0, kept, from_rest=True)
-                    predicted = self.predicted_time(traj, 0.0, humans)
+                    result = self._rest_plan(old, s_now, q_goal, humans, inflation, "beta")
                 else:
                     result = self.replan(old, s_now, q_goal, humans, "beta", inflation=inflation, s_branch=s_branch)
-                    predicted = self.predicted_time(result.trajectory, result.junction, humans) + (result.junction - s_now)
             except (ReplanFailed, PlanningError, TimingError) as exc:
                 tried.append(f"inflation {inflation:.2f} m: {exc}")
                 continue
-            if predicted <= (1.0 - self.options.min_gain) * baseline:
+            predicted = self._worth_it(result, old, s_now, humans, baseline)
+            if predicted is not None:
                 return ReplanResult(result.trajectory, result.junction, "beta", time.perf_counter() - started,
                                     result.inflation, f"predicted {predicted:.2f} s instead of {baseline:.2f} s",
                                     result.from_rest)
-            tried.append(f"inflation {inflation:.2f} m: predicted {predicted:.2f} s, not {100 * self.options.min_gain:.0f} % "
-                         f"better than {baseline:.2f} s")
+            tried.append(f"inflation {inflation:.2f} m: not {100 * self.options.min_gain:.0f} % faster than the old "
+                         f"{baseline:.2f} s")
         raise ReplanFailed("kept the old trajectory; " + "; ".join(tried))

@@ -63,7 +63,7 @@ class SimResult:
     violations: int = 0
     command_exceedances: int = 0
     beta_requests: int = 0
-    progress: float = 0.0        # shuttles completed plus the fraction of the current one's path
+    progress: float = 0.0        # shuttles completed plus the fraction of the current leg covered
 
     def summary(self) -> dict:
         steps = [r.step for r in self.records]
@@ -94,6 +94,14 @@ class SimResult:
         }
 
 
+def leg_fraction(q: np.ndarray, start: np.ndarray, goal: np.ndarray) -> float:
+    """How much of a leg the robot has covered, by where it is: 1 - |q - goal| / |start - goal| (joint
+    space, Euclidean), in [0, 1]. Geometric, so a replanned trajectory that starts anew from where the
+    robot stands is credited with the way already made (a path parameter would restart at 0)."""
+    span = float(np.linalg.norm(goal - start))
+    return 0.0 if span <= 0.0 else float(np.clip(1.0 - np.linalg.norm(q - goal) / span, 0.0, 1.0))
+
+
 def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a: np.ndarray, q_b: np.ndarray,
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
                 beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
@@ -118,6 +126,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     next_beta_try = next_horizon_try = 0.0
     pending_leg = False
     busy_until = -1.0                 # charge_planning: the planner is computing until then
+    speed_now = 0.0                   # the robot's commanded joint speed after the last step (rad/s)
     waiting: tuple | None = None      # (ready at, ReplanResult or Trajectory, reason, compute ms)
 
     def log_replan(event: ReplanEvent) -> None:
@@ -190,17 +199,17 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                 log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
         elif replanner is not None and layer.s < layer.trajectory.duration and t >= next_horizon_try:
             failures = len(result.replans)
-            replan(t, "horizon", replanner.on_horizon, layer.trajectory, layer.s, goal, humans)
+            replan(t, "horizon", replanner.on_horizon, layer.trajectory, layer.s, goal, humans, speed_now)
             if len(result.replans) > failures and not result.replans[-1].ok:
                 next_horizon_try = t + beta_cooldown / 2     # do not hammer a blocked horizon every cycle
         step = layer.step(humans, 0.0)
+        speed_now = float(np.abs(step.qd_command).max())
         if step.beta and not beta_before:
             result.beta_requests += 1
         beta_before = step.beta
         if step.beta and beta_replans and replanner is not None and t >= next_beta_try and t >= busy_until:
             next_beta_try = t + beta_cooldown
-            speed = float(np.abs(step.qd_command).max())
-            replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed)
+            replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed_now)
         # the commanded motion against the limit: the conservative end-point bound first (fast); where it
         # comes near, the independent monitor judges (its ReactionWindow sees every cycle)
         points, jac = robot.capsule_kinematics(step.q_command)
@@ -220,7 +229,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             else:
                 pending_leg = True
         traj = layer.trajectory
-        result.progress = result.shuttles + (0.0 if pending_leg or traj.duration <= 0 else layer.s / traj.duration)
+        result.progress = result.shuttles + leg_fraction(step.q_command, ends[leg % 2], ends[(leg + 1) % 2])
         record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
         result.records.append(record)
         if on_record is not None:

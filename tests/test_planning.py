@@ -147,3 +147,41 @@ def test_trajectory_message_roundtrip_gives_the_same_law():
     for k in range(3):
         assert np.array_equal(back.sample(s)[k], result.trajectory.sample(s)[k])
     assert back.version == result.trajectory.version and msg.junction == result.junction
+
+
+def test_a_free_shuttle_is_planned_as_the_exact_trapezoid():
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    traj = replanner.plan_fresh(Q_START, Q_GOAL, ASIDE, 3)
+    assert traj.duration == pytest.approx(OLD.duration, abs=1e-9) and traj.version == 3
+    q = traj.sample(np.linspace(0, traj.duration, 50))[0]
+    assert np.allclose(q, OLD.sample(np.linspace(0, OLD.duration, 50))[0], atol=1e-9)
+
+
+def test_people_extrapolate_at_their_known_velocities_only():
+    seg = np.array([[[0.0, 0, 0], [0, 0, 1.0]], [[1.0, 0, 0], [1.0, 0, 1.0]]])
+    people = HumanCapsules(seg, np.array([0.1, 0.1]), np.full((2, 2, 3), 0.5), np.array([True, False]))
+    later = people.extrapolated(2.0)
+    assert np.allclose(later.segments[0], seg[0] + 1.0) and np.allclose(later.segments[1], seg[1])
+
+
+def test_a_person_crossing_out_of_the_path_is_waited_for_and_one_standing_in_it_is_not():
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    seg = np.asarray(ARM_ACROSS.segments)
+    leaving = HumanCapsules(seg, ARM_ACROSS.radii, np.tile([0.0, -2.0, 0.0], (2, 2, 1)), np.ones(2, bool))
+    check = horizon_check(OLD, 0.0, CM, leaving, replanner.horizon)
+    assert check.first_infeasible is not None                  # blocked now ...
+    assert replanner.passing(OLD, 0.0, check, leaving)         # ... but gone by the time the robot is there
+    assert replanner.on_horizon(OLD, 0.0, Q_GOAL, leaving) is None
+    assert not replanner.passing(OLD, 0.0, check, ARM_ACROSS)
+    assert replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS) is not None
+
+
+def test_a_stopped_robot_replans_from_rest_only_when_it_pays_and_never_for_where_it_already_is():
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    # with the person's body close behind the arm, no plan from rest is predicted faster than waiting
+    with pytest.raises(ReplanFailed, match="from rest not faster"):
+        replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS, speed_now=0.0)
+    # a person already within the margin of the robot's own configuration: no branch ahead can help
+    flange = ROBOT.capsule_segments(Q_START)[-1][1]
+    touching = known([[flange, flange + [0, 0, 0.2]]], [0.1])
+    assert replanner.on_horizon(OLD, 0.0, Q_GOAL, touching, speed_now=0.0) is None

@@ -87,3 +87,11 @@ def test_all_three_strategies_stay_safe_and_direction_awareness_pays(strategies)
     assert all(r["violations"] == 0 for r in results.values()), results
     assert results["scale_only"]["shuttle_progress"] > results["zones"]["shuttle_progress"]
     assert results["full"]["command_exceedances"] == 0 and results["scale_only"]["command_exceedances"] == 0
+
+
+def test_leg_progress_is_geometric_so_a_new_plan_keeps_the_way_made():
+    from shared.sim import leg_fraction
+    a, b = np.zeros(6), np.ones(6)
+    assert leg_fraction(a, a, b) == 0.0 and leg_fraction(b, a, b) == 1.0
+    assert leg_fraction(0.25 * b, a, b) == pytest.approx(0.25)
+    assert leg_fraction(-b, a, b) == 0.0 and leg_fraction(a, a, a) == 0.0      # away from the goal; no leg
