@@ -17,6 +17,8 @@ import sys
 import time
 from pathlib import Path
 
+from shared.errors import HrcError
+
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "deploy" / "supervisord.conf"
 
@@ -116,7 +118,16 @@ def supervisor(prefix: str):
                                                                                       f"unix://{socket_path}"))
 
 
+class CellError(HrcError):
+    """The cell's supervisord cannot be asked (not up, or it does not know the program)."""
+
+
 def service_info(prefix: str, name: str) -> tuple[int, str]:
     """(pid, state name) of one program of the cell under supervisord (pid 0 when it is not running)."""
-    info = supervisor(prefix).supervisor.getProcessInfo(name)
+    import xmlrpc.client
+
+    try:
+        info = supervisor(prefix).supervisor.getProcessInfo(name)
+    except (OSError, xmlrpc.client.Fault) as exc:
+        raise CellError(f"supervisord of cell {prefix} cannot tell about {name}: {exc}") from None
     return int(info["pid"]), str(info["statename"])

@@ -220,6 +220,9 @@ class Campaign:
         verdict.t_inject = round(time.monotonic() - self.rec.t0, 3)
         service = name.split("_", 1)[1] if name.startswith(("kill_", "freeze_")) else None
         old_pid = service_info(self.prefix, service)[0] if service else 0
+        if service and old_pid <= 0:              # never signal pid 0 (that is this whole process group)
+            verdict.notes.append(f"{service} was not running under supervisord: nothing injected")
+            return verdict
         before = self.recorder.get(ScalerStatus)
         self.shuttle.recovering = False
         t_inject = time.monotonic()
@@ -280,7 +283,8 @@ class Campaign:
                     first.setdefault(node, t)
             if len(first) == len(self.can.nodes):
                 reactions.append((max(first.values()) - t_inject, "drives: SYNC timeout EMCY on every node"))
-            last = states[[k for k in range(len(states)) if states[k].stamp <= t_inject][-1]] if states else None
+            before_fault = [js for js in states if js.stamp <= t_inject]
+            last = before_fault[-1] if before_fault else None
             if reactions and last is not None:
                 # the emulated drives move only on SYNC; a real one brakes at its limit once its watchdog fires
                 brake = float(np.max(np.abs(last.qd) / self.robot.limits.monitor_acceleration))
