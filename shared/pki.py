@@ -72,6 +72,10 @@ def make_cell_pki(directory: Path, identities: list[str], hosts: tuple[str, ...]
     from cryptography.hazmat.primitives.asymmetric import ec
     from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+    san = _san(hosts)                          # a bad host is refused before anything is written
+    for name in identities:
+        if not name or "/" in name or name.startswith("."):
+            raise ConfigError(f"identity {name!r}: expected a plain name (a service, operator, router)")
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     now = datetime.datetime.now(datetime.timezone.utc)
@@ -88,13 +92,11 @@ def make_cell_pki(directory: Path, identities: list[str], hosts: tuple[str, ...]
     (directory / "ca.pem").write_bytes(ca.public_bytes(serialization.Encoding.PEM))
     _write_key(directory / "ca-key.pem", ca_key)
     for name in identities:
-        if not name or "/" in name or name.startswith("."):
-            raise ConfigError(f"identity {name!r}: expected a plain name (a service, operator, router)")
         key = ec.generate_private_key(ec.SECP256R1())
         cert = (x509.CertificateBuilder().subject_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, name)]))
                 .issuer_name(ca_name).public_key(key.public_key()).serial_number(x509.random_serial_number())
                 .not_valid_before(start).not_valid_after(end)
-                .add_extension(_san(hosts), critical=False)
+                .add_extension(san, critical=False)
                 .add_extension(x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH,
                                                       ExtendedKeyUsageOID.CLIENT_AUTH]), critical=False)
                 .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)

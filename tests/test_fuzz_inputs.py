@@ -102,6 +102,8 @@ def hrc(*args):
     ["human", "replay", "/nonexistent.csv"], ["status", "--timeout", "zero"], ["status", "--connect", "tcp/8.8.8.8:7447"],
     ["up", "--port", "80"], ["down", "--prefix", "no/such/cell"], ["recover", "--timeout", "inf"],
     ["demo", "--phase-length", "0"], ["demo", "--seed", "x"], ["demo", "--scene", "/nonexistent.yaml", "--sim"],
+    ["certs"], ["certs", "--out", "/proc/no/such/dir"], ["certs", "--out", "/nonexistent-hrc-certs", "--hosts", ""],
+    ["faults", "--only", "unplug"], ["faults", "--timeout", "0"], ["faults", "--prefix", "bad/*/prefix"],
     ["--bogus"], [],
 ])
 def test_every_command_refuses_bad_arguments_clearly(args):
