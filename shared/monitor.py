@@ -97,7 +97,10 @@ class SafetyMonitor:
                 p_robot, p_human = res.getNearestPoint1(), res.getNearestPoint2()
                 diff = p_human - p_robot
                 norm = np.linalg.norm(diff)
-                n = diff / norm if norm > 1e-9 else np.zeros(3)
+                # the direction from the robot towards the human. In penetration (d < 0) coal's witness
+                # points lie inside the other shape, so p_human - p_robot points the other way: flipped
+                # back (else a link moving out of a person who walked into it reads as approaching)
+                n = (diff / norm if d >= 0 else -diff / norm) if norm > 1e-9 else np.zeros(3)
                 v_robot = twist[:3] + np.cross(twist[3:], p_robot - frame.translation)
                 approach = float(n @ v_robot) if norm > 1e-9 else float(np.linalg.norm(v_robot))
                 a, b = humans.segments[j]
