@@ -43,6 +43,17 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser, default_listen: str | N
     parser.add_argument("--log-level", default="INFO")
 
 
+def service_parser(name: str, doc: str | None, config: bool = True,
+                   default_listen: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser every service starts from: its docstring as the help, the Zenoh options and,
+    with config, --config (the cell configuration YAML)."""
+    parser = argparse.ArgumentParser(prog=name, description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_zenoh_arguments(parser, default_listen)
+    if config:
+        parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
+    return parser
+
+
 class ServiceShell:
     """Session, keys, liveliness token and decoding for one named service.
 

@@ -16,7 +16,6 @@ planner, severity info): why, and how long it took.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import threading
 import time
@@ -24,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from services.common import ServiceShell, add_zenoh_arguments, open_service, serve, setup_logging
+from services.common import ServiceShell, open_service, serve, service_parser, setup_logging
 from shared.collision import CollisionModel
 from shared.convert import humans_from_msg, trajectory_to_msg
 from shared.errors import HrcError
@@ -174,10 +173,7 @@ class PlannerService:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="planner", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_zenoh_arguments(parser)
-    parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
+    parser = service_parser("planner", __doc__)
     parser.add_argument("--scene", type=Path, default=None, help="static cell (default deploy/scene.yaml)")
     parser.add_argument("--seed", type=int, default=None, help="seed of OMPL's sampling (default: random)")
     parser.add_argument("--no-beta", action="store_true",

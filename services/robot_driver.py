@@ -41,7 +41,7 @@ from hwsim.drive import to_counts, to_rad
 from hwsim.emulator import EDS_PATH, NODE_IDS
 from services.driver_core import DriverCore, Feedback
 from shared.canbus import BusError, describe, open_bus
-from services.common import ServiceShell, add_zenoh_arguments, run_paced, setup_logging
+from services.common import ServiceShell, run_paced, service_parser, setup_logging
 from shared.errors import HrcError
 from shared.config import load_config
 from shared.latency import LatencyMeter
@@ -300,11 +300,9 @@ async def serve(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="robot_driver", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = service_parser("robot_driver", __doc__, config=False, default_listen="tcp/127.0.0.1:7447")
     parser.add_argument("--interface", default="udp_multicast")
     parser.add_argument("--channel", default=None)
-    add_zenoh_arguments(parser, default_listen="tcp/127.0.0.1:7447")
     parser.add_argument("--period", type=float, default=0.01, help="SYNC period (s), default 0.01")
     parser.add_argument("--config", type=Path, default=None,
                         help="cell configuration YAML (its T_r is checked against the measured latency)")

@@ -13,15 +13,13 @@ and the smallest margin seen). It commands nothing: it is the witness, not the g
 
 from __future__ import annotations
 
-import argparse
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 
-from services.common import ServiceShell, add_zenoh_arguments, open_service, run_paced, serve, setup_logging
+from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
 from shared.convert import humans_from_msg
 from shared.messages import HumanState, JointState, SafetyEvent, encode
 from shared.monitor import ReactionWindow, SafetyMonitor
@@ -82,10 +80,7 @@ class MonitorService:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="safety_monitor", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_zenoh_arguments(parser)
-    parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
+    parser = service_parser("safety_monitor", __doc__)
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     opened = open_service("safety_monitor", args)

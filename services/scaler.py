@@ -18,15 +18,13 @@ and its status. Rules of the shell:
 
 from __future__ import annotations
 
-import argparse
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 
-from services.common import ServiceShell, add_zenoh_arguments, open_service, run_paced, serve, setup_logging
+from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
 from shared.convert import humans_from_msg, trajectory_from_msg
 from shared.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, encode
 from shared.robot_model import default_robot
@@ -126,10 +124,7 @@ class Scaler:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="scaler", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_zenoh_arguments(parser)
-    parser.add_argument("--config", type=Path, default=None, help="cell configuration YAML")
+    parser = service_parser("scaler", __doc__)
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     opened = open_service("scaler", args)

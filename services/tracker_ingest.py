@@ -10,13 +10,12 @@ sample has arrived within the dropout bound, so a silent tracker is announced, n
 
 from __future__ import annotations
 
-import argparse
 import sys
 import threading
 import time
 
 
-from services.common import ServiceShell, add_zenoh_arguments, open_service, run_paced, serve, setup_logging
+from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
 from shared.convert import humans_to_msg
 from shared.humans import HumanCapsules
 from shared.messages import HumanRaw, HumanState, SafetyEvent, encode
@@ -62,9 +61,7 @@ class TrackerIngest:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="tracker_ingest", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_zenoh_arguments(parser)
+    parser = service_parser("tracker_ingest", __doc__, config=False)
     parser.add_argument("--dropout", type=float, default=0.05, help="no sample for this long: invalid (s)")
     parser.add_argument("--window", type=float, default=0.04, help="velocity fit window (s)")
     args = parser.parse_args(argv)
