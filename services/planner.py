@@ -123,9 +123,8 @@ class PlannerService:
             if goal is None or q is None:        # keep a goal until the robot's position is known
                 return
             self.new_goal = False
-        # above every version the scaler has seen: a restarted planner must not publish an old number
-        version = max(self.trajectory.version if self.trajectory is not None else 0,
-                      status.trajectory_version if status is not None else 0, self.highest_seen) + 1
+        # above every version the scaler has reported: a restarted planner must not publish an old number
+        version = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen) + 1
         following = self._following()
         started = time.perf_counter()
         if new_goal:

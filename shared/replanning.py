@@ -269,10 +269,10 @@ class Replanner:
                    humans: HumanCapsules | None, speed_now: float | None = None) -> ReplanResult | None:
         """Alg. 1 + 2: None when the horizon is clear, or when the people in the way are passing
         (``passing``); else a merged trajectory branching at the last feasible horizon configuration
-        (ReplanFailed when none can be built, saying why). speed_now: the robot's joint speed (rad/s); at rest, the new trajectory
-        starts from rest where the robot stands (a merge in nominal time would have to leave at the old
-        nominal speed, which a stopped robot cannot), and is kept only when predicted to reach the goal
-        sooner than waiting on the old one."""
+        (ReplanFailed when none can be built, saying why). speed_now: the robot's joint speed (rad/s); at
+        rest, the new trajectory starts from rest where the robot stands (a merge in nominal time would have
+        to leave at the old nominal speed, which a stopped robot cannot), and is kept only when predicted
+        to reach the goal sooner than waiting on the old one."""
         started = time.perf_counter()
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
         # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
@@ -287,24 +287,21 @@ class Replanner:
         # allows full speed, half of it, the bare margin), each branching at the last horizon sample that
         # still has that clearance: earlier, with room to keep it.
         q_horizon = old.sample(check.s)[0]
-        full = self.full_speed_inflation()
+
+        def branch_at(inflation: float) -> float:
+            ok = self.collision.clearances(q_horizon, humans, inflation) > self.collision.margins.tolerance
+            first_bad = int(np.argmin(ok)) if not ok.all() else len(ok)
+            s_branch = float(check.s[first_bad - 1]) if first_bad > 0 else s_now
+            if s_branch < s_now + self.options.lead:
+                # too close to branch in front of it: branch at the planning lead; the new path may not come
+                # closer to the human than that point is (the scaling layer keeps the speed safe)
+                s_branch = min(old.duration, s_now + self.options.lead)
+            return s_branch
+
         errors = []
-        for inflation in (full, full / 2, 0.0):
-            try:
-                if at_rest:
-                    result = self._rest_plan(old, s_now, q_goal, humans, inflation, "horizon")
-                else:
-                    ok = self.collision.clearances(q_horizon, humans, inflation) > self.collision.margins.tolerance
-                    first_bad = int(np.argmin(ok)) if not ok.all() else len(ok)
-                    s_branch = float(check.s[first_bad - 1]) if first_bad > 0 else s_now
-                    if s_branch < s_now + self.options.lead:
-                        # too close to branch in front of it: branch at the planning lead; the new path may not
-                        # come closer to the human than that point is (the scaling layer keeps the speed safe)
-                        s_branch = min(old.duration, s_now + self.options.lead)
-                    result = self.replan(old, s_now, q_goal, humans, "horizon", inflation=inflation,
-                                         s_branch=s_branch)
-            except (ReplanFailed, PlanningError, TimingError) as exc:
-                errors.append(f"inflation {inflation:.2f} m: {exc}")
+        for inflation, result, why in self._ladder(old, s_now, q_goal, humans, "horizon", at_rest, branch_at):
+            if result is None:
+                errors.append(f"inflation {inflation:.2f} m: {why}")
                 continue
             # Moving, the old path runs into the person: any way round is taken. At rest, a new plan from
             # where the robot stands must be predicted faster than waiting (people walk on: without this a
@@ -319,6 +316,24 @@ class Replanner:
                                 result.inflation, f"path blocked at s={blocked:.2f}, {how}, kept "
                                 f"{result.inflation:.2f} m extra{told}", result.from_rest)
         raise ReplanFailed(f"path blocked at s={blocked:.2f}; " + "; ".join(errors))
+
+    def _ladder(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                reason: str, at_rest: bool, branch_at):
+        """The inflation ladder of a replan (the separation at which a person standing still allows full
+        speed, half of it, the bare margin): per rung (inflation, the new trajectory or None, why none).
+        At rest a plan from rest where the robot stands; moving, a merge branching at branch_at(inflation)."""
+        full = self.full_speed_inflation()
+        for inflation in (full, full / 2, 0.0):
+            try:
+                if at_rest:
+                    result = self._rest_plan(old, s_now, q_goal, humans, inflation, reason)
+                else:
+                    result = self.replan(old, s_now, q_goal, humans, reason, inflation=inflation,
+                                         s_branch=branch_at(inflation))
+            except (ReplanFailed, PlanningError, TimingError) as exc:
+                yield inflation, None, str(exc)
+                continue
+            yield inflation, result, ""
 
     def _rest_plan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                    inflation: float, reason: str) -> ReplanResult:
@@ -382,16 +397,10 @@ class Replanner:
         at_rest = speed_now is not None and speed_now < self.options.rest_speed
         stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
         s_branch = min(old.duration, s_now + self.options.lead + stopping)
-        full = self.full_speed_inflation()
         tried = []
-        for inflation in (full, full / 2, 0.0):
-            try:
-                if at_rest:
-                    result = self._rest_plan(old, s_now, q_goal, humans, inflation, "beta")
-                else:
-                    result = self.replan(old, s_now, q_goal, humans, "beta", inflation=inflation, s_branch=s_branch)
-            except (ReplanFailed, PlanningError, TimingError) as exc:
-                tried.append(f"inflation {inflation:.2f} m: {exc}")
+        for inflation, result, why in self._ladder(old, s_now, q_goal, humans, "beta", at_rest, lambda _: s_branch):
+            if result is None:
+                tried.append(f"inflation {inflation:.2f} m: {why}")
                 continue
             predicted = self._worth_it(result, old, s_now, humans, baseline)
             if predicted is not None:
