@@ -308,7 +308,9 @@ class Campaign:
             v.detected_s, v.detected_by = round(first[0], 3), first[1]
         if v.expect == "slow":
             v.stop_s = v.detected_s               # the bound is on the reaction: the speed follows within T_r
-        v.monitor_violations = sum(1 for e in events if e.source == "safety_monitor" and e.event == "ssm_violation")
+        reported = [e for e in events if e.source == "safety_monitor" and e.event == "ssm_violation"]
+        v.monitor_violations = len(reported)
+        v.notes += [f"monitor: t+{e.stamp - t_inject:.2f}s {e.text}" for e in reported[:3]]
         samples = [(js.stamp, js.q, js.qd) for js in states if js.stamp >= t_inject - 0.5]
         found = truth_violations(self.monitor, samples, lambda t: self.human.at(t - self.rec.t0))
         v.truth_violations = len(found)
