@@ -63,6 +63,7 @@ class Drive:
     _fresh_setpoint: bool = False
     _syncs_without_setpoint: int = 0
     last_sync: float | None = None
+    _moved_at: float | None = None             # the last braking step without SYNC (watchdog)
     fault_code: int = 0
 
     def boot(self, position: float) -> None:
@@ -108,17 +109,33 @@ class Drive:
 
     def watchdog(self, now: float) -> list[int]:
         """Called between SYNCs: once SYNC has run, no SYNC for sync_timeout_factor periods while the drive is
-        powered (ready, switched on, enabled, quick stop) is a fault."""
+        powered (ready, switched on, enabled, quick stop) is a fault. Without SYNC the drive keeps its own
+        clock: the fault reaction then brakes in real time (a drive does not wait for a dead master to finish
+        its stop), so the joint is at rest when a new master brings SYNC back."""
         powered = (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE)
-        if self.last_sync is None or self.state not in powered:
+        if self.last_sync is None or now - self.last_sync <= self.limits.sync_timeout_factor * self.limits.period:
             return []
-        if now - self.last_sync > self.limits.sync_timeout_factor * self.limits.period:
-            return self.raise_fault(EMCY_SYNC_TIMEOUT)
-        return []
+        codes = self.raise_fault(EMCY_SYNC_TIMEOUT) if self.state in powered else []
+        if self.state is State.FAULT_REACTION_ACTIVE:
+            if self._moved_at is None:            # until the watchdog fired it went on at its speed
+                self.position += self.velocity * (now - self.last_sync)
+            else:
+                self._brake_for(now - self._moved_at)
+            self._moved_at = now
+        return codes
+
+    def _brake_for(self, dt: float) -> None:
+        """dt seconds of braking at the acceleration limit (the fault reaction's own time law)."""
+        v, a = self.velocity, self.limits.acceleration
+        t = min(dt, abs(v) / a) if a > 0 else 0.0
+        self.position += v * t - math.copysign(0.5 * a * t * t, v)
+        self.velocity = 0.0 if t < dt or abs(v) <= a * t else v - math.copysign(a * t, v)
+        if self.velocity == 0.0:
+            self.sm.motion_stopped()
 
     def on_sync(self, now: float) -> list[int]:
         """One interpolation period: protections, then motion. Returns EMCY codes to send."""
-        self.last_sync = now
+        self.last_sync, self._moved_at = now, None
         lim = self.limits
         emcy: list[int] = []
         if self.interpolating:

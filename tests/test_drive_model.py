@@ -100,3 +100,20 @@ def test_disabled_drive_does_not_move():
     d.on_setpoint(to_counts(0.5))
     d.on_sync(0.0)
     assert d.position == 0.3 and d.velocity == 0.0
+
+
+def test_without_sync_the_fault_reaction_brakes_on_the_drives_own_clock():
+    d = enabled_drive()
+    for k in range(40):                                   # moving at 1.2 rad/s
+        d.on_setpoint(to_counts(1.2 * T * k))
+        d.on_sync(k * T)
+    t_last, v0, p0 = 39 * T, d.velocity, d.position
+    assert v0 == pytest.approx(1.2, abs=0.05)
+    assert d.watchdog(t_last + 0.07) == [EMCY_SYNC_TIMEOUT] and d.state is State.FAULT_REACTION_ACTIVE
+    for k in range(1, 80):                                # the master is gone: no SYNC, only the drive's clock
+        d.watchdog(t_last + 0.07 + k * 0.005)
+    assert d.state is State.FAULT and d.velocity == 0.0
+    # on at its speed until the watchdog fired, then braked at the acceleration limit
+    assert d.position - p0 == pytest.approx(v0 * 0.07 + v0 ** 2 / (2 * d.limits.acceleration), rel=1e-6)
+    d.on_sync(2.0)                                        # a new master: nothing left to move
+    assert d.velocity == 0.0
