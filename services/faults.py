@@ -60,6 +60,10 @@ DROP_NODE, HEARTBEAT_NODE = 4, 5
 # d_min of every link on the path. A jump further in (0.6 m was tried) teleports the person next to the
 # moving flange, where no system could keep d_min and the monitor rightly counts it.
 JUMP = 0.3
+# ... made while the person is this far (m) from the axis, so that where they are shown (1.3 m and more,
+# velocity unknown, so the ISO 13855 1.6 m/s) is still beyond the protective distance of the moving robot:
+# a person shown inside it has not been seen coming, which speed and separation monitoring cannot answer
+JUMP_FROM = 1.6
 
 
 @dataclass(frozen=True)
@@ -192,6 +196,17 @@ class Campaign:
             time.sleep(0.01)
         return False
 
+    def wait_person_beyond(self, distance: float, timeout: float = 3.0) -> bool:
+        """Wait until the scripted person is at least `distance` (m) from the robot's axis; False after
+        timeout (the person walks back and forth in 2 s)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            ends = self.human.at(time.monotonic() - self.rec.t0).segments.reshape(-1, 3)
+            if float(np.linalg.norm(ends[:, :2], axis=1).min()) >= distance:
+                return True
+            time.sleep(0.005)
+        return False
+
     def _service_back(self, service: str, old_pid: int, killed: bool, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -221,6 +236,8 @@ class Campaign:
         exp = self.expect[name]
         verdict = FaultVerdict(name, exp.expect, exp.bound_s, exp.why)
         verdict.moving_at_injection = self.wait_moving()
+        if name == "human_jump":
+            self.wait_person_beyond(JUMP_FROM)
         verdict.t_inject = round(time.monotonic() - self.rec.t0, 3)
         service = name.split("_", 1)[1] if name.startswith(("kill_", "freeze_")) else None
         old_pid = service_info(self.prefix, service)[0] if service else 0
