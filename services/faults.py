@@ -307,11 +307,11 @@ class Campaign:
             before_fault = [js for js in states if js.stamp <= t_inject]
             last = before_fault[-1] if before_fault else None
             if reactions and last is not None:
-                # the emulated drives move only on SYNC; a real one brakes at its limit once its watchdog fires
+                # no TPDO without SYNC: the drives brake at their limit once their watchdog fires, unseen
                 brake = float(np.max(np.abs(last.qd) / self.robot.limits.monitor_acceleration))
                 v.stop_s = round(min(r[0] for r in reactions) + brake, 3)
                 v.notes.append("stop_s = SYNC-watchdog EMCY + braking from the last measured speed at the "
-                               "drives' deceleration (the emulated drives stop moving with the last SYNC)")
+                               "drives' deceleration (without SYNC the drives send no TPDO to measure it by)")
         elif v.name == "human_jump" and before is not None and before.min_separation is not None:
             nearer = [s for s in statuses if s.min_separation is not None
                       and s.min_separation < before.min_separation - 2 * JUMP / 3]
