@@ -31,6 +31,11 @@ def test_shipped_configs_keep_multicast_scouting_off():
     for path in paths:                     # parsed as zenoh parses them, whatever the JSON5 style
         config = zenoh.Config.from_file(str(path))
         assert json.loads(config.get_json("scouting/multicast/enabled")) is False, path
+        for kind in ("listen", "connect"):          # as shipped, loopback only (the cell's address goes in there)
+            endpoints = json.loads(config.get_json(f"{kind}/endpoints"))
+            if isinstance(endpoints, dict):         # zenoh's per-mode form ({"router": [...], "peer": [...]})
+                endpoints = [e for per_mode in endpoints.values() for e in per_mode or []]
+            assert check_endpoints(endpoints) == endpoints, path
 
 
 def test_two_clients_meet_through_the_router():
