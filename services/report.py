@@ -19,7 +19,7 @@ from shared.config import CellConfig
 from shared.convert import humans_from_msg
 from shared.messages import (HumanState, JointCommand, JointState, LatencyReport, SafetyEvent, ScalerStatus,
                              TrajectoryMsg)
-from shared.monitor import SafetyMonitor
+from shared.monitor import HumanHistory, SafetyMonitor
 from shared.robot_model import RobotModel
 
 MOVING_ALPHA = 0.01          # a stall ends once the robot moves on at more than this fraction of its speed
@@ -74,17 +74,16 @@ def replan_stalls(statuses: list[ScalerStatus], t0: float = 0.0) -> list[dict]:
 
 
 def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dict[str, np.ndarray]:
-    """At every measured joint state, with the human state last received before it: separation, and the
-    robot's approach speed against its ISO/TS 15066 limit at the pair closest to its limit (the
-    independent monitor's check, recomputed for the figures)."""
+    """At every measured joint state, with the human state of its moment (shared.monitor.HumanHistory, the
+    monitor service's own pairing): separation, and the robot's approach speed against its ISO/TS 15066
+    limit at the pair closest to its limit (the independent monitor's check, recomputed for the figures)."""
     monitor = SafetyMonitor(robot, config.ssm)
-    humans = sorted(rec.human_states, key=lambda m: m.stamp)
-    stamps = np.array([m.stamp for m in humans])
+    history = HumanHistory(span=np.inf)
+    for msg in rec.human_states:
+        history.add(msg.sample_stamp, humans_from_msg(msg))
     rows = []
     for js in rec.joint_states:
-        i = int(np.searchsorted(stamps, js.stamp, side="right")) - 1
-        caps = humans_from_msg(humans[i]) if i >= 0 else None
-        r = monitor.check(js.q, js.qd, caps)
+        r = monitor.check(js.q, js.qd, history.at(js.stamp))
         rows.append((js.stamp - rec.t0, r.min_separation, r.approach_speed, r.limit, r.min_margin))
     arr = np.array(rows, dtype=float).reshape(-1, 5)
     return {"t": arr[:, 0], "separation": arr[:, 1], "approach": arr[:, 2], "limit": arr[:, 3], "margin": arr[:, 4]}

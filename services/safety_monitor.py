@@ -1,12 +1,13 @@
-"""safety_monitor: an independent process that checks every measured joint state against the latest
-human state (shared.monitor: coal distances, pinocchio Jacobians, the standard's closest-point check)
+"""safety_monitor: an independent process that checks every measured joint state against the human state
+of the moment it was measured (shared.monitor.HumanHistory: the newest sample taken at or before it, so a
+monitor that falls behind still pairs them as they were; shared.monitor: coal distances, pinocchio Jacobians, the standard's closest-point check)
 and counts violations of the ISO/TS 15066 speed limit (an exceedance the robot does not answer as the
 formula assumes: react within T_r, then brake to a stop within T_s; see shared.monitor.ReactionWindow)
 and of d_min (at once).
 
 Each violation goes out as a SafetyEvent (event 'ssm_violation', severity stop; at most ten a second),
 and once a second a summary (event 'monitor_summary', value = violations so far, text with the checks
-and the smallest margin seen). It commands nothing: it is the witness, not the guard.
+the smallest margin seen, and how far behind the checks ran). It commands nothing: it is the witness, not the guard.
 
     python -m services.safety_monitor --connect tcp/127.0.0.1:7447
 """
@@ -22,7 +23,7 @@ import numpy as np
 from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
 from shared.convert import humans_from_msg
 from shared.messages import HumanState, JointState, SafetyEvent, encode
-from shared.monitor import ReactionWindow, SafetyMonitor
+from shared.monitor import HumanHistory, ReactionWindow, SafetyMonitor
 from shared.robot_model import default_robot
 
 
@@ -31,8 +32,9 @@ class MonitorService:
         self.shell, self.monitor = shell, monitor
         self.window = ReactionWindow(monitor.ssm.reaction_time, monitor.ssm.stopping_time)
         self.lock = threading.Lock()
-        self.humans = None
+        self.humans = HumanHistory()
         self.checks = 0
+        self.max_lag = 0.0          # s: how far behind the newest joint state checked was, since the last summary
         self.violations = 0
         self.min_margin = np.inf
         self.min_separation = np.inf
@@ -44,7 +46,7 @@ class MonitorService:
 
     def on_humans(self, msg: HumanState) -> None:
         with self.lock:
-            self.humans = humans_from_msg(msg)
+            self.humans.add(msg.sample_stamp, humans_from_msg(msg))
 
     def _event(self, event: str, severity: str, text: str, value: float | None = None) -> None:
         self.seq += 1
@@ -53,10 +55,11 @@ class MonitorService:
 
     def on_joints(self, msg: JointState) -> None:
         with self.lock:
-            humans = self.humans
+            humans = self.humans.at(msg.stamp)
         result = self.monitor.check(msg.q, msg.qd, humans)
         with self.lock:
             self.checks += 1
+            self.max_lag = max(self.max_lag, time.monotonic() - msg.stamp)
             self.min_margin = min(self.min_margin, result.min_margin)
             self.min_separation = min(self.min_separation, result.min_separation)
             violations = self.window.update(msg.stamp, result)
@@ -75,7 +78,9 @@ class MonitorService:
     def summary(self, now: float) -> None:
         with self.lock:
             text = (f"{self.checks} checks, {self.violations} violations, smallest margin "
-                    f"{self.min_margin:.3f} m/s, smallest separation {self.min_separation:.3f} m")
+                    f"{self.min_margin:.3f} m/s, smallest separation {self.min_separation:.3f} m, "
+                    f"checked up to {self.max_lag * 1e3:.0f} ms behind")
+            self.max_lag = 0.0
             self._event("monitor_summary", "info", text, float(self.violations))
 
 

@@ -19,6 +19,8 @@ witness points being arbitrary: there any motion of the robot's point counts as 
 
 from __future__ import annotations
 
+from bisect import bisect_right
+from collections import deque
 from dataclasses import dataclass, field
 
 import coal
@@ -158,3 +160,44 @@ class ReactionWindow:
                 late.append(v)
         self._episodes = episodes
         return late + [v for v in result.violations if v.kind == "separation"]
+
+
+class HumanHistory:
+    """The human states of the last `span` seconds, by the time their sample was taken, so that each joint
+    state is checked against the person *as they were when it was measured*.
+
+    A monitor that falls behind (it is niced below the control loop, and a check costs a few ms) works
+    through a backlog of joint states while new human states keep arriving; checking an old joint state
+    against the newest person pairs a robot at speed with a person who has since turned away (a false
+    exceedance) or with one who has since come nearer (a false alarm the other way). With the history the
+    pairing is the one the scaling layer faced: the newest sample taken at or before the joint state.
+    """
+
+    def __init__(self, span: float = 2.0) -> None:
+        self.span = span
+        self._stamps: deque[float] = deque()
+        self._states: deque[HumanCapsules | None] = deque()
+
+    def add(self, sample_stamp: float, humans: HumanCapsules | None) -> None:
+        """Keep a human state (None: the track is not valid) taken at sample_stamp (monotonic s). Samples
+        out of order are placed in order; those replaced more than the span ago are forgotten."""
+        if self._stamps and sample_stamp < self._stamps[-1]:
+            stamps, states = list(self._stamps), list(self._states)
+            k = bisect_right(stamps, sample_stamp)
+            stamps.insert(k, sample_stamp)
+            states.insert(k, humans)
+            self._stamps, self._states = deque(stamps), deque(states)
+        else:
+            self._stamps.append(sample_stamp)
+            self._states.append(humans)
+        while len(self._stamps) > 1 and self._stamps[1] <= self._stamps[-1] - self.span:   # keep the one in force
+            self._stamps.popleft()
+            self._states.popleft()
+
+    def at(self, stamp: float) -> HumanCapsules | None:
+        """The person at `stamp`: the newest sample taken at or before it. A joint state older than every
+        kept sample gets the oldest kept (the nearest in time there is); none kept: None."""
+        if not self._stamps:
+            return None
+        k = bisect_right(self._stamps, stamp)
+        return self._states[max(k - 1, 0)]

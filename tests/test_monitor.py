@@ -123,3 +123,34 @@ def test_speed_exceedances_count_only_when_the_robot_does_not_react_and_brake():
     assert len(slow.update(0.41, speeding(0.005))) == 1         # still approaching after T_r + T_s
     too_close = MonitorResult(violations=[Violation("prbt_link_4", 0, "separation", 0.01, 0.0, -1.0)])
     assert len(window.update(0.29, too_close)) == 1             # d_min at once
+
+
+def test_a_lagging_monitor_pairs_each_joint_state_with_the_person_of_its_moment():
+    from shared.monitor import HumanHistory
+
+    q = Q_START
+    points, jac = ROBOT.capsule_kinematics(q)
+    qd = np.array([-1.5, 0, 0, 0, 0, 0])
+    heading = jac[-1, 0] @ qd
+    flange = points[-1, 0]
+
+    def person_at(distance):
+        p = flange + distance * heading / np.linalg.norm(heading)
+        return HumanCapsules.from_arrays([[p, p + [0, 0, 0.3]]], [0.05], np.zeros((1, 2, 3)), [True])
+
+    near, far = person_at(0.25), person_at(3.0)
+    history = HumanHistory(span=2.0)
+    assert history.at(1.0) is None                               # nothing yet: nothing to check against
+    history.add(10.0, far)
+    history.add(10.5, near)                                      # the person came nearer at 10.5 s
+    history.add(10.2, far)                                       # a late sample goes in its place
+    # the joint state measured at 10.3 s, checked after 10.5 s: the person was still far then
+    assert history.at(10.3) is far
+    assert MONITOR.check(q, qd, history.at(10.3)).violations == []
+    # ... while the one measured at 10.6 s is judged against the nearer person: exceedances are not hidden
+    assert any(v.kind == "speed" for v in MONITOR.check(q, qd, history.at(10.6)).violations)
+    assert history.at(9.0) is far                                # older than all: the oldest kept
+    history.add(13.0, None)                                      # a lost track; older samples forgotten
+    assert history.at(12.9) is near and history.at(13.1) is None
+    history.add(15.5, far)
+    assert history.at(12.9) is None                              # 10.5 s fell out of the 2 s span
