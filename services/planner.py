@@ -7,7 +7,8 @@ Inputs (the latest of each is kept): goals, human states, joint states, scaler s
 * a replan request (beta in the scaler status, at most every beta_cooldown): Replanner.on_beta, which
   keeps the old trajectory unless the new one is predicted to be 10 % faster;
 * every new human state (at most every horizon_period): the horizon check, and a merge when the path
-  ahead is blocked (failed replans back off).
+  ahead is blocked and the way round is predicted faster (failed replans back off).
+Both predictions are told how long the scaler has been asking for a replan (HoldClock).
 Every published trajectory and every refusal is reported as an event on <prefix>/safety/events (source
 planner, severity info): why, and how long it took.
 
@@ -29,7 +30,7 @@ from shared.convert import humans_from_msg, trajectory_to_msg
 from shared.errors import HrcError
 from shared.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 from shared.planner import JointPlanner, PlannerOptions, PlanningError
-from shared.replanning import ReplanFailed, Replanner, ReplanResult
+from shared.replanning import HoldClock, ReplanFailed, Replanner, ReplanResult
 from shared.robot_model import default_robot
 from shared.scene import Scene, load_scene
 from shared.timing import TimingError
@@ -52,6 +53,7 @@ class PlannerService:
         self.q = None
         self.status: ScalerStatus | None = None
         self.highest_seen = 0              # the highest trajectory version the scaler reported following
+        self.held = HoldClock()            # how long the scaler has been asking for a replan (s)
         self.trajectory: Trajectory | None = None
         self.goal_id = 0
         self.seq = 0
@@ -80,6 +82,7 @@ class PlannerService:
     def on_status(self, msg: ScalerStatus) -> None:
         with self.lock:
             self.status = msg
+            self.held.update(time.monotonic(), msg.beta)
             self.highest_seen = max(self.highest_seen, msg.trajectory_version)
         if msg.beta:
             self.wake.set()
@@ -120,6 +123,7 @@ class PlannerService:
         with self.lock:
             goal, new_goal, humans, q, status = self.goal, self.new_goal, self.humans, self.q, self.status
             human_seq = self.human_seq
+            waited = self.held.waited(time.monotonic())
             if goal is None or q is None:        # keep a goal until the robot's position is known
                 return
             self.new_goal = False
@@ -147,7 +151,7 @@ class PlannerService:
             state["next_beta"] = now + self.beta_cooldown
             speed = float(np.abs(traj.sample(s)[1]).max() * status.alpha)
             try:
-                self._apply(self.replanner.on_beta(traj, s, goal.q, humans, speed), traj, started)
+                self._apply(self.replanner.on_beta(traj, s, goal.q, humans, speed, waited), traj, started)
             except ReplanFailed as exc:
                 self._event("replan_refused", f"beta: {exc}"[:500], (time.perf_counter() - started) * 1e3)
             return
@@ -156,7 +160,7 @@ class PlannerService:
             state["next_horizon"] = now + self.horizon_period
             try:
                 speed = float(np.abs(traj.sample(s)[1]).max() * status.alpha) if status is not None else None
-                result = self.replanner.on_horizon(traj, s, goal.q, humans, speed)
+                result = self.replanner.on_horizon(traj, s, goal.q, humans, speed, waited)
                 if result is not None:
                     self._apply(result, traj, started)
             except ReplanFailed as exc:

@@ -96,6 +96,23 @@ class ReplanFailed(HrcError):
     """No acceptable new trajectory; the old one stays (and the scaling layer keeps the robot safe)."""
 
 
+class HoldClock:
+    """How long the scaling layer has been asking for a replan (beta raised without a break), in s: the
+    `waited` of a prediction (Replanner.predicted_time). Pure; fed the beta flag of each status."""
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+
+    def update(self, now: float, beta: bool) -> None:
+        if not beta:
+            self.since = None
+        elif self.since is None:
+            self.since = now
+
+    def waited(self, now: float) -> float:
+        return 0.0 if self.since is None else max(0.0, now - self.since)
+
+
 @dataclass(frozen=True)
 class ReplanOptions:
     """lookback: nominal seconds of old path kept ahead of the branch point as room to slow down (and
@@ -105,8 +122,13 @@ class ReplanOptions:
     inflated_budget (s): RRT-Connect's time for an attempt with extra clearance (when such a path exists
     it is found fast; the bare-margin attempt keeps the planner's full budget);
     rest_speed (rad/s): below it the robot counts as at rest for a replan; extrapolation (s): how far
-    ahead the prediction moves people on at their tracked velocities; escape_*: how the escape
-    waypoint is searched (random joint offsets of growing radius, seeded)."""
+    ahead the prediction moves people on at their tracked velocities; patience (s): how long people in
+    the way are expected to stay there before the robot has waited at all (the cap on a prediction's
+    delay is patience + the time already held, see predicted_time). 0 is the ski-rental rule: keep the
+    old path, and once held as long as the way round costs extra, go round; never worse than twice the
+    better of the two, however long the person stays (a cell where people are known to stay at a station
+    may set more); escape_*: how the escape waypoint is searched (random joint offsets of growing
+    radius, seeded)."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
     lead: float = 0.1
@@ -116,6 +138,7 @@ class ReplanOptions:
     inflated_budget: float = 0.1
     rest_speed: float = 0.02
     extrapolation: float = 1.0
+    patience: float = 0.0
     escape_radii: tuple[float, ...] = (0.2, 0.4, 0.8)
     escape_alpha: float = 0.2
     escape_samples: int = 64
@@ -265,14 +288,16 @@ class Replanner:
                 return False
         return True
 
-    def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray,
-                   humans: HumanCapsules | None, speed_now: float | None = None) -> ReplanResult | None:
+    def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                   speed_now: float | None = None, waited: float = 0.0) -> ReplanResult | None:
         """Alg. 1 + 2: None when the horizon is clear, or when the people in the way are passing
         (``passing``); else a merged trajectory branching at the last feasible horizon configuration
         (ReplanFailed when none can be built, saying why). speed_now: the robot's joint speed (rad/s); at
         rest, the new trajectory starts from rest where the robot stands (a merge in nominal time would have
-        to leave at the old nominal speed, which a stopped robot cannot), and is kept only when predicted
-        to reach the goal sooner than waiting on the old one."""
+        to leave at the old nominal speed, which a stopped robot cannot). Either way the new trajectory is
+        kept only when predicted to reach the goal sooner than the old one (on which the scaling layer holds
+        the robot back from the person for as long as they stay: safe, only slower). waited: as in
+        predicted_time."""
         started = time.perf_counter()
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
         # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
@@ -281,7 +306,7 @@ class Replanner:
             return None
         blocked = float(check.s[check.first_infeasible])
         at_rest = speed_now is not None and speed_now < self.options.rest_speed
-        baseline = self.predicted_time(old, s_now, humans) if at_rest else np.inf
+        baseline = self.predicted_time(old, s_now, humans, waited)
         # A path that only just clears the human is collision-free but slow: within the SSM's fixed distance
         # an approaching link gets alpha = 0. So the inflation ladder of a beta replan (the separation that
         # allows full speed, half of it, the bare margin), each branching at the last horizon sample that
@@ -303,18 +328,19 @@ class Replanner:
             if result is None:
                 errors.append(f"inflation {inflation:.2f} m: {why}")
                 continue
-            # Moving, the old path runs into the person: any way round is taken. At rest, a new plan from
-            # where the robot stands must be predicted faster than waiting (people walk on: without this a
-            # stopped robot next to a moving person re-planned every few ticks, each plan blocked again)
-            predicted = self._worth_it(result, old, s_now, humans, baseline, gain=0.0) if at_rest else None
-            if at_rest and predicted is None:
-                errors.append(f"inflation {inflation:.2f} m: from rest not faster than the old {baseline:.2f} s")
+            # The way round must be predicted faster than keeping the old path. People walk on: without
+            # this a stopped robot next to a moving person re-planned every few ticks, each plan blocked
+            # again, and a moving one took long detours round a person who had gone by the time it got there
+            predicted = self._worth_it(result, old, s_now, humans, baseline, gain=0.0, waited=waited)
+            if predicted is None:
+                errors.append(f"inflation {inflation:.2f} m: {'from rest ' if at_rest else ''}not faster than the "
+                              f"old {baseline:.2f} s")
                 continue
             how = "from rest" if result.from_rest else f"merged at s={result.junction:.2f}"
-            told = f", predicted {predicted:.2f} s instead of {baseline:.2f} s" if predicted is not None else ""
             return ReplanResult(result.trajectory, result.junction, result.reason, time.perf_counter() - started,
                                 result.inflation, f"path blocked at s={blocked:.2f}, {how}, kept "
-                                f"{result.inflation:.2f} m extra{told}", result.from_rest)
+                                f"{result.inflation:.2f} m extra, predicted {predicted:.2f} s instead of "
+                                f"{baseline:.2f} s", result.from_rest)
         raise ReplanFailed(f"path blocked at s={blocked:.2f}; " + "; ".join(errors))
 
     def _ladder(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
@@ -352,11 +378,15 @@ class Replanner:
         sp = float(protective_separation_distance(robot_speed, 0.0, self.ssm))
         return max(0.0, sp - self.collision.min_separation - self.collision.margins.human)
 
-    def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None) -> float:
+    def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None,
+                       waited: float = 0.0) -> float:
         """Nominal remaining time stretched by the SSM: sum over samples of ds / alpha(s), alpha the
         safe bound with the humans where they will be when the robot gets there: moved on at their tracked
         velocities for up to options.extrapolation seconds, then standing (unknown velocities: standing
-        from now). Floored at alpha_floor, so a blocked path costs a lot but stays finite."""
+        from now). Floored at alpha_floor. The stretch (the delay over the nominal time) is capped at
+        options.patience + waited: people in the way do not stay there for ever (uncapped, a path a person
+        stands on now is predicted blocked for good, and any detour wins however long it is), while a robot
+        held for `waited` seconds already expects to wait longer (so a person who stays is gone round)."""
         step = self.options.prediction_step
         samples = np.arange(s_from, trajectory.duration, step)
         if humans is None or samples.size == 0:
@@ -368,21 +398,22 @@ class Replanner:
             there = humans.extrapolated(min(total, self.options.extrapolation)) if moving else humans
             alpha = ssm_alpha_bound(self.collision.robot, qk, dqk, there, self.ssm)
             total += step / max(alpha, self.options.alpha_floor)
-        return total
+        nominal = step * samples.size
+        return nominal + min(total - nominal, self.options.patience + waited)
 
     def _worth_it(self, result: ReplanResult, old: Trajectory, s_now: float, humans: HumanCapsules | None,
-                  baseline: float, gain: float | None = None) -> float | None:
+                  baseline: float, gain: float | None = None, waited: float = 0.0) -> float | None:
         """The new trajectory's predicted time to the goal when it beats baseline (the old one's) by
         gain (default min_gain), else None."""
         gain = self.options.min_gain if gain is None else gain
         if result.from_rest:
-            predicted = self.predicted_time(result.trajectory, 0.0, humans)
+            predicted = self.predicted_time(result.trajectory, 0.0, humans, waited)
         else:
-            predicted = self.predicted_time(result.trajectory, result.junction, humans) + (result.junction - s_now)
+            predicted = self.predicted_time(result.trajectory, result.junction, humans, waited) + (result.junction - s_now)
         return predicted if predicted <= (1.0 - gain) * baseline else None
 
     def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-                speed_now: float | None = None) -> ReplanResult:
+                speed_now: float | None = None, waited: float = 0.0) -> ReplanResult:
         """A replan that is worth it, or ReplanFailed saying why the old trajectory stays.
 
         speed_now: the robot's actual joint speed (rad/s, max over joints; None: moving at the nominal
@@ -390,10 +421,10 @@ class Replanner:
         continuous in the actual velocity, and free to leave in any direction. Moving, the merge must be
         continuous in nominal time, so the new part starts with the old nominal velocity: the branch point
         is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
-        new path leaves it."""
+        new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time)."""
         started = time.perf_counter()
         v_now = old.sample(float(s_now))[1]
-        baseline = self.predicted_time(old, s_now, humans)
+        baseline = self.predicted_time(old, s_now, humans, waited)
         at_rest = speed_now is not None and speed_now < self.options.rest_speed
         stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
         s_branch = min(old.duration, s_now + self.options.lead + stopping)
@@ -402,7 +433,7 @@ class Replanner:
             if result is None:
                 tried.append(f"inflation {inflation:.2f} m: {why}")
                 continue
-            predicted = self._worth_it(result, old, s_now, humans, baseline)
+            predicted = self._worth_it(result, old, s_now, humans, baseline, waited=waited)
             if predicted is not None:
                 return ReplanResult(result.trajectory, result.junction, "beta", time.perf_counter() - started,
                                     result.inflation, f"predicted {predicted:.2f} s instead of {baseline:.2f} s",

@@ -9,8 +9,10 @@ the ISO limit at the closest points, the react-within-T_r-then-brake allowance),
 `command_exceedances` counts, stricter, every command whose conservative end-point bound exceeds the
 limit at all. The robot is taken to follow its command exactly (the drive model comes with the CAN
 emulator). With charge_planning, the planner's measured compute time passes on the simulated clock
-before its result is used (the robot keeps executing the old trajectory meanwhile, and a new shuttle
-waits for its plan); without it, results are used in the cycle that asked for them.
+before its result is used (the robot keeps executing the old trajectory meanwhile, and a new shuttle,
+planned in the cycle its predecessor ends, waits for its plan); without it, results are used in the
+cycle that asked for them. The predictions are told how long the scaling layer has been asking for a
+replan (HoldClock), as the planner service tells them.
 
 The speed policy is a parameter: the scaling layer (default), or any ScalingLayer subclass such as the
 zone-based baseline (shared.zones). Same core code as the services: ScalingLayer, Replanner.
@@ -25,7 +27,7 @@ import numpy as np
 
 from shared.config import CellConfig
 from shared.planner import PlanningError
-from shared.replanning import ReplanFailed, Replanner
+from shared.replanning import HoldClock, ReplanFailed, Replanner
 from shared.timing import TimingError
 from shared.robot_model import RobotModel
 from shared.monitor import MonitorResult, ReactionWindow, SafetyMonitor
@@ -123,6 +125,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     leg = 0
     layer.set_trajectory(straight_line_trajectory(ends[0], ends[1], lim.velocity, lim.acceleration))
     beta_before = False
+    held = HoldClock()                # how long the scaling layer has been asking for a replan
     next_beta_try = next_horizon_try = 0.0
     pending_leg = False
     busy_until = -1.0                 # charge_planning: the planner is computing until then
@@ -153,6 +156,23 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             return
         take(t, res, reason, elapsed)
 
+    def plan_leg(t: float, goal: np.ndarray, humans) -> None:
+        """The next shuttle, planned around the humans from where the last one ended."""
+        nonlocal busy_until, waiting, pending_leg
+        started = time.perf_counter()
+        try:
+            traj = replanner.plan_fresh(layer.trajectory.positions[-1], goal, humans, layer.trajectory.version + 1)
+            if charge_planning:
+                busy_until = t + time.perf_counter() - started
+                waiting = (busy_until, traj, "goal", 0.0)
+            else:
+                layer.set_trajectory(traj)
+                pending_leg = False
+        except (PlanningError, TimingError) as exc:       # goal blocked for now: hold and try again
+            if charge_planning:
+                busy_until = t + time.perf_counter() - started
+            log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
+
     def take(t: float, res, reason: str, elapsed: float) -> None:
         if res.from_rest:
             here = layer.trajectory.sample(layer.s)[0]
@@ -182,24 +202,12 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                 take(t, res, reason, elapsed)
         if t < busy_until:
             pass                                            # the planner is still computing
-        elif pending_leg and replanner is not None:        # a new shuttle, planned around the humans
-            started = time.perf_counter()
-            try:
-                traj = replanner.plan_fresh(layer.trajectory.positions[-1], goal, humans,
-                                            layer.trajectory.version + 1)
-                if charge_planning:
-                    busy_until = t + time.perf_counter() - started
-                    waiting = (busy_until, traj, "goal", 0.0)
-                else:
-                    layer.set_trajectory(traj)
-                    pending_leg = False
-            except (PlanningError, TimingError) as exc:   # goal blocked for now: hold and try again
-                if charge_planning:
-                    busy_until = t + time.perf_counter() - started
-                log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
+        elif pending_leg and replanner is not None:        # a new shuttle: tried again
+            plan_leg(t, goal, humans)
         elif replanner is not None and layer.s < layer.trajectory.duration and t >= next_horizon_try:
             failures = len(result.replans)
-            replan(t, "horizon", replanner.on_horizon, layer.trajectory, layer.s, goal, humans, speed_now)
+            replan(t, "horizon", replanner.on_horizon, layer.trajectory, layer.s, goal, humans, speed_now,
+                   held.waited(t))
             if len(result.replans) > failures and not result.replans[-1].ok:
                 next_horizon_try = t + beta_cooldown / 2     # do not hammer a blocked horizon every cycle
         step = layer.step(humans, 0.0)
@@ -207,9 +215,10 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         if step.beta and not beta_before:
             result.beta_requests += 1
         beta_before = step.beta
+        held.update(t, step.beta)
         if step.beta and beta_replans and replanner is not None and t >= next_beta_try and t >= busy_until:
             next_beta_try = t + beta_cooldown
-            replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed_now)
+            replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed_now, held.waited(t))
         # the commanded motion against the limit: the conservative end-point bound first (fast); where it
         # comes near, the independent monitor judges (its ReactionWindow sees every cycle)
         points, jac = robot.capsule_kinematics(step.q_command)
@@ -228,7 +237,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                                                               version=layer.trajectory.version + 1))
             else:
                 pending_leg = True
-        traj = layer.trajectory
+                if t >= busy_until:                         # planned at once, as the planner service does
+                    plan_leg(t, goal, humans)               # on the goal that follows an arrival
         result.progress = result.shuttles + leg_fraction(step.q_command, ends[leg % 2], ends[(leg + 1) % 2])
         record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
         result.records.append(record)

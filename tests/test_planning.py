@@ -10,7 +10,7 @@ from shared.scaling import ssm_alpha_bound
 from shared.humans import HumanCapsules
 from shared.messages import TrajectoryMsg, decode, encode
 from shared.planner import GoalInCollision, JointPlanner, NoPathFound, OutOfLimits, PlannerOptions, StartInCollision
-from shared.replanning import HorizonOptions, ReplanFailed, Replanner, horizon_check
+from shared.replanning import HoldClock, HorizonOptions, ReplanFailed, ReplanOptions, Replanner, horizon_check
 from shared.robot_model import default_robot
 from shared.scenarios import Q_GOAL, Q_START, body_segments
 from shared.scene import load_scene
@@ -93,9 +93,16 @@ def test_horizon_check_finds_a_human_in_the_path_and_ignores_one_beside_it():
     assert horizon_check(OLD, 0.0, CM, ARM_ACROSS, HorizonOptions(samples=3, spacing=0.05)).first_infeasible is None
 
 
+def merged_round(s_now: float, humans: HumanCapsules):
+    """Alg. 2 itself (no decision whether it pays): branch at the last feasible horizon sample, with a
+    planner seeded afresh (the same random sampling in every test)."""
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), SsmParameters())
+    check = horizon_check(OLD, s_now, CM, humans, replanner.horizon)
+    return replanner.replan(OLD, s_now, Q_GOAL, humans, "horizon", s_branch=check.last_feasible_s)
+
+
 def test_replan_and_merge_is_continuous_and_feasible():
-    replanner = Replanner(CM, PLANNER, SsmParameters())
-    result = replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS)
+    result = merged_round(0.0, ARM_ACROSS)
     new, s_j = result.trajectory, result.junction
     assert new.version == OLD.version + 1 and result.reason == "horizon"
     # identical before the junction, continuous in position and velocity at it
@@ -110,9 +117,8 @@ def test_replan_and_merge_is_continuous_and_feasible():
 
 
 def test_replan_fails_cleanly_when_the_robot_cannot_turn_in_time():
-    replanner = Replanner(CM, PLANNER, SsmParameters())
-    with pytest.raises(ReplanFailed):
-        replanner.on_horizon(OLD, 0.6, Q_GOAL, ARM_ACROSS)
+    with pytest.raises(ReplanFailed, match="no junction allows a continuous merge"):
+        merged_round(0.6, ARM_ACROSS)
 
 
 def _mean_safe_alpha(traj, s_from, humans):
@@ -125,7 +131,9 @@ def _mean_safe_alpha(traj, s_from, humans):
 def test_a_beta_replan_is_kept_only_when_worth_it_and_increases_the_clearance():
     seg, radii = body_segments(-1.0, 0.0, 1.0, np.array([-0.4, 0.0, 0.8]))
     standing = known(seg, radii)
-    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=3)), SsmParameters())
+    # a person who stays (patience without end): the old path is predicted blocked for good
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=3)), SsmParameters(),
+                          options=ReplanOptions(patience=np.inf))
     result = replanner.on_beta(OLD, 0.3, Q_GOAL, standing)
     assert result.reason == "beta" and "instead of" in result.detail
     predicted_new = replanner.predicted_time(result.trajectory, 0.3, standing)
@@ -138,8 +146,7 @@ def test_a_beta_replan_is_kept_only_when_worth_it_and_increases_the_clearance():
 
 
 def test_trajectory_message_roundtrip_gives_the_same_law():
-    replanner = Replanner(CM, PLANNER, SsmParameters())
-    result = replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS)
+    result = merged_round(0.0, ARM_ACROSS)
     msg = decode(encode(trajectory_to_msg(result.trajectory, goal_id=4, reason="horizon", junction=result.junction,
                                           base_version=OLD.version)), TrajectoryMsg)
     back = trajectory_from_msg(msg)
@@ -173,7 +180,33 @@ def test_a_person_crossing_out_of_the_path_is_waited_for_and_one_standing_in_it_
     assert replanner.passing(OLD, 0.0, check, leaving)         # ... but gone by the time the robot is there
     assert replanner.on_horizon(OLD, 0.0, Q_GOAL, leaving) is None
     assert not replanner.passing(OLD, 0.0, check, ARM_ACROSS)
-    assert replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS) is not None
+
+
+def test_a_blocked_path_is_kept_until_the_robot_has_waited_as_long_as_the_way_round_costs():
+    """Ski rental: before the robot has been held, a person in the way is expected to move on (the old
+    path is predicted at its nominal time) and the detour, longer, is refused; held long enough, the
+    same detour is taken. The wait counts only while the scaling layer keeps asking."""
+    seg, radii = body_segments(-1.0, 0.0, 1.0, np.array([-0.4, 0.0, 0.8]))
+    standing = known(seg, radii)
+    def fresh() -> Replanner:                                 # the same random sampling for each call
+        return Replanner(CM, JointPlanner(CM, PlannerOptions(seed=3)), SsmParameters())
+
+    replanner = fresh()
+    with pytest.raises(ReplanFailed, match="not 10 % faster than the old"):
+        replanner.on_beta(OLD, 0.3, Q_GOAL, standing)
+    with pytest.raises(ReplanFailed, match="not faster than the old"):
+        replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS)
+    clock = HoldClock()
+    clock.update(10.0, True)
+    clock.update(12.0, True)
+    assert clock.waited(14.0) == pytest.approx(4.0)
+    result = fresh().on_beta(OLD, 0.3, Q_GOAL, standing, waited=clock.waited(14.0))
+    assert "instead of" in result.detail
+    assert result.trajectory.duration > OLD.duration          # longer than the old path: refused before
+    assert replanner.predicted_time(OLD, 0.0, ARM_ACROSS) == pytest.approx(OLD.duration, abs=0.06)
+    assert replanner.predicted_time(OLD, 0.0, ARM_ACROSS, waited=4.0) == pytest.approx(OLD.duration + 4.0, abs=0.06)
+    clock.update(14.5, False)                                 # the scaler stopped asking: the wait starts again
+    assert clock.waited(15.0) == 0.0
 
 
 def test_a_stopped_robot_replans_from_rest_only_when_it_pays_and_never_for_where_it_already_is():
