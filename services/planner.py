@@ -2,8 +2,9 @@
 
 Inputs (the latest of each is kept): goals, human states, joint states, scaler status. A worker thread
 (OMPL holds the GIL: planning never runs in a latency-critical process) then, in this order:
-* a new goal: a fresh plan from where the robot is (base_version -1), or, while a trajectory is being
-  followed, a merge into it;
+* a new goal: a plan from where the robot is (base_version -1; Replanner.plan_goal: the direct line
+  unless a way round the people is predicted faster), or, while a trajectory is being followed, a merge
+  into it;
 * a replan request (beta in the scaler status, at most every beta_cooldown): Replanner.on_beta, which
   keeps the old trajectory unless the new one is predicted to be 10 % faster;
 * every new human state (at most every horizon_period): the horizon check, and a merge when the path
@@ -135,7 +136,7 @@ class PlannerService:
             self.goal_id = goal.goal_id
             try:
                 if following is None:
-                    traj = self.replanner.plan_fresh(q, goal.q, humans, version)
+                    traj = self.replanner.plan_goal(q, goal.q, humans, version, waited)
                     self._publish(traj, "goal", 0.0, -1, (time.perf_counter() - started) * 1e3)
                 else:
                     self._apply(self.replanner.replan(following[0], following[1], goal.q, humans, "goal"),

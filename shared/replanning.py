@@ -184,6 +184,28 @@ class Replanner:
         waypoints = self.planner.plan(q_start, q_goal, humans, inflation)
         return self._from_rest(waypoints, humans, inflation, version)
 
+    def plan_goal(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
+                  waited: float = 0.0) -> Trajectory:
+        """A new goal from rest. The direct line (the exact trapezoid) when the static scene allows it,
+        even if a person is in its way now, unless a way round the people is predicted faster: the same
+        ski-rental rule as replans (predicted_time; the scaling layer keeps the robot back from a person
+        who stays, and the horizon and beta replans go round once the wait has cost as much). Else, with
+        the direct line blocked by the scene, a plan around everything (raises PlanningError or
+        TimingError)."""
+        q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
+        if not self.collision.motion_free(q_start, q_goal)[0]:
+            return self.plan_fresh(q_start, q_goal, humans, version)
+        direct = straight_line_trajectory(q_start, q_goal, self.limits.velocity, self.limits.acceleration,
+                                          version=version)
+        if humans is None or humans.count == 0 or self.collision.motion_free(q_start, q_goal, humans)[0]:
+            return direct
+        try:
+            around = self.plan_fresh(q_start, q_goal, humans, version)
+        except (PlanningError, TimingError):
+            return direct
+        faster = self.predicted_time(around, 0.0, humans, waited) < self.predicted_time(direct, 0.0, humans, waited)
+        return around if faster else direct
+
     def _from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, inflation: float,
                    version: int) -> Trajectory:
         """Rest to rest through waypoints. A direct connection (two waypoints, already checked free by the

@@ -161,7 +161,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         nonlocal busy_until, waiting, pending_leg
         started = time.perf_counter()
         try:
-            traj = replanner.plan_fresh(layer.trajectory.positions[-1], goal, humans, layer.trajectory.version + 1)
+            traj = replanner.plan_goal(layer.trajectory.positions[-1], goal, humans, layer.trajectory.version + 1,
+                                       held.waited(t))
             if charge_planning:
                 busy_until = t + time.perf_counter() - started
                 waiting = (busy_until, traj, "goal", 0.0)

@@ -218,3 +218,17 @@ def test_a_stopped_robot_replans_from_rest_only_when_it_pays_and_never_for_where
     flange = ROBOT.capsule_segments(Q_START)[-1][1]
     touching = known([[flange, flange + [0, 0, 0.2]]], [0.1])
     assert replanner.on_horizon(OLD, 0.0, Q_GOAL, touching, speed_now=0.0) is None
+
+
+def test_a_new_goal_takes_the_direct_line_unless_going_round_the_people_is_predicted_faster():
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=3)), SsmParameters())
+    assert not CM.motion_free(Q_START, Q_GOAL, ARM_ACROSS)[0]          # the person is in the direct line
+    direct = replanner.plan_goal(Q_START, Q_GOAL, ARM_ACROSS, 5)
+    assert direct.version == 5 and direct.duration == pytest.approx(OLD.duration, abs=1e-9)
+    assert np.allclose(direct.sample(1.0)[0], OLD.sample(1.0)[0])     # waiting first (ski rental)
+    stays = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=3)), SsmParameters(),
+                      options=ReplanOptions(patience=np.inf))
+    chosen = stays.plan_goal(Q_START, Q_GOAL, ARM_ACROSS, 6)
+    # for an arm that stays, whatever is chosen is predicted no slower than the direct line
+    assert stays.predicted_time(chosen, 0.0, ARM_ACROSS) <= stays.predicted_time(OLD, 0.0, ARM_ACROSS) + 1e-9
+    assert replanner.plan_goal(Q_START, Q_GOAL, ASIDE, 7).duration == pytest.approx(OLD.duration, abs=1e-9)
