@@ -4,7 +4,11 @@
   spacing configurable), all checked at once against the latest human capsules; returns the first
   infeasible one.
 * ``Replanner.on_horizon``: the path ahead is blocked: a merge that keeps, where it can, the separation
-  at which the human allows full speed (then half of it, then the bare margin).
+  at which the human allows full speed (then half of it, then the bare margin), kept only when
+  predicted faster than the old path (on which the scaling layer holds the robot back). Predictions
+  cap the wait for a person in the way at the time already waited (``HoldClock``; ski rental: go
+  round once waiting has cost what the way round costs extra).
+* ``Replanner.plan_goal``: a new goal: the direct line unless going round the people is predicted faster.
 * ``Replanner.replan``: keeps the old trajectory unchanged up to a junction s_j, and from there follows
   the old path geometry to a branch point (the last feasible horizon configuration), then a new
   RRT-Connect path to the goal. The new part is time-parameterised starting with the old nominal
