@@ -1,13 +1,14 @@
 """safety_monitor: an independent process that checks every measured joint state against the human state
 of the moment it was measured (shared.monitor.HumanHistory: the newest sample taken at or before it, so a
-monitor that falls behind still pairs them as they were; shared.monitor: coal distances, pinocchio Jacobians, the standard's closest-point check)
-and counts violations of the ISO/TS 15066 speed limit (an exceedance the robot does not answer as the
-formula assumes: react within T_r, then brake to a stop within T_s; see shared.monitor.ReactionWindow)
-and of d_min (at once).
+monitor that falls behind still pairs them as they were; shared.monitor: coal distances, pinocchio
+Jacobians, the standard's closest-point check) and counts violations of the ISO/TS 15066 speed limit
+(an exceedance the robot does not answer as the formula assumes: react within T_r, then brake to a stop
+within T_s; see shared.monitor.ReactionWindow) and of d_min (at once).
 
 Each violation goes out as a SafetyEvent (event 'ssm_violation', severity stop; at most ten a second),
-and once a second a summary (event 'monitor_summary', value = violations so far, text with the checks
-the smallest margin seen, and how far behind the checks ran). It commands nothing: it is the witness, not the guard.
+and once a second a summary (event 'monitor_summary', value = violations so far, text with the checks,
+the smallest margin seen, and how far behind the checks ran). It commands nothing: it is the witness,
+not the guard.
 
     python -m services.safety_monitor --connect tcp/127.0.0.1:7447
 """

@@ -435,7 +435,8 @@ class Replanner:
         if result.from_rest:
             predicted = self.predicted_time(result.trajectory, 0.0, humans, waited)
         else:
-            predicted = self.predicted_time(result.trajectory, result.junction, humans, waited) + (result.junction - s_now)
+            predicted = (self.predicted_time(result.trajectory, result.junction, humans, waited)
+                         + (result.junction - s_now))
         return predicted if predicted <= (1.0 - gain) * baseline else None
 
     def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
