@@ -59,9 +59,14 @@ class CycleOutput:
     drive_states: list[State] = field(default_factory=list)
 
 
+PERIOD = 0.01                  # s: SYNC period, the PRBT's interpolation period
+COMMAND_TIMEOUT = 0.05         # s: a command older than this stops the drives
+HEARTBEAT_TIMEOUT = 0.3        # s: a drive's heartbeat older than this stops the drives
+
+
 class DriverCore:
-    def __init__(self, limits: JointLimits, period: float = 0.01, command_timeout: float = 0.05,
-                 heartbeat_timeout: float = 0.3, start_tolerance: float = 0.02) -> None:
+    def __init__(self, limits: JointLimits, period: float = PERIOD, command_timeout: float = COMMAND_TIMEOUT,
+                 heartbeat_timeout: float = HEARTBEAT_TIMEOUT, start_tolerance: float = 0.02) -> None:
         self.limits = limits
         self.period = period
         self.command_timeout = command_timeout

@@ -32,6 +32,8 @@ from typing import Callable
 
 import numpy as np
 
+from hwsim.drive import EMCY_SYNC_TIMEOUT, DriveLimits
+from services import driver_core
 from services.cell import service_info
 from services.launch import free_port
 from services.operator import FeedFault, HumanFeed, Recorder, Shuttle
@@ -50,8 +52,6 @@ MOVING = 0.3                    # rad/s: the robot counts as moving (at speed) a
 AHEAD = 1.2                     # rad still to go on the leg when a fault is injected (about a second)
 SETTLE = 25.0                   # s to wait for the robot to move before a fault
 RESUME = 45.0                   # s after a fault for the next shuttle to complete
-SYNC_TIMEOUT_EMCY = 0x8100
-DRIVER = {"period": 0.01, "command_timeout": 0.05, "heartbeat_timeout": 0.3, "sync_watchdog": 0.06}
 FAULT_NAMES = ("kill_scaler", "kill_tracker_ingest", "kill_planner", "kill_safety_monitor", "kill_robot_driver",
                "freeze_scaler", "freeze_robot_driver", "can_drop", "heartbeat_stop", "tracker_silent", "tracker_nan",
                "human_jump", "human_glitch")
@@ -76,7 +76,9 @@ class Expectation:
 def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation]:
     """What each fault must cause, with its bound stated from the configuration and the drives' timings."""
     brake = float(np.max(robot.limits.velocity / robot.limits.monitor_acceleration))
-    p, ct, hb, wd = DRIVER["period"], DRIVER["command_timeout"], DRIVER["heartbeat_timeout"], DRIVER["sync_watchdog"]
+    # the robot driver's and the emulated drives' own defaults, as the cell runs them (hrc up)
+    p, ct, hb = driver_core.PERIOD, driver_core.COMMAND_TIMEOUT, driver_core.HEARTBEAT_TIMEOUT
+    wd = DriveLimits.sync_timeout_factor * DriveLimits.period
     human = max(config.scaling.human_timeout, 0.05)
     horizon = config.ssm.reaction_time + config.ssm.stopping_time
     command_stop = Expectation("stop", ct + p + brake, f"command timeout {ct * 1e3:.0f} ms + SYNC {p * 1e3:.0f} ms "
@@ -300,7 +302,7 @@ class Campaign:
             emcy = self.can.emcy_since(t_inject)
             first = {}
             for t, node, code in emcy:
-                if code == SYNC_TIMEOUT_EMCY:
+                if code == EMCY_SYNC_TIMEOUT:
                     first.setdefault(node, t)
             if len(first) == len(self.can.nodes):
                 reactions.append((max(first.values()) - t_inject, "drives: SYNC timeout EMCY on every node"))

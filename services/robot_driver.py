@@ -39,7 +39,7 @@ import numpy as np
 
 from hwsim.drive import to_counts, to_rad
 from hwsim.emulator import EDS_PATH, NODE_IDS
-from services.driver_core import DriverCore, Feedback
+from services.driver_core import COMMAND_TIMEOUT, PERIOD, DriverCore, Feedback
 from shared.canbus import BusError, describe, open_bus
 from services.common import ServiceShell, run_paced, service_parser, setup_logging
 from shared.errors import HrcError
@@ -303,11 +303,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = service_parser("robot_driver", __doc__, config=False, default_listen="tcp/127.0.0.1:7447")
     parser.add_argument("--interface", default="udp_multicast")
     parser.add_argument("--channel", default=None)
-    parser.add_argument("--period", type=float, default=0.01, help="SYNC period (s), default 0.01")
+    parser.add_argument("--period", type=float, default=PERIOD, help="SYNC period (s), default %(default)s")
     parser.add_argument("--config", type=Path, default=None,
                         help="cell configuration YAML (its T_r is checked against the measured latency)")
-    parser.add_argument("--command-timeout", type=float, default=0.05,
-                        help="a command older than this stops the drives (s), default 0.05")
+    parser.add_argument("--command-timeout", type=float, default=COMMAND_TIMEOUT,
+                        help="a command older than this stops the drives (s), default %(default)s")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     try:
