@@ -54,6 +54,12 @@ def cell_pid(prefix: str) -> int | None:
         return None
 
 
+def cell_endpoint(prefix: str) -> str:
+    """The Zenoh endpoint of the cell `hrc up` started (its port in the run folder; 7447 without one)."""
+    port_file = run_dir(prefix) / "cell.port"
+    return f"tcp/127.0.0.1:{port_file.read_text().strip() if port_file.exists() else 7447}"
+
+
 def up(prefix: str, interface: str, port: int) -> int:
     """Start the cell; returns the PID of supervisord (which is also the namespace holder)."""
     if cell_pid(prefix) is not None:

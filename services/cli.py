@@ -268,13 +268,12 @@ def _demo_sim(args: argparse.Namespace) -> int:
 
 
 def _session(args: argparse.Namespace):
-    from services.cell import run_dir
+    from services.cell import cell_endpoint
     from shared.keys import KeySpace
     from shared.zenoh_session import open_session
 
     if args.connect is None:
-        port_file = run_dir(args.prefix) / "cell.port"
-        args.connect = f"tcp/127.0.0.1:{port_file.read_text().strip() if port_file.exists() else 7447}"
+        args.connect = cell_endpoint(args.prefix)
     keys = KeySpace(args.prefix)
     return open_session("peer", connect=[args.connect]), keys
 
@@ -493,7 +492,7 @@ class CertsArgumentError(HrcError):
 
 def cmd_faults(args: argparse.Namespace) -> int:
     from services import faults
-    from services.cell import cell_pid, run_dir
+    from services.cell import cell_endpoint, cell_pid, run_dir
     from shared.config import load_config
     from shared.robot_model import default_robot
 
@@ -508,7 +507,7 @@ def cmd_faults(args: argparse.Namespace) -> int:
     interface = can_file.read_text().strip() if can_file.exists() else "udp_multicast"
     channel = "vcan0" if interface == "socketcan" else None
     if args.connect is None:
-        args.connect = f"tcp/127.0.0.1:{(run_dir(args.prefix) / 'cell.port').read_text().strip()}"
+        args.connect = cell_endpoint(args.prefix)
     verdicts = faults.run_campaign(args.prefix, args.connect, interface, channel, config, default_robot(), names,
                                    args.out, say=lambda text: print(text, flush=True))
     return 0 if all(v.ok for v in verdicts) else 1
