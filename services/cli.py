@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from shared.errors import HrcError
+from shared.pki import DEFAULT_HOSTS
 
 DESCRIPTION = """\
 Safety-aware kinodynamic control of a Pilz PRBT next to people (ISO/TS 15066 speed and separation
@@ -140,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
                                        "(deploy/zenoh/secure-router.json5). Copy to each host the CA and only "
                                        "its own key; keep ca-key.pem off the cell.")
     certs.add_argument("--out", type=Path, required=True, metavar="DIR", help="where to write the PEM files")
-    certs.add_argument("--hosts", nargs="+", default=["localhost", "127.0.0.1", "::1"], metavar="HOST",
+    certs.add_argument("--hosts", nargs="+", default=list(DEFAULT_HOSTS), metavar="HOST",
                        help="names and addresses the certificates are valid for (the router's; default loopback)")
     faults = sub.add_parser("faults", help="the fault campaign against a running cell (hrc up)",
                             description="As the cell's operator (goals, a scripted person, recovery), inject each "
