@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests" / "hil"))
 
-from hwsim.drive import to_counts  # noqa: E402
+from shared.prbt_drive import to_counts  # noqa: E402
 from shared.canbus import in_private_namespace  # noqa: E402
 
 

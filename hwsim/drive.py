@@ -1,17 +1,26 @@
 """One emulated PRBT joint drive, as a pure core: CiA 402 state machine, interpolated position motion,
 protections. The emulator process feeds it what arrives on the bus and the time; it answers with the
-statusword, position and velocity in drive units and the EMCY codes to send.
+statusword, position, velocity and following error in drive units and the EMCY codes to send.
 
-Behaviour (PRBT facts sheet, sections 3 and 4; CiA 402 where the sheet is silent):
-* mode 7 (interpolated position): in operation enabled with controlword bit 4 set, every SYNC takes the
-  latest setpoint (0x60C1:1, 0.001 degree per count) as the target for the next period and moves towards
-  it within the joint's velocity limit and the drive's acceleration limit (braking-aware: never faster
-  than it can stop on the target), so the motion is that of a drive, not a teleport;
-* quick stop and fault reaction brake at the acceleration limit; a fault reaction ends in FAULT;
-* protections, each a fault with an EMCY code: a setpoint outside the software position limits
-  (0x8612), a setpoint step the joint cannot follow in one period (0x8611), no SYNC for sync_timeout_factor
-  periods while powered (0x8100), no new setpoint for that many SYNCs while interpolating (0x8250), an
-  injected drive fault (0x5000). A fault reset sends the EMCY "error reset" (0x0000).
+Time: ``position`` is where the joint is at the last SYNC (or watchdog) instant; ``velocity`` is the speed
+it moves at from then on, ``velocity_actual`` the speed of the period that just ended (what an encoder
+difference reports). A SYNC first completes the period that ended, then takes the new setpoint.
+
+Interpolated position mode (7), as CiA 402 describes it: in operation enabled with controlword bit 4 set,
+each SYNC takes the latest setpoint (0x60C1:1, 0.001 degree per count) and moves to it over the
+interpolation period (0x60C2), with the velocity that consecutive setpoints imply as feed-forward and a
+braking-aware correction of any following error left over. The position demand (0x6062) is the setpoint
+being interpolated to. While the setpoints are followable (``shared.prbt_drive``) the joint reaches each
+one at the next SYNC: one period behind them, following error (0x60F4 = demand - actual) zero. Beyond the
+velocity or acceleration limit the drive saturates (statusword bit 11, internal limit) and the following
+error grows; beyond the window 0x6065 for longer than 0x6066 that is a fault. With no new setpoint the
+drive holds the last one.
+
+Protections, each a fault with an EMCY (and the error register set): a following error beyond the window
+for longer than the time-out (0x8611), a setpoint outside the software position limits (0x8612), no SYNC
+for sync_timeout_factor periods while powered (0x8100), no new setpoint for that many SYNCs while
+interpolating (0x8250), an injected drive fault (0x5000). Quick stop and the fault reaction brake at the
+acceleration limit; a fault reaction ends in FAULT. A fault reset sends the EMCY "error reset" (0x0000).
 """
 
 from __future__ import annotations
@@ -20,54 +29,51 @@ import math
 from dataclasses import dataclass, field
 
 from shared.cia402 import CW_ENABLE_IP, DriveStateMachine, State, statusword
-
-COUNTS_PER_RAD = 180.0 / math.pi * 1000.0       # 0.001 degree per count
-EMCY_RESET, EMCY_FOLLOWING, EMCY_LIMIT = 0x0000, 0x8611, 0x8612
-EMCY_SYNC_TIMEOUT, EMCY_RPDO_TIMEOUT, EMCY_DRIVE_FAULT = 0x8100, 0x8250, 0x5000
-MODE_IP = 7
-
-
-def to_counts(rad: float) -> int:
-    return int(round(rad * COUNTS_PER_RAD))
-
-
-def to_rad(counts: int) -> float:
-    return counts / COUNTS_PER_RAD
+from shared.prbt_drive import (COUNTS_PER_RAD, EMCY_FOLLOWING, EMCY_LIMIT, EMCY_RESET, EMCY_RPDO_TIMEOUT, EMCY_SYNC_TIMEOUT,
+                               FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, PERIOD, to_rad)
 
 
 @dataclass
 class DriveLimits:
     """lower / upper (rad) software limits, velocity (rad/s), acceleration (rad/s^2; the drive's own, the
-    PRBT controller's 6.0), period (s) the interpolation period, jump_tolerance: a setpoint step up to
-    velocity * period * this factor is followable."""
+    PRBT controller's 6.0), period (s) the interpolation period, following_window (rad, 0x6065) and
+    following_timeout (s, 0x6066)."""
 
     lower: float
     upper: float
     velocity: float = 1.57
     acceleration: float = 6.0
-    period: float = 0.01
+    period: float = PERIOD
     sync_timeout_factor: int = 6
-    jump_tolerance: float = 1.2
+    following_window: float = FOLLOWING_WINDOW
+    following_timeout: float = FOLLOWING_TIMEOUT
 
 
 @dataclass
 class Drive:
     limits: DriveLimits
-    position: float = 0.0                      # rad
-    velocity: float = 0.0                      # rad/s
+    position: float = 0.0                      # rad, at the last SYNC / watchdog instant
+    velocity: float = 0.0                      # rad/s, from that instant on
+    velocity_actual: float = 0.0               # rad/s, over the period that ended at the last SYNC
     mode: int = 0
     controlword: int = 0
     sm: DriveStateMachine = field(default_factory=DriveStateMachine)
     setpoint: int | None = None                # counts, latest received
-    _target: float | None = None               # rad, the target being interpolated to
+    demand: float | None = None                # rad, the setpoint being interpolated to (0x6062)
+    saturated: bool = False                    # the last period's motion hit the velocity or acceleration limit
+    following_error: float = 0.0               # rad, 0x60F4 at the last SYNC: demand - actual (0: not interpolating)
+    position_demand: float = 0.0               # rad, 0x6062 at the last SYNC: where the joint should have been
     _fresh_setpoint: bool = False
     _syncs_without_setpoint: int = 0
+    _outside_window_since: float | None = None
     last_sync: float | None = None
     _moved_at: float | None = None             # the last braking step without SYNC (watchdog)
     fault_code: int = 0
 
     def boot(self, position: float) -> None:
-        self.position, self.velocity = position, 0.0
+        self.position, self.velocity, self.velocity_actual = position, 0.0, 0.0
+        self.demand, self._outside_window_since = None, None
+        self.position_demand, self.following_error = position, 0.0
         self.sm.boot()
 
     @property
@@ -79,9 +85,10 @@ class Drive:
         return (self.state is State.OPERATION_ENABLED and self.mode == MODE_IP
                 and bool(self.controlword & CW_ENABLE_IP))
 
+
     def statusword(self) -> int:
-        return statusword(self.state, ip_active=self.interpolating,
-                          target_reached=self._target is not None and abs(self._target - self.position) < 1e-4)
+        return statusword(self.state, ip_active=self.interpolating, internal_limit=self.saturated,
+                          target_reached=self.demand is not None and abs(self.demand - self.position) < 1e-4)
 
     def on_controlword(self, controlword: int) -> list[int]:
         """Apply a controlword; returns EMCY codes to send (the error reset after a fault reset)."""
@@ -92,7 +99,8 @@ class Drive:
             self.fault_code = 0
             return [EMCY_RESET]
         if after is State.OPERATION_ENABLED and before is not State.OPERATION_ENABLED:
-            self._target, self.setpoint, self._syncs_without_setpoint = None, None, 0
+            self.demand, self.setpoint, self._syncs_without_setpoint = None, None, 0
+            self._outside_window_since = None
         return []
 
     def on_setpoint(self, counts: int) -> None:
@@ -134,43 +142,75 @@ class Drive:
             self.sm.motion_stopped()
 
     def on_sync(self, now: float) -> list[int]:
-        """One interpolation period: protections, then motion. Returns EMCY codes to send."""
+        """One SYNC: the period that ended is completed (the joint moved at `velocity`), the following error
+        is checked, the newest setpoint taken, and the motion of the next period chosen. Returns EMCY codes."""
+        watchdog_moved = self._moved_at is not None
         self.last_sync, self._moved_at = now, None
         lim = self.limits
-        emcy: list[int] = []
+        if not watchdog_moved:
+            self.position += self.velocity * lim.period
+        self.velocity_actual = self.velocity
+        tracking = self.interpolating and self.demand is not None
+        self.position_demand = self.demand if tracking else self.position
+        self.following_error = self.position_demand - self.position
+        emcy = self._check_following(now)
         if self.interpolating:
+            if self.demand is None:
+                self.demand = self.position
             if self._fresh_setpoint and self.setpoint is not None:
                 target = to_rad(self.setpoint)
-                reference = self._target if self._target is not None else self.position
                 if not lim.lower <= target <= lim.upper:
                     emcy += self.raise_fault(EMCY_LIMIT)
-                elif abs(target - reference) > lim.velocity * lim.period * lim.jump_tolerance:
-                    emcy += self.raise_fault(EMCY_FOLLOWING)
                 else:
-                    self._target = target
+                    self._plan(target)
                 self._syncs_without_setpoint = 0
-            elif self._target is not None:
+            else:
+                self._plan(self.demand)                   # hold the last setpoint
                 self._syncs_without_setpoint += 1
-                if self._syncs_without_setpoint > lim.sync_timeout_factor:
+                if self.setpoint is not None and self._syncs_without_setpoint > lim.sync_timeout_factor:
                     emcy += self.raise_fault(EMCY_RPDO_TIMEOUT)
         self._fresh_setpoint = False
-        self._move()
+        if not self.interpolating:
+            self._brake()
         return emcy
 
-    def _move(self) -> None:
+    def _check_following(self, now: float) -> list[int]:
+        """A following error beyond the window for longer than the time-out is a fault (0x8611)."""
+        lim = self.limits
+        if abs(self.following_error) <= lim.following_window:
+            self._outside_window_since = None
+            return []
+        if self._outside_window_since is None:
+            self._outside_window_since = now
+        if now - self._outside_window_since >= lim.following_timeout - 1e-9:
+            return self.raise_fault(EMCY_FOLLOWING)
+        return []
+
+    def _plan(self, target: float) -> None:
+        """The velocity of the next period: the setpoints' own velocity (feed-forward, (target - demand) / T)
+        plus a correction of the following error left (braking-aware, so a saturated drive lands on a held
+        setpoint instead of overshooting it), within the velocity and acceleration limits."""
         lim = self.limits
         dt, a = lim.period, lim.acceleration
-        if self.interpolating and self._target is not None:
-            err = self._target - self.position
-            # the speed that lands on the target, no faster than a stop at the acceleration limit allows
-            wanted = math.copysign(min(abs(err) / dt, math.sqrt(2.0 * a * abs(err))), err)
-        elif self.state in (State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE, State.FAULT_REACTION_ACTIVE):
-            wanted = 0.0                                   # hold, quick stop, fault reaction: brake
-        else:
-            self.velocity = 0.0                            # brakes closed
+        feed_forward = (target - self.demand) / dt
+        error = self.demand - self.position
+        correction = math.copysign(min(abs(error) / dt, math.sqrt(2.0 * a * abs(error))), error)
+        wanted = feed_forward + correction
+        # setpoints come in whole counts: a followable stream may imply up to 2 counts per period more
+        resolution = 2.0 / COUNTS_PER_RAD / dt
+        v_max, dv = lim.velocity + resolution, a * dt + resolution
+        velocity = max(-v_max, min(v_max, max(self.velocity - dv, min(self.velocity + dv, wanted))))
+        self.saturated = abs(velocity - wanted) > 1e-9
+        self.velocity, self.demand = velocity, target
+
+    def _brake(self) -> None:
+        """Not interpolating: hold, quick stop and fault reaction brake at the acceleration limit; otherwise
+        the brakes are closed."""
+        self.saturated = False
+        if self.state not in (State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE, State.FAULT_REACTION_ACTIVE):
+            self.velocity = 0.0
             return
-        change = max(-a * dt, min(a * dt, wanted - self.velocity))
-        self.velocity = max(-lim.velocity, min(lim.velocity, self.velocity + change))
-        self.position += self.velocity * dt
+        step = self.limits.acceleration * self.limits.period
+        self.velocity = 0.0 if abs(self.velocity) <= step else self.velocity - math.copysign(step, self.velocity)
         if self.state is State.FAULT_REACTION_ACTIVE and self.velocity == 0.0:
             self.sm.motion_stopped()

@@ -1,10 +1,13 @@
 """The PRBT emulator process: six CiA 402 drives (node ids 3 to 8) on a CAN bus.
 
-Each node is a canopen LocalNode built from ``hwsim/prbt_drive.eds`` (SDO server, NMT slave, heartbeat
-producer from 0x1017, EMCY producer) around a pure ``hwsim.drive.Drive``. RPDO1 (controlword, setpoint)
-is applied on reception, every SYNC advances each drive one interpolation period and sends TPDO1
-(statusword, mode display), TPDO2 (velocity demand, actual) and TPDO3 (position, velocity actual); a
-timer runs the SYNC watchdog between SYNCs. Fault injection through SDO writes to 0x2F00 (any time):
+Each node is a canopen LocalNode built from the drive's EDS (``shared/robot/prbt_drive.eds``: SDO server,
+NMT slave, heartbeat producer from 0x1017, EMCY producer) around a pure ``hwsim.drive.Drive``. RPDO1
+(controlword, setpoint) is applied on reception; every SYNC completes each drive's interpolation period
+and sends TPDO1 (statusword, mode display), TPDO2 (position demand 0x6062, following error 0x60F4) and
+TPDO3 (position, velocity actual), the values of the SYNC instant; a timer runs the SYNC watchdog between
+SYNCs. The following error window (0x6065, counts) and time-out (0x6066, ms) are read and written over
+SDO. Every fault is announced by an EMCY with the error register (0x1001) set; a frozen node sends the
+EMCYs of faults it entered while frozen when it is unfrozen. Fault injection through SDO writes to 0x2F00 (any time):
 :1 drop that many per mille of the node's frames, :2 heartbeat off, :3 freeze the node (no PDO, no
 heartbeat; SDO still answers so it can be unfrozen), :4 raise a drive fault.
 
@@ -21,17 +24,14 @@ import signal
 import sys
 import threading
 import time
-from pathlib import Path
-
 import canopen
 import numpy as np
 
-from hwsim.drive import EMCY_DRIVE_FAULT, Drive, DriveLimits, to_counts
+from hwsim.drive import Drive, DriveLimits
 from shared.canbus import BusError, describe, open_bus
+from shared.prbt_drive import EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register, to_counts, COUNTS_PER_RAD
 from shared.robot_model import default_robot
 
-EDS_PATH = Path(__file__).with_name("prbt_drive.eds")
-NODE_IDS = (3, 4, 5, 6, 7, 8)
 log = logging.getLogger("hwsim")
 
 
@@ -51,8 +51,11 @@ class EmulatedNode:
         self.rng = rng
         self.drop = 0.0
         self.frozen = False
+        self._unannounced: list[int] = []              # EMCY codes of faults entered while frozen
         self.node.sdo[0x607D][1].raw = to_counts(limits.lower)
         self.node.sdo[0x607D][2].raw = to_counts(limits.upper)
+        self.node.sdo[0x6065].raw = to_counts(limits.following_window)
+        self.node.sdo[0x6066].raw = int(round(limits.following_timeout * 1000))
         self.node.add_write_callback(self._on_sdo_write)
         self.node.rpdo.read(from_od=True)
         self.node.tpdo.read(from_od=True)
@@ -99,6 +102,10 @@ class EmulatedNode:
                 self._store(0x6061, 0, int(value))
             elif index == 0x60C1 and subindex == 1:
                 self.drive.on_setpoint(int(value))
+            elif index == 0x6065:
+                self.drive.limits.following_window = int(value) / COUNTS_PER_RAD
+            elif index == 0x6066:
+                self.drive.limits.following_timeout = int(value) / 1000.0
             elif index == 0x2F00:
                 self._inject(subindex, int(value))
 
@@ -114,15 +121,20 @@ class EmulatedNode:
             else:             # a hung node resumes: its SYNC watchdog restarts with the next SYNC
                 self.drive.last_sync = None
                 self.node.nmt.start_heartbeat(self.node.sdo[0x1017].raw)
+                codes, self._unannounced = self._unannounced, []
+                self._emcy(codes)                        # what it entered while hung, announced now
         elif subindex == 4 and value:
             self._emcy(self.drive.raise_fault(EMCY_DRIVE_FAULT))
         log.info("node %d: fault injection 0x2F00:%d = %d", self.id, subindex, value)
 
     def _emcy(self, codes: list[int]) -> None:
-        if self.frozen:                                   # a frozen node is silent
+        """Announce each code with its error register (0 after a reset); a frozen node is silent and keeps
+        them for when it resumes, so that no fault goes unannounced."""
+        if self.frozen:
+            self._unannounced += [c for c in codes if c]
             return
         for code in codes:
-            register = 0 if code == 0 else 0x01
+            register = error_register(code)
             self.node.emcy.send(code, register)
             self._store(0x1001, 0, register)
             log.warning("node %d: EMCY 0x%04X (%s)", self.id, code, self.drive.state.value)
@@ -138,7 +150,8 @@ class EmulatedNode:
         """The drive's reported values, stored in the object dictionary and returned for the TPDOs."""
         d = self.drive
         values = {(0x6041, 0): d.statusword(), (0x6061, 0): d.mode, (0x6064, 0): to_counts(d.position),
-                  (0x606C, 0): to_counts(d.velocity), (0x606B, 0): to_counts(d.velocity)}
+                  (0x606C, 0): to_counts(d.velocity_actual), (0x606B, 0): to_counts(d.velocity),
+                  (0x6062, 0): to_counts(d.position_demand), (0x60F4, 0): to_counts(d.following_error)}
         for (index, subindex), value in values.items():
             self._store(index, subindex, value)
         return values
@@ -177,7 +190,7 @@ def run(interface: str, channel: str | None, start: np.ndarray, seed: int, stop:
     network = canopen.Network(bus)
     network.connect()
     rng = random.Random(seed)
-    nodes = [EmulatedNode(network, nid, lim, float(q), rng) for nid, lim, q in zip(NODE_IDS, build_limits(0.01), start)]
+    nodes = [EmulatedNode(network, nid, lim, float(q), rng) for nid, lim, q in zip(NODE_IDS, build_limits(PERIOD), start)]
     network.subscribe(0x80, lambda can_id, data, ts: [n.on_sync(time.monotonic()) for n in nodes])
     print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}", flush=True)
     try:

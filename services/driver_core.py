@@ -6,8 +6,10 @@ plus safety events. States:
 
 * ENABLING: walk every drive to operation enabled (CiA 402, fault reset edges where needed), holding the
   setpoints at the actual positions; then RUNNING once a fresh command starts where the robot is.
-* RUNNING: setpoint = the latest command, clamped to the joint limits and rate-limited to what the joint
-  can follow in one period (each clamp is a 'warning' safety event, reported once per episode).
+* RUNNING: setpoint = the latest command, passed through ``follow_step``: clamped to the joint limits
+  and to what the drive follows, its velocity and acceleration limits (``shared.prbt_drive``), so no
+  command, however abrupt, gives the drive a setpoint it cannot follow (each clamp is a 'warning' safety
+  event, reported once per episode); a stop the scaler commands becomes the fastest stop the drive can make.
 * STOPPED: quick stop on every drive, setpoints held at the actual positions. Entered on a command older
   than command_timeout, a drive in fault, an EMCY, a heartbeat older than heartbeat_timeout, or a
   drive leaving operation enabled; each with a 'stop' safety event. Left only on request() of
@@ -23,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from shared.cia402 import State, next_controlword, state_from_statusword
+from shared.prbt_drive import PERIOD
 from shared.robot_model import JointLimits
 
 
@@ -54,14 +57,47 @@ class Event:
 class CycleOutput:
     controlwords: list[int]
     setpoints: np.ndarray              # rad
+    setpoint_velocity: np.ndarray      # rad/s: the velocity the setpoints move at (0 unless running)
     events: list[Event] = field(default_factory=list)
     mode: Mode = Mode.ENABLING
     drive_states: list[State] = field(default_factory=list)
 
 
-PERIOD = 0.01                  # s: SYNC period, the PRBT's interpolation period
 COMMAND_TIMEOUT = 0.05         # s: a command older than this stops the drives
 HEARTBEAT_TIMEOUT = 0.3        # s: a drive's heartbeat older than this stops the drives
+
+
+CLAMP_TOLERANCE = 1e-9        # rad: a setpoint this close to the command is the command
+
+
+def follow_step(command: np.ndarray, command_velocity: np.ndarray, setpoint: np.ndarray, velocity: np.ndarray,
+                limits: JointLimits, period: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The next setpoint (rad) and its velocity (rad/s) towards `command`, and whether it had to differ.
+
+    The setpoint moves with the command's own velocity (feed-forward) plus a braking-aware correction of
+    what is left between them (at most the rest in one period, never faster than a stop at the drive's
+    acceleration allows, so it lands on a command that stopped instead of overshooting it), then the
+    velocity is limited to the joint's velocity limit and its change to the drive's acceleration
+    (``limits.monitor_acceleration``) and to what still stops before a position limit. A command that is
+    itself followable is reproduced exactly: setpoint == command. Vectorised over the joints; pure.
+    """
+    lower, upper = limits.lower, limits.upper
+    v_max, a = limits.velocity, limits.monitor_acceleration
+    target = np.clip(command, lower, upper)
+    w = np.clip(np.nan_to_num(command_velocity), -v_max, v_max)
+    rest = target - setpoint - w * period
+    correction = np.sign(rest) * np.minimum(np.abs(rest) / period, np.sqrt(2.0 * a * np.abs(rest)))
+    wanted = w + correction
+    new_v = np.clip(wanted, velocity - a * period, velocity + a * period)
+    # still able to stop inside the position limits (this wins over the acceleration limit)
+    room_up = np.sqrt(2.0 * a * np.maximum(upper - setpoint, 0.0))
+    room_down = np.sqrt(2.0 * a * np.maximum(setpoint - lower, 0.0))
+    new_v = np.clip(new_v, -np.minimum(v_max, room_down), np.minimum(v_max, room_up))
+    new_s = np.clip(setpoint + new_v * period, lower, upper)
+    new_v = (new_s - setpoint) / period
+    clamped = bool(np.any(np.abs(new_s - command) > CLAMP_TOLERANCE))
+    exact = np.abs(new_s - target) <= CLAMP_TOLERANCE
+    return np.where(exact, target, new_s), new_v, clamped
 
 
 class DriverCore:
@@ -74,23 +110,31 @@ class DriverCore:
         self.start_tolerance = start_tolerance
         self.mode = Mode.ENABLING
         self._command: np.ndarray | None = None
+        self._command_velocity: np.ndarray | None = None
         self._command_time = -math.inf
         self._setpoint: np.ndarray | None = None
+        self._setpoint_velocity = np.zeros(limits.lower.size)
         self._reset_phase = False
         self._clamping = False
         self._recover = False
         self.stop_reason = ""
 
     # ------------------------------------------------------------------------------------------ inputs
-    def command(self, q: np.ndarray, now: float) -> np.ndarray | None:
-        """Take a new command. While running, returns the setpoint it gives right away (clamped and
-        rate-limited against the last SYNC's setpoint, exactly as the next cycle will), so the service can
-        put it on the bus before the SYNC; None otherwise."""
-        self._command = np.asarray(q, dtype=float).copy()
+    def command(self, q: np.ndarray, now: float, qd: np.ndarray | None = None) -> np.ndarray | None:
+        """Take a new command: position q (rad) and velocity qd (rad/s; None: estimated from the last
+        command). While running, returns the setpoint it gives right away (``follow_step`` from the last
+        SYNC's setpoint, exactly as the next cycle will), so the service can put it on the bus before the
+        SYNC; None otherwise."""
+        q = np.asarray(q, dtype=float).copy()
+        if qd is None:
+            elapsed = now - self._command_time
+            qd = (q - self._command) / elapsed if self._command is not None and 0.0 < elapsed <= 2 * self.period \
+                else np.zeros_like(q)
+        self._command, self._command_velocity = q, np.asarray(qd, dtype=float).copy()
         self._command_time = now
         if self.mode is not Mode.RUNNING or self._setpoint is None:
             return None
-        return self._limited(self._command, self._setpoint)[0]
+        return self._next()[0]
 
     def request(self, action: str) -> None:
         if action == "recover":
@@ -140,6 +184,8 @@ class DriverCore:
                 else:
                     events.append(Event("recover_refused", "warning", f"recovery refused: {fault[1]}"))
                     self._recover = False
+        if self.mode is not Mode.RUNNING:
+            self._setpoint_velocity = np.zeros_like(self._setpoint_velocity)
         if self.mode is Mode.ENABLING:
             if all(st is State.OPERATION_ENABLED for st in states) and self._fresh(now):
                 if np.abs(self._command - actual).max() <= self.start_tolerance:
@@ -157,25 +203,23 @@ class DriverCore:
             self._setpoint = np.where(np.isfinite(actual), actual, self._setpoint)
             controlwords = [next_controlword(st, State.QUICK_STOP_ACTIVE) if st is State.OPERATION_ENABLED
                             else next_controlword(st, State.SWITCH_ON_DISABLED) for st in states]
-        return CycleOutput(controlwords, self._setpoint.copy(), events, self.mode, states)
+        return CycleOutput(controlwords, self._setpoint.copy(), self._setpoint_velocity.copy(), events, self.mode,
+                           states)
 
     def _fresh(self, now: float) -> bool:
         return self._command is not None and now - self._command_time <= self.command_timeout
 
-    def _limited(self, command: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, bool]:
-        """The command clipped to the joint limits and to one period's travel from the previous setpoint."""
-        lim = self.limits
-        wanted = np.clip(command, lim.lower, lim.upper)
-        step = lim.velocity * self.period
-        moved = np.clip(wanted - previous, -step, step)
-        clamped = bool(np.any(wanted != command) or np.any(moved != wanted - previous))
-        return previous + moved, clamped
+    def _next(self) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The setpoint the latest command gives from the last SYNC's setpoint (see follow_step)."""
+        return follow_step(self._command, self._command_velocity, self._setpoint, self._setpoint_velocity,
+                           self.limits, self.period)
 
     def _follow(self) -> list[Event]:
-        self._setpoint, clamped = self._limited(self._command, self._setpoint)
+        self._setpoint, self._setpoint_velocity, clamped = self._next()
         events = []
         if clamped and not self._clamping:
             events.append(Event("command_clamped", "warning",
-                                "a command beyond the joint limits or faster than the joints was clamped"))
+                                "a command beyond the joint limits or faster or more abrupt than the drives "
+                                "follow was limited to what they follow"))
         self._clamping = clamped
         return events

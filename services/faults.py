@@ -32,7 +32,8 @@ from typing import Callable
 
 import numpy as np
 
-from hwsim.drive import EMCY_SYNC_TIMEOUT, DriveLimits
+from hwsim.drive import DriveLimits
+from shared.prbt_drive import EMCY_SYNC_TIMEOUT, PERIOD
 from services import driver_core
 from services.cell import service_info
 from services.launch import free_port
@@ -77,7 +78,7 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
     """What each fault must cause, with its bound stated from the configuration and the drives' timings."""
     brake = float(np.max(robot.limits.velocity / robot.limits.monitor_acceleration))
     # the robot driver's and the emulated drives' own defaults, as the cell runs them (hrc up)
-    p, ct, hb = driver_core.PERIOD, driver_core.COMMAND_TIMEOUT, driver_core.HEARTBEAT_TIMEOUT
+    p, ct, hb = PERIOD, driver_core.COMMAND_TIMEOUT, driver_core.HEARTBEAT_TIMEOUT
     wd = DriveLimits.sync_timeout_factor * DriveLimits.period
     human = max(config.scaling.human_timeout, 0.05)
     horizon = config.ssm.reaction_time + config.ssm.stopping_time
@@ -120,7 +121,7 @@ class CanProbe:
     def __init__(self, interface: str, channel: str | None) -> None:
         import canopen
 
-        from hwsim.emulator import EDS_PATH, NODE_IDS
+        from shared.prbt_drive import EDS_PATH, NODE_IDS
         from shared.canbus import open_bus
 
         self.network = canopen.Network(open_bus(interface, channel))

@@ -3,7 +3,8 @@
 Thin shell around ``services.driver_core.DriverCore``:
 * bring-up (canopen, blocking, before the loop): per node NMT reset communication and boot-up, heartbeat
   producer 100 ms (0x1017), identity (0x1018) and firmware (0x100A) over SDO, mode 7 (0x6060, checked on
-  0x6061) and interpolation period (0x60C2:1), the PDO layout written with canopen's PDO configuration
+  0x6061), interpolation period (0x60C2:1), following error window and time-out (0x6065, 0x6066, from
+  shared.prbt_drive), the PDO layout written with canopen's PDO configuration
   (invalidate, map, transmission type, validate), NMT start;
 * a cycle thread at the SYNC period (default 10 ms; deadline sleeping, not asyncio's millisecond
   timers): the core's controlwords and setpoints go out as RPDO1 on every node, then SYNC; the drives'
@@ -13,8 +14,11 @@ Thin shell around ``services.driver_core.DriverCore``:
   the latest setpoint at the next SYNC), clamped and rate-limited exactly as the cycle will, so a command
   waits for the SYNC inside the drive instead of in this process;
 * every first command computed from a new human sample closes a latency chain (sample into
-  tracker_ingest -> target frame on the bus, see shared.latency): once a second the chains go out as a
-  LatencyReport on <prefix>/diag/latency, and a warning event when their p99 exceeds the configured T_r;
+  tracker_ingest -> target frame on the bus, see shared.latency), and every SYNC answer measures how far
+  the joints run behind the setpoints sent (the drive lag) and reads the drives' following error
+  (0x60F4, TPDO2): once a second the chains go out as a LatencyReport on <prefix>/diag/latency and the
+  drive figures as a DriveLagReport on <prefix>/diag/drive_lag, with a warning event when the whole
+  chain (sample -> frame p99 + drive lag p99) exceeds the configured T_r or the lag exceeds ssm.drive_lag;
 * asyncio main: Zenoh subscriptions (joint commands, stop / recover requests), liveliness token,
   SIGTERM. A malformed message is logged and dropped; the service goes on.
 
@@ -25,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import dataclasses
 import logging
 import math
 import signal
@@ -37,15 +42,16 @@ from pathlib import Path
 import canopen
 import numpy as np
 
-from hwsim.drive import to_counts, to_rad
-from hwsim.emulator import EDS_PATH, NODE_IDS
-from services.driver_core import COMMAND_TIMEOUT, PERIOD, DriverCore, Feedback
-from shared.canbus import BusError, describe, open_bus
 from services.common import ServiceShell, run_paced, service_parser, setup_logging
-from shared.errors import HrcError
+from services.driver_core import COMMAND_TIMEOUT, DriverCore, Feedback
+from shared.canbus import BusError, describe, open_bus
 from shared.config import load_config
-from shared.latency import LatencyMeter
-from shared.messages import DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent, encode
+from shared.errors import HrcError
+from shared.latency import DriveLagMeter, LatencyMeter
+from shared.messages import (DriveLagReport, DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent,
+                             encode)
+from shared.prbt_drive import (EDS_PATH, FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, NODE_IDS, PERIOD, to_counts,
+                               to_rad)
 from shared.robot_model import default_robot
 
 log = logging.getLogger("robot_driver")
@@ -56,6 +62,7 @@ class _NodeFeedback:
     statusword: int | None = None
     position: float = math.nan
     velocity: float = 0.0
+    following_error: float = 0.0
     heartbeat: float = -math.inf
     emcy: int | None = None
 
@@ -88,15 +95,17 @@ class CanMaster:
                      "revision": node.sdo[0x1018][3].raw, "serial": node.sdo[0x1018][4].raw,
                      "firmware": node.sdo[0x100A].raw}
             self.identity.append(ident)
-            node.sdo[0x6060].raw = 7
+            node.sdo[0x6060].raw = MODE_IP
             node.sdo[0x60C2][1].raw = 10
-            if node.sdo[0x6061].raw != 7:
+            node.sdo[0x6065].raw = to_counts(FOLLOWING_WINDOW)
+            node.sdo[0x6066].raw = int(round(FOLLOWING_TIMEOUT * 1000))
+            if node.sdo[0x6061].raw != MODE_IP:
                 raise HrcError(f"node {node.id} did not take interpolated position mode")
             node.tpdo.read(from_od=True)
             node.rpdo.read(from_od=True)
             node.tpdo.save()
             node.rpdo.save()
-            for n in (1, 3):
+            for n in (1, 2, 3):
                 node.tpdo[n].add_callback(lambda m, k=k: self._on_tpdo(k, m))
             node.nmt.add_heartbeat_callback(lambda state, k=k: self._on_heartbeat(k))
             node.emcy.add_callback(lambda entry, k=k: self._on_emcy(k, entry))
@@ -136,6 +145,8 @@ class CanMaster:
                     self._fresh.add(k)
                 elif v.index == 0x606C:
                     fb.velocity = to_rad(int(v.raw))
+                elif v.index == 0x60F4:
+                    fb.following_error = to_rad(int(v.raw))
             if len(self._fresh) == len(self.nodes):
                 self._fresh.clear()
                 complete = self.completed = True
@@ -153,6 +164,11 @@ class CanMaster:
             if entry.code:
                 self.feedback_raw[k].emcy = entry.code
         log.warning("node %d EMCY 0x%04X", self.nodes[k].id, entry.code)
+
+    def following_errors(self) -> np.ndarray:
+        """The drives' last reported following errors (rad, 0x60F4)."""
+        with self.lock:
+            return np.array([fb.following_error for fb in self.feedback_raw])
 
     def feedback(self, now: float) -> list[Feedback]:
         with self.lock:
@@ -188,9 +204,12 @@ class Driver:
     """Ties the master, the core and Zenoh together."""
 
     def __init__(self, master: CanMaster, core: DriverCore, shell: ServiceShell, period: float,
-                 latency: LatencyMeter) -> None:
+                 latency: LatencyMeter, drive_lag: DriveLagMeter) -> None:
         self.master, self.core, self.shell, self.period = master, core, shell, period
         self.latency, self.latency_lock = latency, threading.Lock()
+        self.drive_lag = drive_lag
+        self.drive_lag_pub = shell.session.declare_publisher(shell.keys.drive_lag)
+        self._sent = None                  # (setpoints, their velocity) that went out with the last SYNC
         self.report_every = max(1, int(round(1.0 / period)))      # a latency report a second
         self.cycles = 0
         self.latency_pub = shell.session.declare_publisher(shell.keys.latency)
@@ -207,7 +226,7 @@ class Driver:
 
     def on_command(self, msg: JointCommand) -> None:
         with self.core_lock:
-            early = self.core.command(msg.q, time.monotonic())
+            early = self.core.command(msg.q, time.monotonic(), msg.qd)
         if early is not None:           # on the bus now; the drives take the latest setpoint at the next SYNC
             self.master.send(None, early, sync=False)
             if msg.human_sample_stamp is not None:          # the end of a sample -> frame chain
@@ -221,10 +240,8 @@ class Driver:
             self.core.request(msg.action)
 
     def _publish_event(self, event) -> None:
-        with self.pub_lock:
-            self.seq += 1
-            self.event_pub.put(encode(SafetyEvent(source="robot_driver", event=event.event, severity=event.severity,
-                                                  text=event.text, seq=self.seq, stamp=time.monotonic())))
+        self._publish(self.event_pub, SafetyEvent(source="robot_driver", event=event.event, severity=event.severity,
+                                                  text=event.text))
         (log.warning if event.severity != "info" else log.info)("%s: %s", event.event, event.text)
 
     def cycle(self, now: float) -> None:
@@ -232,11 +249,15 @@ class Driver:
         feedback = self.master.feedback(now)
         with self.master.lock:
             answered, self.master.completed = self.master.completed, False
+        positions = np.array([fb.position for fb in feedback])
         if not answered:       # a drive did not answer the last SYNC: publish what there is, never go silent
-            self.publish_state(np.array([fb.position for fb in feedback]), np.array([fb.velocity for fb in feedback]))
+            self.publish_state(positions, np.array([fb.velocity for fb in feedback]))
+        elif self._sent is not None:      # how far the joints are behind what went out with that SYNC
+            self.drive_lag.add(*self._sent, positions, self.master.following_errors())
         with self.core_lock:
             out = self.core.cycle(now, feedback)
         self.master.send(out.controlwords, out.setpoints)
+        self._sent = (out.setpoints, out.setpoint_velocity) if out.mode.value == "running" else None
         self.last_output = out
         for event in out.events:
             self._publish_event(event)
@@ -246,17 +267,26 @@ class Driver:
 
     def _report_latency(self) -> None:
         """The chains measured since the last report, and a warning when their p99 exceeds T_r."""
+        lag, samples, following_error = self.drive_lag.report()
+        self._publish(self.drive_lag_pub, DriveLagReport(source="robot_driver", lag=lag, samples=samples,
+                                                         following_error=following_error, bound=self.drive_lag.bound))
+        lag_verdict = self.drive_lag.check()
+        if lag_verdict is not None:
+            self._publish_event(lag_verdict)
         with self.latency_lock:
             sample_to_frame, processing = self.latency.drain()
-            verdict = self.latency.check()
+            verdict = self.latency.check(self.drive_lag.worst() or 0.0)
         if sample_to_frame.size:
-            with self.pub_lock:
-                self.seq += 1
-                self.latency_pub.put(encode(LatencyReport(source="robot_driver", sample_to_frame=sample_to_frame,
-                                                          processing=processing, seq=self.seq,
-                                                          stamp=time.monotonic())))
+            self._publish(self.latency_pub, LatencyReport(source="robot_driver", sample_to_frame=sample_to_frame,
+                                                          processing=processing))
         if verdict is not None:
             self._publish_event(verdict)
+
+    def _publish(self, publisher, message) -> None:
+        """One message out with the next sequence number and the time now."""
+        with self.pub_lock:
+            self.seq += 1
+            publisher.put(encode(dataclasses.replace(message, seq=self.seq, stamp=time.monotonic())))
 
     def publish_state(self, q: np.ndarray, qd: np.ndarray) -> None:
         """Every drive has answered this SYNC: the joint state goes out now (from the CAN thread)."""
@@ -280,7 +310,8 @@ async def serve(args: argparse.Namespace) -> int:
     await asyncio.to_thread(master.bring_up)
     shell = ServiceShell("robot_driver", args)
     core = DriverCore(default_robot().limits, args.period, args.command_timeout)
-    driver = Driver(master, core, shell, args.period, LatencyMeter(config.ssm.reaction_time))
+    driver = Driver(master, core, shell, args.period, LatencyMeter(config.ssm.reaction_time),
+                    DriveLagMeter(config.ssm.drive_lag))
     thread = threading.Thread(target=run_paced, args=(args.period, driver.cycle, driver.stop), name="can-cycle",
                               daemon=True)
     thread.start()
@@ -305,7 +336,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--channel", default=None)
     parser.add_argument("--period", type=float, default=PERIOD, help="SYNC period (s), default %(default)s")
     parser.add_argument("--config", type=Path, default=None,
-                        help="cell configuration YAML (its T_r is checked against the measured latency)")
+                        help="cell configuration YAML (its T_r and drive_lag are checked against the measured ones)")
     parser.add_argument("--command-timeout", type=float, default=COMMAND_TIMEOUT,
                         help="a command older than this stops the drives (s), default %(default)s")
     args = parser.parse_args(argv)

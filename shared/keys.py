@@ -12,6 +12,7 @@ Every service takes its keys from here, so the topic layout lives in one place:
     <prefix>/robot/request        CLI -> robot_driver              DriverRequest (stop, recover)
     <prefix>/safety/events        every service -> CLI, logs       SafetyEvent
     <prefix>/diag/latency         robot_driver -> CLI, benchmarks  LatencyReport
+    <prefix>/diag/drive_lag       robot_driver -> CLI, reports     DriveLagReport
     <prefix>/alive/<service>      liveliness token of each service
 """
 
@@ -88,6 +89,10 @@ class KeySpace:
     @property
     def latency(self) -> str:
         return self._key("diag/latency")
+
+    @property
+    def drive_lag(self) -> str:
+        return self._key("diag/drive_lag")
 
     def alive(self, service: str) -> str:
         """Liveliness token key of a service."""

@@ -1,12 +1,15 @@
 """The system's reaction latency, measured, and checked against the SSM's reaction time T_r (pure).
 
-The ISO/TS 15066 formula assumes the robot starts reacting to a new human position within T_r. Here that
-reaction is: a sample enters tracker_ingest, the human state reaches the scaler, the scaler's next tick
-computes a command from it, and the driver puts the resulting target frame on the CAN bus. The robot
-driver measures every such chain (``JointCommand.human_sample_stamp``: one clock, CLOCK_MONOTONIC, for
-all processes of the host) and feeds it here. When the p99 over the recent window exceeds T_r, the
-configured T_r is too small for this installation: a warning names both numbers, once per episode, and
-says so again when it is back within.
+The ISO/TS 15066 formula assumes the robot reacts to a new human position within T_r. Here that reaction
+is a chain: a sample enters tracker_ingest, the human state reaches the scaler, the scaler's next tick
+computes a command from it, the driver puts the resulting target frame on the CAN bus (``LatencyMeter``:
+every such chain, ``JointCommand.human_sample_stamp``, one clock, CLOCK_MONOTONIC, for all processes of
+the host), and the joints then follow that setpoint some time behind it (``DriveLagMeter``: the lag of
+the measured positions behind the driver's own setpoints). When the p99 of the whole chain, sample ->
+frame plus frame -> motion, exceeds T_r, the configured T_r is too small for this installation: a warning
+names the numbers, once per episode, and says so again when it is back within. The drive lag is also
+checked on its own against the configured ``ssm.drive_lag`` that the scaling layer's tracking margin is
+computed from.
 """
 
 from __future__ import annotations
@@ -59,19 +62,94 @@ class LatencyMeter:
             return None
         return float(np.percentile(np.fromiter(self._window, float), 99))
 
-    def check(self) -> LatencyCheck | None:
-        """A LatencyCheck when the verdict (p99 > T_r or not) changes, else None."""
+    def check(self, motion_lag: float = 0.0) -> LatencyCheck | None:
+        """A LatencyCheck when the verdict (sample -> frame p99 + motion_lag > T_r, or not) changes, else
+        None. motion_lag (s): how far the joints run behind the frames (the drive lag p99)."""
         p99 = self.p99()
         if p99 is None:
             return None
-        exceeded = p99 > self.reaction_time
+        chain = p99 + max(motion_lag, 0.0)
+        exceeded = chain > self.reaction_time
+        if exceeded == self.exceeded:
+            return None
+        self.exceeded = exceeded
+        parts = f"sample -> frame p99 {p99 * 1e3:.1f} ms + drive lag {motion_lag * 1e3:.1f} ms"
+        if exceeded:
+            return LatencyCheck("reaction_time_exceeded", "warning",
+                                f"measured reaction chain {chain * 1e3:.1f} ms ({parts}) exceeds the configured "
+                                f"T_r {self.reaction_time * 1e3:.0f} ms: the SSM distances assume a faster system; "
+                                f"raise ssm.reaction_time in the cell configuration", chain)
+        return LatencyCheck("reaction_time_ok", "info", f"reaction chain {chain * 1e3:.1f} ms ({parts}) is within "
+                            f"T_r {self.reaction_time * 1e3:.0f} ms again", chain)
+
+
+class DriveLagMeter:
+    """How far the measured joints run behind the driver's own setpoints, per joint (pure).
+
+    Fed once per SYNC with the setpoint that went out with the previous SYNC, its velocity, the positions
+    the drives reported at that SYNC, and the drives' own following error (0x60F4). The lag in time of a
+    joint moving at |velocity| >= min_speed is (setpoint - measured) / velocity: an interpolated position
+    drive that reaches each setpoint at the next SYNC is exactly one period behind. Slower joints give no
+    lag sample (the ratio is noise there) but their following error counts. ``report`` drains the window's
+    figures; ``check`` compares the p99 with the configured bound, a verdict per change (as LatencyMeter).
+    """
+
+    def __init__(self, bound: float, dof: int = 6, min_speed: float = 0.2, window: int = 1000,
+                 min_samples: int = 50) -> None:
+        if not bound > 0:
+            raise ValueError(f"drive lag bound must be positive, got {bound}")
+        self.bound, self.min_speed, self.min_samples = bound, min_speed, min_samples
+        self._lags = [deque(maxlen=window) for _ in range(dof)]
+        self._pending_lag = [[] for _ in range(dof)]
+        self._pending_error = np.zeros(dof)
+        self.exceeded = False
+
+    def add(self, setpoint: np.ndarray, velocity: np.ndarray, measured: np.ndarray,
+            following_error: np.ndarray | None = None) -> None:
+        """One SYNC's answer: rad, rad/s, rad, rad (non-finite values are not data and are skipped)."""
+        setpoint, velocity, measured = (np.asarray(a, dtype=float) for a in (setpoint, velocity, measured))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lag = (setpoint - measured) / velocity
+        for j in np.flatnonzero((np.abs(velocity) >= self.min_speed) & np.isfinite(lag)):
+            self._lags[j].append(float(lag[j]))
+            self._pending_lag[j].append(float(lag[j]))
+        if following_error is not None:
+            err = np.abs(np.asarray(following_error, dtype=float))
+            self._pending_error = np.fmax(self._pending_error, np.where(np.isfinite(err), err, 0.0))
+
+    def p99(self) -> np.ndarray:
+        """Per joint p99 lag (s) over the window; NaN for a joint with fewer than min_samples."""
+        return np.array([np.percentile(np.fromiter(w, float), 99) if len(w) >= self.min_samples else np.nan
+                         for w in self._lags])
+
+    def worst(self) -> float | None:
+        """The largest per-joint p99 lag (s), or None before any joint has min_samples."""
+        p99 = self.p99()
+        return float(np.nanmax(p99)) if np.any(np.isfinite(p99)) else None
+
+    def report(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Since the last report: per joint lag p99 (s, 0 where not measured), how many lag samples, and
+        the largest |following error| the drives reported (rad)."""
+        count = np.array([len(p) for p in self._pending_lag], dtype=float)
+        lag = np.array([np.percentile(p, 99) if p else 0.0 for p in self._pending_lag])
+        error = self._pending_error.copy()
+        self._pending_lag = [[] for _ in self._pending_lag]
+        self._pending_error[:] = 0.0
+        return lag, count, error
+
+    def check(self) -> LatencyCheck | None:
+        """A LatencyCheck when the verdict (worst joint's p99 lag > bound, or not) changes, else None."""
+        worst = self.worst()
+        if worst is None:
+            return None
+        exceeded = worst > self.bound
         if exceeded == self.exceeded:
             return None
         self.exceeded = exceeded
         if exceeded:
-            return LatencyCheck("reaction_time_exceeded", "warning",
-                                f"measured reaction latency p99 {p99 * 1e3:.1f} ms exceeds the configured T_r "
-                                f"{self.reaction_time * 1e3:.0f} ms: the SSM distances assume a faster system; "
-                                f"raise ssm.reaction_time in the cell configuration", p99)
-        return LatencyCheck("reaction_time_ok", "info", f"reaction latency p99 {p99 * 1e3:.1f} ms is within "
-                            f"T_r {self.reaction_time * 1e3:.0f} ms again", p99)
+            return LatencyCheck("drive_lag_exceeded", "warning",
+                                f"the joints run {worst * 1e3:.1f} ms (p99) behind their setpoints, more than the "
+                                f"configured ssm.drive_lag {self.bound * 1e3:.0f} ms that the scaling layer's tracking "
+                                f"margin assumes: raise it, or find why the drives fall behind", worst)
+        return LatencyCheck("drive_lag_ok", "info", f"drive lag p99 {worst * 1e3:.1f} ms is within ssm.drive_lag "
+                            f"{self.bound * 1e3:.0f} ms again", worst)

@@ -246,9 +246,27 @@ class LatencyReport(Message):
         _same_rows(self, "sample_to_frame", "processing")
 
 
+@dataclass(frozen=True)
+class DriveLagReport(Message):
+    """The robot driver's drive diagnostics since its last report, per joint: lag (s, p99 of how far the
+    measured position ran behind the driver's own setpoints while the joint moved; 0 where it did not),
+    samples (how many lag measurements), following_error (rad, the largest |0x60F4| the drive reported),
+    and bound (s, the configured ssm.drive_lag the lag is checked against)."""
+
+    KIND: ClassVar[str] = "drive_lag"
+    SPEC: ClassVar[dict[str, Spec]] = {"source": S, "lag": Q, "samples": Spec("farray", (DOF,), minimum=0.0),
+                                       "following_error": Spec("farray", (DOF,), minimum=0.0),
+                                       "bound": Spec("float", minimum=0.0)}
+    source: str
+    lag: np.ndarray
+    samples: np.ndarray
+    following_error: np.ndarray
+    bound: float
+
+
 MESSAGE_TYPES: dict[str, type[Message]] = {cls.KIND: cls for cls in (
     HumanRaw, HumanState, Goal, TrajectoryMsg, JointCommand, ScalerStatus, JointState, SafetyEvent, DriverRequest,
-    LatencyReport)}
+    LatencyReport, DriveLagReport)}
 
 
 def _same_rows(msg: Message, *names: str) -> None:

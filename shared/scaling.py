@@ -5,7 +5,7 @@ Each cycle the largest alpha in [0, 1] is sought such that
 
 * SSM (hard): for every robot link i and human capsule j, the speed at which link i approaches capsule j,
   n_ij^T J_i(q) q'(s) sdot_nom alpha, stays below max(v_r_max,ij - tracking_margin, 0) (the margin covers
-  the drives' one-period lag behind their setpoints, see SsmParameters). The approach speed of a rigid
+  the measured lag of the drives behind their setpoints, ``SsmParameters.tracking_margin``). The approach speed of a rigid
   segment is affine along it, so the largest of its two end points' speeds is used with the pair's
   closest distance: conservative for the whole link, not only for the closest point. A negative limit
   forbids approaching but never forbids moving away. Where the two axes touch (no direction defined)

@@ -1,12 +1,15 @@
-"""The emulated drive as pure code: motion within the limits, protections, fault reset."""
+"""The emulated drive as pure code: interpolated position motion (one period behind followable setpoints,
+saturating beyond the limits), the following error window, protections, fault reset."""
 
 import math
 
+import numpy as np
 import pytest
 
-from hwsim.drive import (EMCY_FOLLOWING, EMCY_LIMIT, EMCY_RESET, EMCY_RPDO_TIMEOUT, EMCY_SYNC_TIMEOUT, Drive,
-                         DriveLimits, to_counts, to_rad)
+from hwsim.drive import Drive, DriveLimits
 from shared.cia402 import State
+from shared.prbt_drive import (COUNTS_PER_RAD, EMCY_FOLLOWING, EMCY_LIMIT, EMCY_RESET, EMCY_RPDO_TIMEOUT, EMCY_SYNC_TIMEOUT,
+                               FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, to_counts, to_rad)
 
 T = 0.01
 
@@ -21,38 +24,109 @@ def enabled_drive(position=0.0):
     return d
 
 
+def run(d, setpoints, t0=0.0):
+    """Feed one setpoint per SYNC; returns (positions at each SYNC, following errors, EMCY codes)."""
+    pos, err, codes = [], [], []
+    for k, sp in enumerate(setpoints):
+        d.on_setpoint(to_counts(sp))
+        codes += d.on_sync(t0 + k * T)
+        pos.append(d.position)
+        err.append(d.following_error)
+    return np.array(pos), np.array(err), codes
+
+
+def trapezoid(distance, v, a, n):
+    """Setpoints at t = T, 2T, ... nT of a trapezoidal move from 0 over `distance` rad (peak v rad/s,
+    a rad/s^2), the time law sampled exactly."""
+    v = min(v, math.sqrt(distance * a))                   # a triangle when too short to reach v
+    t_acc, d_acc = v / a, v * v / (2 * a)
+    t_end = 2 * t_acc + (distance - 2 * d_acc) / v
+    t = np.minimum(T * np.arange(1, n + 1), t_end)
+    rise = 0.5 * a * np.minimum(t, t_acc) ** 2 + v * np.clip(t - t_acc, 0.0, None)
+    fall = 0.5 * a * np.clip(t - (t_end - t_acc), 0.0, None) ** 2
+    return np.minimum(rise - fall, distance)
+
+
 def test_units_are_millidegrees():
     assert to_counts(math.radians(170.0)) == 170000 and to_rad(90000) == pytest.approx(math.pi / 2)
 
 
-def test_follows_a_ramp_within_velocity_and_acceleration_limits():
+def test_constant_speed_is_followed_one_period_behind():
     d = enabled_drive()
-    t, pos, vel = 0.0, [], []
-    target = speed = 0.0
-    for k in range(200):
-        speed = min(1.4, speed + 3.0 * T)                   # accelerate at 3 rad/s^2 to 1.4 rad/s ...
-        target = min(1.0, target + speed * T)                # ... towards 1 rad
-        d.on_setpoint(to_counts(target))
-        assert d.on_sync(t) == []
-        pos.append(d.position)
-        vel.append(d.velocity)
-        t += T
-    assert pos[-1] == pytest.approx(1.0, abs=1e-3)
-    assert max(abs(v) for v in vel) <= 1.57 + 1e-9
-    acc = [abs(b - a) / T for a, b in zip(vel, vel[1:])]
-    assert max(acc) <= 6.0 + 1e-9
+    v = 0.95 * 1.57
+    sp = trapezoid(10.0, v, 6.0, 100)                    # up to speed at the drive's own acceleration
+    pos, err, codes = run(d, sp)
+    assert codes == [] and not d.saturated
+    steady = slice(40, None)                             # at speed
+    lag = (sp[steady] - pos[steady]) / v                 # the setpoint sent at k is reached at k+1
+    assert np.all(np.abs(lag - T) < 1e-4)
+    assert np.max(np.abs(err[steady])) < 2 / 57295.8     # 0x60F4: within quantisation
+    assert d.velocity_actual == pytest.approx(v, abs=1e-3)
 
 
-def test_stopping_setpoints_make_the_drive_brake_not_teleport():
+def test_acceleration_ramps_within_the_limits_are_followed_within_two_periods():
     d = enabled_drive()
-    for k in range(60):                                      # cruise at 1.5 rad/s
-        d.on_setpoint(to_counts(1.5 * T * k))
-        d.on_sync(k * T)
-    last = to_counts(1.5 * T * 59)
-    v_before = d.velocity
-    d.on_setpoint(last)
-    d.on_sync(0.6)
-    assert abs(d.velocity) > v_before - 6.0 * T - 1e-9       # it cannot stop in one period
+    sp = trapezoid(1.2, 1.49, 3.0, 150)                   # the issue's trapezoid: 1.49 rad/s, 3 rad/s^2
+    pos, err, codes = run(d, sp)
+    assert codes == [] and not d.saturated
+    # each measured position is a setpoint of at most two periods before
+    for k in range(2, len(sp)):
+        assert sp[k - 2] - 1e-4 <= pos[k] <= sp[k] + 1e-4
+    assert np.max(np.abs(err)) < 1e-3
+    assert pos[-1] == pytest.approx(1.2, abs=1e-4)
+
+
+def test_beyond_the_acceleration_limit_it_saturates_and_lands_without_overshoot():
+    d = enabled_drive()
+    v = 0.6
+    sp = trapezoid(10.0, v, 3.0, 60)
+    run(d, sp)
+    stop_at = sp[-1]
+    pos, err, codes = run(d, [stop_at] * 80, t0=0.6)   # the setpoints stop at once: 60 rad/s^2 implied
+    assert codes == []                                   # 0.03 rad of braking: within the window
+    assert np.max(np.abs(err)) > 0.02                    # it really fell behind (saturated)
+    vel = np.diff(pos) / T
+    assert np.max(np.abs(np.diff(vel))) <= 6.0 * T + 2 / COUNTS_PER_RAD / T + 1e-9   # its acceleration (+ 2 counts)
+    assert np.max(pos) <= stop_at + v * v / (2 * 6.0) + 1e-3          # it braked, it did not bounce
+    assert pos[-1] == pytest.approx(stop_at, abs=1e-4) and abs(d.velocity) < 1e-6
+
+
+def test_following_error_beyond_the_window_for_the_time_out_faults_with_emcy():
+    d = enabled_drive()
+    pos, err, codes = run(d, np.full(20, 0.5))          # a jump of 0.5 rad: saturated at once
+    assert codes == [EMCY_FOLLOWING]
+    assert d.state in (State.FAULT_REACTION_ACTIVE, State.FAULT)
+    d2 = enabled_drive()                                 # setpoints that stop dead from 1.5 rad/s: 0.19 rad
+    run(d2, trapezoid(10.0, 1.5, 3.0, 60))              # of braking, beyond the window for longer than
+    _, _, codes = run(d2, np.full(30, trapezoid(10.0, 1.5, 3.0, 60)[-1]), t0=0.6)   # the time-out
+    assert codes == [EMCY_FOLLOWING]
+
+
+def test_the_window_and_time_out_decide_when_it_trips():
+    for window, timeout, trips in ((0.05, 0.05, True), (0.6, 0.05, False), (0.05, 1.0, False)):
+        d = Drive(DriveLimits(lower=-3, upper=3, following_window=window, following_timeout=timeout))
+        d.boot(0.0)
+        d.mode = 7
+        for cw in (0x0106, 0x0107, 0x010F, 0x001F):
+            d.on_controlword(cw)
+        _, err, codes = run(d, np.full(40, 0.5))
+        assert (codes == [EMCY_FOLLOWING]) is trips, (window, timeout)
+
+
+def test_time_to_trip_is_the_time_out_after_leaving_the_window():
+    d = enabled_drive()
+    _, err, codes = [], [], []
+    times = []
+    for k in range(20):
+        d.on_setpoint(to_counts(0.5))
+        c = d.on_sync(k * T)
+        if abs(d.following_error) > FOLLOWING_WINDOW:
+            times.append(k * T)
+        if c:
+            assert c == [EMCY_FOLLOWING]
+            assert k * T - times[0] == pytest.approx(FOLLOWING_TIMEOUT, abs=1e-9)
+            return
+    pytest.fail("no following error fault")
 
 
 def test_setpoint_beyond_the_limit_faults_with_emcy():
@@ -60,12 +134,6 @@ def test_setpoint_beyond_the_limit_faults_with_emcy():
     d.on_setpoint(to_counts(2.99))
     assert d.on_sync(0.0) == [EMCY_LIMIT]
     assert d.state is State.FAULT                            # at rest: the fault reaction is over at once
-
-
-def test_unfollowable_jump_faults():
-    d = enabled_drive()
-    d.on_setpoint(to_counts(0.5))
-    assert d.on_sync(0.0) == [EMCY_FOLLOWING]
 
 
 def test_missing_sync_and_missing_setpoints_fault():
@@ -81,11 +149,17 @@ def test_missing_sync_and_missing_setpoints_fault():
     assert codes == [EMCY_RPDO_TIMEOUT]
 
 
+def test_a_held_setpoint_is_kept_until_the_rpdo_time_out():
+    d = enabled_drive()
+    pos, _, _ = run(d, [0.0005, 0.0015, 0.003])
+    for k in range(6):                                   # no new setpoint for a few SYNCs: hold the last one
+        assert d.on_sync(0.03 + k * T) == []
+    assert d.position == pytest.approx(0.003, abs=2e-3) and d.state is State.OPERATION_ENABLED
+
+
 def test_fault_reaction_brakes_then_fault_then_reset():
     d = enabled_drive()
-    for k in range(50):
-        d.on_setpoint(to_counts(1.2 * T * k))
-        d.on_sync(k * T)
+    run(d, trapezoid(10.0, 1.2, 6.0, 50))
     d.raise_fault(0x5000)
     for k in range(60):
         d.on_sync(0.5 + k * T)
@@ -99,14 +173,13 @@ def test_disabled_drive_does_not_move():
     d.boot(0.3)
     d.on_setpoint(to_counts(0.5))
     d.on_sync(0.0)
+    d.on_sync(0.01)
     assert d.position == 0.3 and d.velocity == 0.0
 
 
 def test_without_sync_the_fault_reaction_brakes_on_the_drives_own_clock():
     d = enabled_drive()
-    for k in range(40):                                   # moving at 1.2 rad/s
-        d.on_setpoint(to_counts(1.2 * T * k))
-        d.on_sync(k * T)
+    run(d, trapezoid(10.0, 1.2, 6.0, 40))                 # moving at 1.2 rad/s
     t_last, v0, p0 = 39 * T, d.velocity, d.position
     assert v0 == pytest.approx(1.2, abs=0.05)
     assert d.watchdog(t_last + 0.07) == [EMCY_SYNC_TIMEOUT] and d.state is State.FAULT_REACTION_ACTIVE
@@ -115,5 +188,6 @@ def test_without_sync_the_fault_reaction_brakes_on_the_drives_own_clock():
     assert d.state is State.FAULT and d.velocity == 0.0
     # on at its speed until the watchdog fired, then braked at the acceleration limit
     assert d.position - p0 == pytest.approx(v0 * 0.07 + v0 ** 2 / (2 * d.limits.acceleration), rel=1e-6)
+    p_rest = d.position
     d.on_sync(2.0)                                        # a new master: nothing left to move
-    assert d.velocity == 0.0
+    assert d.velocity == 0.0 and d.position == p_rest

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from hwsim.drive import Drive, DriveLimits, to_counts, to_rad
+from hwsim.drive import Drive, DriveLimits
+from shared.prbt_drive import to_counts, to_rad
 from services.driver_core import DriverCore, Feedback, Mode
 from shared.robot_model import default_robot
 
@@ -96,10 +97,13 @@ def test_jumps_and_limits_are_clamped_with_one_event():
     before = cell.core.cycle(cell.t, cell.feedback()).setpoints[0]
     out = cell.step(Q0 + np.array([0.5, 0, 0, 0, 0, 0]))
     assert [e.event for e in out.events] == ["command_clamped"]
-    assert out.setpoints[0] - before == pytest.approx(1.57 * T)
+    assert out.setpoints[0] - before == pytest.approx(6.0 * T * T)   # from rest: one period at the drive's a
     out = cell.step(Q0 + np.array([0.5, 0, 0, 0, 0, 0]))
     assert out.events == []                                    # one event per episode
+    for _ in range(100):
+        out = cell.step(Q0 + np.array([0.5, 0, 0, 0, 0, 0]))
     assert all(d.state.value == "operation_enabled" for d in cell.drives)   # the drives never saw a jump
+    assert out.setpoints[0] == pytest.approx(Q0[0] + 0.5) and cell.q[0] == pytest.approx(Q0[0] + 0.5, abs=1e-4)
 
 
 @pytest.mark.parametrize("fault", ["heartbeat", "drive_fault", "emcy"])
@@ -147,3 +151,52 @@ def test_an_early_command_gives_the_setpoint_the_next_cycle_will_send():
     assert np.array_equal(early, out.setpoints)
     far = cell.core.command(cell.q + 1.0, cell.t)               # rate-limited like the cycle
     assert np.abs(far - cell.core.cycle(cell.t, cell.feedback()).setpoints).max() < 1e-12
+
+
+def test_abrupt_commands_never_trip_a_drive_and_it_stays_one_period_behind():
+    """Random commands (jumps, full-speed runs, dead stops like the scaler's alpha = 0) through the core:
+    every setpoint is followable, so the drives never fault, never saturate, and their following error
+    stays at the count level while the measured joints are one period behind the setpoints."""
+    rng = np.random.default_rng(4)
+    cell = Cell()
+    enable(cell)
+    target, previous, velocities = cell.q.copy(), None, []
+    for k in range(600):
+        if k % 40 == 0:                                          # a new far command every 0.4 s
+            target = np.clip(Q0 + rng.uniform(-1.0, 1.0, 6), LIM.lower, LIM.upper)
+        command = target if rng.random() < 0.7 else cell.q + rng.normal(0.0, 0.2, 6)   # and noise
+        out = cell.step(command)
+        assert all(d.state.value == "operation_enabled" for d in cell.drives), k
+        assert not any(d.saturated for d in cell.drives), k
+        if previous is not None:
+            assert np.abs(cell.q - previous).max() < 1e-4       # measured = the setpoint of one SYNC before
+        previous = out.setpoints
+        velocities.append(out.setpoint_velocity)
+        assert max(abs(d.following_error) for d in cell.drives) < 1e-4
+    v = np.array(velocities)
+    assert np.abs(v).max() <= 1.57 + 1e-9 and np.abs(np.diff(v, axis=0)).max() <= 6.0 * T + 1e-9
+    assert np.abs(v).max() > 1.0                                 # it did run fast
+
+
+def test_a_stop_at_full_speed_is_the_drives_fastest_stop():
+    cell = Cell()
+    enable(cell)
+    start = cell.q.copy()
+    for k in range(60):                                          # joint 1 accelerates at 3 rad/s^2 to 1.5 rad/s
+        t = (k + 1) * T
+        v = min(3.0 * t, 1.5)
+        x = 1.5 * t * t if t <= 0.5 else 0.375 + 1.5 * (t - 0.5)
+        cell.core.command(start - np.array([x, 0, 0, 0, 0, 0]), cell.t, np.array([-v, 0, 0, 0, 0, 0]))
+        cell.step()
+    held = cell.core._command.copy()
+    velocities, positions = [], []
+    for _ in range(100):                                         # the scaler says: stop here (alpha = 0)
+        cell.core.command(held, cell.t, np.zeros(6))
+        out = cell.step()
+        velocities.append(out.setpoint_velocity[0])
+        positions.append(cell.q[0])
+    assert held[0] - min(positions) <= 1.5 ** 2 / (2 * 6.0) + 0.01   # the braking distance, no more
+    assert all(d.state.value == "operation_enabled" for d in cell.drives)
+    dv = np.abs(np.diff(velocities)) / T
+    assert dv.max() <= 6.0 + 1e-6                                # decelerating at the drive's limit, no faster
+    assert np.abs(cell.q - held).max() < 1e-3                    # and back where the command stopped

@@ -16,7 +16,7 @@ import pytest
 from tests.util import require_namespace
 
 HARNESS = Path(__file__).parent / "hil" / "harness.py"
-SCENARIOS = ["enable", "follow", "stale_command", "heartbeat_loss", "drive_fault", "frozen_node", "dropped_frames",
+SCENARIOS = ["enable", "follow", "fast_following", "stale_command", "heartbeat_loss", "drive_fault", "frozen_node", "dropped_frames",
              "bad_messages", "emulator_watchdog", "garbage_frames"]
 
 

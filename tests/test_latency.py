@@ -48,3 +48,37 @@ def test_within_reaction_time_never_warns():
 def test_reaction_time_must_be_positive():
     with pytest.raises(ValueError):
         LatencyMeter(0.0)
+
+
+def test_the_whole_chain_counts_the_drive_lag():
+    from shared.latency import LatencyMeter
+    meter = LatencyMeter(0.1, min_samples=10)
+    for _ in range(20):
+        meter.add(0.085, 0.002)
+    assert meter.check(motion_lag=0.0) is None                      # 85 ms alone is within T_r
+    verdict = meter.check(motion_lag=0.02)                         # 85 + 20 ms is not
+    assert verdict.event == "reaction_time_exceeded" and "drive lag 20.0 ms" in verdict.text
+
+
+def test_drive_lag_meter_measures_the_lag_of_moving_joints_only():
+    import numpy as np
+
+    from shared.latency import DriveLagMeter
+    meter = DriveLagMeter(0.012, min_samples=5)
+    v = np.array([1.5, 0.05, -1.0, 0.0, 0.0, 0.0])
+    for k in range(10):
+        setpoint = v * 0.01 * (k + 1)
+        measured = v * 0.01 * k                                    # one 10 ms period behind
+        meter.add(setpoint, v, measured, np.array([1e-5, 0, -2e-5, 0, 0, 0]))
+    p99 = meter.p99()
+    assert p99[0] == np.float64(p99[0]) and abs(p99[0] - 0.01) < 1e-9 and abs(p99[2] - 0.01) < 1e-9
+    assert np.isnan(p99[1]) and np.isnan(p99[3])                  # too slow to say
+    assert meter.check() is None                                   # 10 ms is within 12 ms
+    lag, samples, error = meter.report()
+    assert samples.tolist() == [10, 0, 10, 0, 0, 0] and abs(lag[0] - 0.01) < 1e-9 and lag[1] == 0.0
+    assert error[2] == 2e-5
+    for k in range(10):                                            # now 30 ms behind
+        meter.add(v * 0.03, v, np.zeros(6))
+    verdict = meter.check()
+    assert verdict.event == "drive_lag_exceeded" and verdict.severity == "warning"
+    assert meter.report()[2].max() == 0.0                          # the report drained

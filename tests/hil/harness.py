@@ -28,10 +28,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from hwsim.emulator import EDS_PATH, NODE_IDS  # noqa: E402
+from shared.prbt_drive import EDS_PATH, NODE_IDS  # noqa: E402
 from shared.canbus import open_bus  # noqa: E402
 from shared.keys import KeySpace  # noqa: E402
-from shared.messages import DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode  # noqa: E402
+from shared.messages import (DriveLagReport, DriverRequest, JointCommand, JointState, SafetyEvent, decode,  # noqa: E402
+                             encode)
 from shared.zenoh_session import await_liveliness, open_session  # noqa: E402
 from services.launch import die_with_parent  # noqa: E402
 from tests.util import free_port  # noqa: E402
@@ -53,6 +54,7 @@ class Cell:
         self.states: list[tuple[float, JointState]] = []
         self.events: list[tuple[float, SafetyEvent]] = []
         self.emcy: list[tuple[float, int, int]] = []
+        self.emcy_registers: list[tuple[int, int | None]] = []          # (code, error register) of each EMCY
         self.lock = threading.Lock()
         self.seq = 0
 
@@ -93,8 +95,10 @@ class Cell:
                                     connect=[f"tcp/127.0.0.1:{self.port}"])
         self.cmd_pub = self.session.declare_publisher(self.keys.command)
         self.req_pub = self.session.declare_publisher(self.keys.driver_request)
+        self.drive_lag: list[DriveLagReport] = []
         self.subs = [self.session.declare_subscriber(self.keys.joint_state, self._on_state),
-                     self.session.declare_subscriber(self.keys.safety_events, self._on_event)]
+                     self.session.declare_subscriber(self.keys.safety_events, self._on_event),
+                     self.session.declare_subscriber(self.keys.drive_lag, self._on_drive_lag)]
         # peers do not forward: a put reaches a service only once this session is linked to it directly
         # (gossip builds the mesh a little after start); wait for each service's liveliness token
         for service in [name for name, on in (("scaler", self.with_scaler), ("tracker_ingest", self.with_tracker),
@@ -140,6 +144,11 @@ class Cell:
         with self.lock:
             self.states.append((time.monotonic(), msg))
 
+    def _on_drive_lag(self, sample) -> None:
+        msg = decode(sample.payload.to_bytes(), DriveLagReport)
+        with self.lock:
+            self.drive_lag.append(msg)
+
     def _on_event(self, sample) -> None:
         msg = decode(sample.payload.to_bytes(), SafetyEvent)
         with self.lock:
@@ -149,6 +158,7 @@ class Cell:
         if len(data) >= 2:
             with self.lock:
                 self.emcy.append((time.monotonic(), can_id - 0x80, int.from_bytes(data[:2], "little")))
+            self.emcy_registers.append((int.from_bytes(data[:2], "little"), data[2] if len(data) > 2 else None))
 
     # ------------------------------------------------------------------------------------------ helpers
     def latest(self) -> JointState | None:
@@ -225,6 +235,43 @@ def follow(cell: Cell) -> dict:
             "enabled": cell.latest().enabled}
 
 
+def fast_following(cell: Cell) -> dict:
+    """Joint 1 on a trapezoid at 0.95 of its velocity limit (3 rad/s^2), commanded with its velocity as the
+    scaler does: the joints follow within two periods (the driver's drive-lag report), the drives'
+    following error stays at the count level, no EMCY, no stop."""
+    recover(cell)
+    start = cell.latest().q.copy()
+    v, a, distance = 0.95 * 1.57, 3.0, 1.2
+    t_acc = v / a
+    t_end = 2 * t_acc + (distance - v * t_acc) / v
+    with cell.lock:
+        n_reports, n_emcy = len(cell.drive_lag), len(cell.emcy)
+    t0 = time.monotonic()
+    while (t := time.monotonic() - t0) < t_end + 1.2:
+        tc = min(t, t_end)
+        x = 0.5 * a * min(tc, t_acc) ** 2 + v * max(0.0, min(tc, t_end - t_acc) - t_acc) \
+            + (v * max(0.0, tc - (t_end - t_acc)) - 0.5 * a * max(0.0, tc - (t_end - t_acc)) ** 2)
+        speed = a * tc if tc < t_acc else (v if tc < t_end - t_acc else max(0.0, a * (t_end - tc)))
+        cell.seq += 1
+        q = start.copy()
+        q[0] -= x
+        qd = np.zeros(6)
+        qd[0] = -speed
+        cell.cmd_pub.put(encode(JointCommand(q=q, qd=qd, trajectory_version=0, s=0.0, seq=cell.seq,
+                                             stamp=time.monotonic())))
+        time.sleep(PERIOD)
+    cell.hold_until(lambda s: False, 1.1, q)                 # holding there until the next drive-lag report
+    with cell.lock:
+        reports, emcy = cell.drive_lag[n_reports:], [c for _, _, c in cell.emcy[n_emcy:] if c]
+    lags = [r.lag[0] for r in reports if r.samples[0] > 0]
+    errors = [float(r.following_error.max()) for r in reports]
+    final = float(abs(cell.latest().q[0] - (start[0] - distance)))
+    return {"ok": bool(lags) and max(lags) <= 2 * PERIOD and max(errors) < 0.01 and not emcy and final < 0.005
+            and cell.latest().enabled,
+            "lag_p99_ms": [round(x * 1e3, 2) for x in lags], "following_error_max_rad": max(errors, default=None),
+            "emcy": emcy, "final_error_rad": final}
+
+
 def stale_command(cell: Cell) -> dict:
     cell.hold_until(lambda s: False, 0.5)                   # steady, then moving: a ramp on joint 1
     q = cell.latest().q.copy()
@@ -257,8 +304,10 @@ def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...],
     # it does not move either: it processes no SYNC)
     stopped_all = "operation_enabled" not in state.drive_state.split(":")[1].split("/") or (
         silent and state.drive_state.startswith("stopped:"))
+    with cell.lock:              # CiA 301: every fault's EMCY sets the error register
+        unflagged = sorted({f"0x{code:04X}" for code, register in cell.emcy_registers if code and not register})
     return {"ok": ok_recover and detected is not None and detected <= within + 0.1 and bool(events)
-            and events[0][1] in expect and stopped_all,
+            and events[0][1] in expect and stopped_all and not unflagged, "emcy_without_register": unflagged,
             "recovered_first": ok_recover, "detected_after_s": detected, "events": events[:3],
             "drive_state": state.drive_state}
 
@@ -544,7 +593,7 @@ SYSTEM_SCENARIOS = {"garbage_everywhere": garbage_everywhere, "system_goal": sys
                     "system_replan": system_replan, "system_near_human": system_near_human,
                     "monitor_report": monitor_report}
 
-SCENARIOS = {"enable": enable, "follow": follow, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
+SCENARIOS = {"enable": enable, "follow": follow, "fast_following": fast_following, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
              "drive_fault": drive_fault, "frozen_node": frozen_node, "dropped_frames": dropped_frames,
              "bad_messages": bad_messages, "emulator_watchdog": emulator_watchdog, "garbage_frames": garbage_frames}
 
