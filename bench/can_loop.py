@@ -4,7 +4,10 @@ it prints figures).
 * SYNC jitter: |interval - period| of the SYNC frames as seen on the bus;
 * command to frame: a joint command published on Zenoh until the RPDO1 frame carrying that setpoint is
   on the bus (the driver forwards a command at once while running; the drives latch it at the next SYNC);
-* state to Zenoh: the TPDO3 frame with a new position until the joint state with that position arrives.
+* state to Zenoh: the TPDO3 frame with a new position until the joint state with that position arrives;
+* following at 0.95 of the velocity limit (the HIL harness's fast_following: joint 1 on a trapezoid at
+  1.49 rad/s, 3 rad/s^2): the lag of the measured joint behind the driver's setpoints (the driver's own
+  DriveLagReport, p99 per second) and the drives' largest following error (0x60F4), and any EMCY.
 
 udp_multicast runs inside a private network namespace: the script re-runs itself under `unshare -rn`
 when it is not in one. Last line: one JSON object.
@@ -93,12 +96,16 @@ def measure(interface: str, channel: str | None, seconds: float) -> dict:
                 before = [f for f in tpdo.get(to_counts(float(st.q[0])), []) if f <= t_state]
                 if before:
                     lat.append((t_state - max(before)) * 1e3)
+        following = harness.fast_following(cell)
     finally:
         cell.stop()
     return {"bench": "can_loop", "transport": f"{interface}:{channel or ''}",
             "sync_jitter_ms": {"p50": pct(jitter, 50), "p99": pct(jitter, 99), "max": round(float(jitter.max()), 3)},
             "command_to_frame_ms": {"p50": pct(cmd, 50), "p99": pct(cmd, 99)},
             "state_to_zenoh_ms": {"p50": pct(lat, 50), "p99": pct(lat, 99)},
+            "following_095": {"lag_p99_ms": max(following["lag_p99_ms"], default=None),
+                              "following_error_max_rad": following["following_error_max_rad"],
+                              "drive_faults": following["emcy"], "ok": following["ok"]},
             "samples": {"syncs": int(len(syncs)), "commands": len(cmd), "states": len(lat)}}
 
 
@@ -116,6 +123,9 @@ def main() -> int:
           f"max {result['sync_jitter_ms']['max']} ms ({result['samples']['syncs']} periods)")
     print(f"command to frame: p50 {result['command_to_frame_ms']['p50']} ms, p99 {result['command_to_frame_ms']['p99']} ms")
     print(f"state to Zenoh:   p50 {result['state_to_zenoh_ms']['p50']} ms, p99 {result['state_to_zenoh_ms']['p99']} ms")
+    f = result["following_095"]
+    print(f"following at 0.95 v_max: lag p99 {f['lag_p99_ms']} ms (goal <= 20), following error max "
+          f"{f['following_error_max_rad']} rad, drive faults {f['drive_faults'] or 'none'}")
     print(json.dumps(result))
     return 0
 

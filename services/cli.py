@@ -431,7 +431,7 @@ def cmd_status(args: argparse.Namespace) -> int:
     import time
 
     from shared.keys import SERVICES
-    from shared.messages import JointState, SafetyEvent, ScalerStatus, decode
+    from shared.messages import DriveLagReport, JointState, SafetyEvent, ScalerStatus, decode
     from shared.errors import MessageError
 
     session, keys = _session(args)
@@ -450,7 +450,8 @@ def cmd_status(args: argparse.Namespace) -> int:
 
     subs = [session.declare_subscriber(keys.joint_state, keep(JointState)),
             session.declare_subscriber(keys.scaler_status, keep(ScalerStatus)),
-            session.declare_subscriber(keys.safety_events, keep(SafetyEvent))]
+            session.declare_subscriber(keys.safety_events, keep(SafetyEvent)),
+            session.declare_subscriber(keys.drive_lag, keep(DriveLagReport))]
     try:
         time.sleep(args.timeout)
         alive = sorted({str(r.ok.key_expr).rsplit("/", 1)[-1] for r in session.liveliness().get(keys.alive_all, timeout=1.0)
@@ -460,6 +461,10 @@ def cmd_status(args: argparse.Namespace) -> int:
         js = latest.get(JointState)
         print(f"  robot:    {js.drive_state if js else 'no joint state'}"
               + (f", q = {[round(float(v), 3) for v in js.q]}" if js else ""))
+        lag = latest.get(DriveLagReport)
+        print("  drives:   " + (f"lag p99 {', '.join(f'{x * 1e3:.1f}' for x in lag.lag)} ms (bound "
+                                 f"{lag.bound * 1e3:.0f} ms; 0 = not moving), following error max "
+                                 f"{lag.following_error.max() * 1e3:.2f} mrad" if lag else "no drive report"))
         st = latest.get(ScalerStatus)
         print("  scaler:   " + (f"alpha {st.alpha:.2f} (safe {st.safe_alpha:.2f}), beta {int(st.beta)}, trajectory "
                                  f"{st.trajectory_version}, s {st.s:.2f}, {st.status}" if st else "no status"))

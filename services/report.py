@@ -17,8 +17,8 @@ import numpy as np
 
 from shared.config import CellConfig
 from shared.convert import humans_from_msg
-from shared.messages import (HumanState, JointCommand, JointState, LatencyReport, SafetyEvent, ScalerStatus,
-                             TrajectoryMsg)
+from shared.messages import (DriveLagReport, HumanState, JointCommand, JointState, LatencyReport, SafetyEvent,
+                             ScalerStatus, TrajectoryMsg)
 from shared.monitor import HumanHistory, SafetyMonitor
 from shared.robot_model import RobotModel
 
@@ -37,6 +37,7 @@ class Recording:
     trajectories: list[TrajectoryMsg] = field(default_factory=list)
     events: list[SafetyEvent] = field(default_factory=list)
     latency: list[LatencyReport] = field(default_factory=list)
+    drive_lag: list[DriveLagReport] = field(default_factory=list)
     shuttles: int = 0
     phase: Callable[[float], str] | None = None
 
@@ -76,17 +77,39 @@ def replan_stalls(statuses: list[ScalerStatus], t0: float = 0.0) -> list[dict]:
 def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dict[str, np.ndarray]:
     """At every measured joint state, with the human state of its moment (shared.monitor.HumanHistory, the
     monitor service's own pairing): separation, and the robot's approach speed against its ISO/TS 15066
-    limit at the pair closest to its limit (the independent monitor's check, recomputed for the figures)."""
+    limit at the pair closest to its limit (the independent monitor's check, recomputed for the figures),
+    and ``late_excess``: by how much (m/s) the measured approach speed exceeded the limit at a pair whose
+    exceedance had lasted longer than T_r (0 where none had): the formula gives the robot T_r to react to
+    a limit that falls below its speed, and nothing after that without braking."""
     monitor = SafetyMonitor(robot, config.ssm)
     history = HumanHistory(span=np.inf)
     for msg in rec.human_states:
         history.add(msg.sample_stamp, humans_from_msg(msg))
-    rows = []
+    rows, since = [], {}
     for js in rec.joint_states:
         r = monitor.check(js.q, js.qd, history.at(js.stamp))
-        rows.append((js.stamp - rec.t0, r.min_separation, r.approach_speed, r.limit, r.min_margin))
-    arr = np.array(rows, dtype=float).reshape(-1, 5)
-    return {"t": arr[:, 0], "separation": arr[:, 1], "approach": arr[:, 2], "limit": arr[:, 3], "margin": arr[:, 4]}
+        speeding = {(v.link, v.capsule): v.approach_speed - max(v.limit, 0.0) for v in r.violations
+                    if v.kind == "speed"}
+        since = {pair: since.get(pair, js.stamp) for pair in speeding}
+        late = max((excess for pair, excess in speeding.items()
+                    if js.stamp - since[pair] > config.ssm.reaction_time), default=0.0)
+        rows.append((js.stamp - rec.t0, r.min_separation, r.approach_speed, r.limit, r.min_margin, late))
+    arr = np.array(rows, dtype=float).reshape(-1, 6)
+    return {"t": arr[:, 0], "separation": arr[:, 1], "approach": arr[:, 2], "limit": arr[:, 3], "margin": arr[:, 4],
+            "late_excess": arr[:, 5]}
+
+
+def drive_summary(rec: Recording) -> dict:
+    """The drives as the robot driver reported them: the worst per-joint lag p99 (ms) over the reports, the
+    largest following error (rad), and the drive faults announced (EMCY events)."""
+    reports = rec.drive_lag
+    lag = np.max([r.lag for r in reports], axis=0) if reports else None
+    faults = [e.text for e in rec.events if e.source == "robot_driver" and e.event in ("emcy", "drive_fault")]
+    return {"reports": len(reports), "lag_p99_ms": None if lag is None else [round(float(x) * 1e3, 2) for x in lag],
+            "following_error_max_rad": None if not reports else round(float(max(r.following_error.max()
+                                                                                   for r in reports)), 5),
+            "drive_lag_bound_ms": None if not reports else round(reports[-1].bound * 1e3, 2),
+            "faults": faults}
 
 
 def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict, dict]:
@@ -144,6 +167,9 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "monitor": summaries[-1].text if summaries else "no monitor summary received",
         "latency": {"chains": int(s2f.size), "sample_to_frame_ms": _percentiles(s2f, 50, 99),
                     "processing_ms": _percentiles(proc, 50, 99)},
+        "drives": drive_summary(rec),
+        "exceedances_after_reaction_time": int(np.count_nonzero(series["late_excess"] > 0)),
+        "worst_late_excess_m_s": round(float(series["late_excess"].max()), 4) if series["late_excess"].size else 0.0,
         "reaction_time_s": config.ssm.reaction_time,
         "reaction_time_covers_p99": None if p99 is None else bool(p99 <= config.ssm.reaction_time),
         "events": sorted({f"{e.source}:{e.event}" for e in rec.events if e.severity != "info"}),
