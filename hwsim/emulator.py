@@ -31,6 +31,7 @@ from hwsim.drive import Drive, DriveLimits
 from shared.canbus import BusError, describe, open_bus
 from shared.prbt_drive import EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register, to_counts, COUNTS_PER_RAD
 from shared.robot_model import default_robot
+from shared.scheduling import realtime
 
 log = logging.getLogger("hwsim")
 
@@ -186,13 +187,15 @@ def build_limits(period: float) -> list[DriveLimits]:
 
 
 def run(interface: str, channel: str | None, start: np.ndarray, seed: int, stop: threading.Event) -> None:
+    scheduling = realtime("hwsim")          # before the bus: canopen's receive thread inherits it
     bus = open_bus(interface, channel)
     network = canopen.Network(bus)
     network.connect()
     rng = random.Random(seed)
     nodes = [EmulatedNode(network, nid, lim, float(q), rng) for nid, lim, q in zip(NODE_IDS, build_limits(PERIOD), start)]
     network.subscribe(0x80, lambda can_id, data, ts: [n.on_sync(time.monotonic()) for n in nodes])
-    print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}", flush=True)
+    print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}, {scheduling}",
+          flush=True)
     try:
         while not stop.wait(0.005):
             now = time.monotonic()

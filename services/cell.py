@@ -1,7 +1,7 @@
 """Starting and stopping a whole cell under supervisord (the thin shell behind `hrc up` and `hrc down`).
 
 Where the kernel has no CAN the bus is udp_multicast, which may only run in a private network namespace:
-`up` then starts supervisord under `unshare -rn` (only lo, multicast on, a route on lo) and writes the
+`up` then starts supervisord under `unshare -n` (root) or `unshare -rn` (only lo, multicast on, a route on lo) and writes the
 namespace's PID to <run>/cell.pid. Every other `hrc` command run outside it re-enters that namespace
 with nsenter (`reenter_argv`), so it reaches the cell's loopback Zenoh. `down` ends supervisord by that
 PID, and supervisord stops every service cleanly.
@@ -26,18 +26,24 @@ CONF = ROOT / "deploy" / "supervisord.conf"
 NAMESPACE_SETUP = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$@\""
 
 
+def unshare_flags() -> str:
+    """-n for root (a network namespace alone: the processes keep the right to SCHED_FIFO, which a new user
+    namespace takes away), else -rn (unprivileged: a user namespace too)."""
+    return "-n" if os.geteuid() == 0 else "-rn"
+
+
 def in_new_namespace(argv: list[str]) -> list[str]:
-    """argv run in a new private network namespace (unshare -rn: unprivileged, only lo, multicast on lo):
-    the only place udp_multicast CAN may run."""
-    return ["unshare", "-rn", "sh", "-c", NAMESPACE_SETUP, "sh", *argv]
+    """argv run in a new private network namespace (only lo, multicast on lo): the only place udp_multicast
+    CAN may run."""
+    return ["unshare", unshare_flags(), "sh", "-c", NAMESPACE_SETUP, "sh", *argv]
 
 
 def namespace_reason() -> str | None:
     """Why no private network namespace can be made here, or None when one can."""
     if not shutil.which("unshare") or not shutil.which("ip"):
         return "unshare or ip (iproute2) is not installed"
-    probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True, text=True)
-    return None if probe.returncode == 0 else f"unshare -rn is not permitted here: {probe.stderr.strip()}"
+    probe = subprocess.run(["unshare", unshare_flags(), "true"], capture_output=True, text=True)
+    return None if probe.returncode == 0 else f"unshare {unshare_flags()} is not permitted here: {probe.stderr.strip()}"
 
 
 def run_dir(prefix: str) -> Path:
@@ -107,9 +113,10 @@ def reenter_argv(prefix: str, argv: list[str]) -> list[str] | None:
     try:
         if os.readlink(f"/proc/{pid}/ns/net") == os.readlink("/proc/self/ns/net"):
             return None
+        own_user = os.readlink(f"/proc/{pid}/ns/user") == os.readlink("/proc/self/ns/user")
     except OSError:
         return None
-    return ["nsenter", "--preserve-credentials", "-U", "-n", "-t", str(pid), *argv]
+    return ["nsenter", "--preserve-credentials", *([] if own_user else ["-U"]), "-n", "-t", str(pid), *argv]
 
 
 def supervisor(prefix: str):

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from shared.errors import MessageError
+from shared.scheduling import realtime
 from shared.keys import KeySpace
 from shared.messages import Message, decode
 from shared.pki import TlsIdentity
@@ -106,16 +107,15 @@ class ServiceShell:
         self.session.close()
 
 
-def run_paced(period: float, tick, stop: threading.Event) -> None:
+def run_paced(period: float, tick, stop: threading.Event, name: str | None = None) -> None:
     """Call tick(now) every period: deadline sleeping (clock_nanosleep, tens of microseconds late), no
     spinning (that would hold the GIL while a callback waits); an overrun re-syncs instead of bursting.
     Python hands the GIL over every 5 ms by default, which would let any callback thread delay a tick that
-    long: the switch interval is set to 0.5 ms. SCHED_FIFO is asked for where the OS permits it."""
+    long: the switch interval is set to 0.5 ms. The thread runs at the real-time priority of service
+    `name` (``realtime``): the safety chain's, or normal scheduling for the rest."""
     sys.setswitchinterval(0.0005)
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
-    except (AttributeError, OSError):
-        pass
+    if name is not None:
+        realtime(name)
     deadline = time.monotonic()
     while not stop.is_set():
         deadline += period

@@ -2,7 +2,7 @@
 
 Starts the PRBT emulator and every service as child processes (services.launch), on kernel CAN (vcan0)
 where there is one, else on udp_multicast inside a private network namespace that it makes for itself
-(it re-runs itself under `unshare -rn`). Then, as the cell's operator and witness:
+(it re-runs itself under `unshare -n`, or `-rn` when not root). Then, as the cell's operator and witness:
 * a scripted human (shared.scenarios.paper_phases) goes out as raw tracker data at 120 Hz;
 * goals shuttle the robot between q_s and q_g: the next goal when the robot has arrived, the same goal
   again when the robot is not following a plan for it (refused, or dropped after a stop); see

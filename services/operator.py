@@ -21,7 +21,7 @@ from services.report import Recording
 from shared.errors import MessageError
 from shared.keys import KeySpace
 from shared.messages import (DriveLagReport, DriverRequest, Goal, HumanRaw, HumanState, JointCommand, JointState,
-                             LatencyReport,
+                             LatencyReport, MonitorReport,
                              SafetyEvent, ScalerStatus, TrajectoryMsg, decode, encode)
 from shared.scenarios import Q_GOAL, Q_START
 
@@ -40,7 +40,8 @@ class Recorder:
         table = [(keys.scaler_status, ScalerStatus, rec.statuses), (keys.command, JointCommand, rec.commands),
                  (keys.joint_state, JointState, rec.joint_states), (keys.human_state, HumanState, rec.human_states),
                  (keys.trajectory, TrajectoryMsg, rec.trajectories), (keys.safety_events, SafetyEvent, rec.events),
-                 (keys.latency, LatencyReport, rec.latency), (keys.drive_lag, DriveLagReport, rec.drive_lag)]
+                 (keys.latency, LatencyReport, rec.latency), (keys.drive_lag, DriveLagReport, rec.drive_lag),
+                 (keys.monitor, MonitorReport, rec.monitor)]
         self.subs = [session.declare_subscriber(key, self._keeper(kind, store)) for key, kind, store in table]
 
     def _keeper(self, kind, store: list):

@@ -17,9 +17,9 @@ import numpy as np
 
 from shared.config import CellConfig
 from shared.convert import humans_from_msg
-from shared.messages import (DriveLagReport, HumanState, JointCommand, JointState, LatencyReport, SafetyEvent,
-                             ScalerStatus, TrajectoryMsg)
-from shared.monitor import HumanHistory, SafetyMonitor
+from shared.messages import (DriveLagReport, HumanState, JointCommand, JointState, LatencyReport, MonitorReport,
+                             SafetyEvent, ScalerStatus, TrajectoryMsg)
+from shared.monitor import HumanHistory, ReactionWindow, SafetyMonitor
 from shared.robot_model import RobotModel
 
 MOVING_ALPHA = 0.01          # a stall ends once the robot moves on at more than this fraction of its speed
@@ -38,6 +38,7 @@ class Recording:
     events: list[SafetyEvent] = field(default_factory=list)
     latency: list[LatencyReport] = field(default_factory=list)
     drive_lag: list[DriveLagReport] = field(default_factory=list)
+    monitor: list[MonitorReport] = field(default_factory=list)
     shuttles: int = 0
     phase: Callable[[float], str] | None = None
 
@@ -80,23 +81,42 @@ def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dic
     limit at the pair closest to its limit (the independent monitor's check, recomputed for the figures),
     and ``late_excess``: by how much (m/s) the measured approach speed exceeded the limit at a pair whose
     exceedance had lasted longer than T_r (0 where none had): the formula gives the robot T_r to react to
-    a limit that falls below its speed, and nothing after that without braking."""
+    a limit that falls below its speed, and nothing after that without braking; and ``violations``: the
+    monitor's own rule (ReactionWindow) recounted over the trace, to hold the service's count against."""
     monitor = SafetyMonitor(robot, config.ssm)
+    window = ReactionWindow(config.ssm.reaction_time, config.ssm.stopping_time)
     history = HumanHistory(span=np.inf)
     for msg in rec.human_states:
         history.add(msg.sample_stamp, humans_from_msg(msg))
+    states = rec.joint_states
+    results = monitor.check_batch(np.array([js.q for js in states]).reshape(-1, 6),
+                                  np.array([js.qd for js in states]).reshape(-1, 6),
+                                  [history.at(js.stamp) for js in states])
     rows, since = [], {}
-    for js in rec.joint_states:
-        r = monitor.check(js.q, js.qd, history.at(js.stamp))
+    for js, r in zip(states, results):
         speeding = {(v.link, v.capsule): v.approach_speed - max(v.limit, 0.0) for v in r.violations
                     if v.kind == "speed"}
         since = {pair: since.get(pair, js.stamp) for pair in speeding}
         late = max((excess for pair, excess in speeding.items()
                     if js.stamp - since[pair] > config.ssm.reaction_time), default=0.0)
-        rows.append((js.stamp - rec.t0, r.min_separation, r.approach_speed, r.limit, r.min_margin, late))
-    arr = np.array(rows, dtype=float).reshape(-1, 6)
+        counted = len(window.update(js.stamp, r))
+        rows.append((js.stamp - rec.t0, r.min_separation, r.approach_speed, r.limit, r.min_margin, late, counted))
+    arr = np.array(rows, dtype=float).reshape(-1, 7)
     return {"t": arr[:, 0], "separation": arr[:, 1], "approach": arr[:, 2], "limit": arr[:, 3], "margin": arr[:, 4],
-            "late_excess": arr[:, 5]}
+            "late_excess": arr[:, 5], "violations": arr[:, 6]}
+
+
+def monitor_summary(rec: Recording, series: dict[str, np.ndarray], violations: int | None) -> dict:
+    """The monitor as it reported itself (checks, unchecked, how far behind), its count held against the
+    recount over the trace, and a flag when the two disagree."""
+    last = rec.monitor[-1] if rec.monitor else None
+    recount = int(series["violations"].sum())
+    lag_p99 = [r.lag_p99 for r in rec.monitor if r.checks]
+    return {"checks": None if last is None else last.checks, "unchecked": None if last is None else last.unchecked,
+            "lag_ms": {"p99": round(max(lag_p99) * 1e3, 1) if lag_p99 else None,
+                       "max": round(max(r.lag_max for r in rec.monitor) * 1e3, 1) if rec.monitor else None},
+            "violations_recounted": recount,
+            "disagrees": None if violations is None else violations != recount}
 
 
 def drive_summary(rec: Recording) -> dict:
@@ -168,6 +188,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "latency": {"chains": int(s2f.size), "sample_to_frame_ms": _percentiles(s2f, 50, 99),
                     "processing_ms": _percentiles(proc, 50, 99)},
         "drives": drive_summary(rec),
+        "monitor_check": monitor_summary(rec, series, violations),
         "exceedances_after_reaction_time": int(np.count_nonzero(series["late_excess"] > 0)),
         "worst_late_excess_m_s": round(float(series["late_excess"].max()), 4) if series["late_excess"].size else 0.0,
         "reaction_time_s": config.ssm.reaction_time,

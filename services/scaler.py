@@ -135,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     layer.warm_up()                  # compile before the first deadline, not at it
     scaler = Scaler(shell, layer)
     return serve(shell, f"scaler: {1 / config.scaling.period:.0f} Hz, solver {config.scaling.solver}, keys "
-                        f"{shell.keys.prefix}/", lambda stop: run_paced(config.scaling.period, scaler.tick, stop))
+                        f"{shell.keys.prefix}/", lambda stop: run_paced(config.scaling.period, scaler.tick, stop, "scaler"))
 
 
 if __name__ == "__main__":

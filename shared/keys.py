@@ -13,6 +13,7 @@ Every service takes its keys from here, so the topic layout lives in one place:
     <prefix>/safety/events        every service -> CLI, logs       SafetyEvent
     <prefix>/diag/latency         robot_driver -> CLI, benchmarks  LatencyReport
     <prefix>/diag/drive_lag       robot_driver -> CLI, reports     DriveLagReport
+    <prefix>/diag/monitor         safety_monitor -> CLI, reports   MonitorReport
     <prefix>/alive/<service>      liveliness token of each service
 """
 
@@ -93,6 +94,10 @@ class KeySpace:
     @property
     def drive_lag(self) -> str:
         return self._key("diag/drive_lag")
+
+    @property
+    def monitor(self) -> str:
+        return self._key("diag/monitor")
 
     def alive(self, service: str) -> str:
         """Liveliness token key of a service."""

@@ -264,9 +264,29 @@ class DriveLagReport(Message):
     bound: float
 
 
+@dataclass(frozen=True)
+class MonitorReport(Message):
+    """The safety monitor's running totals (since it started), once a second: joint states checked,
+    violations, unchecked states (no human state of their moment, or reached too late), how far behind
+    its checks ran over the last second (lag_p99, lag_max, s: measurement -> checked), the smallest
+    margin (m/s) and separation (m) seen (inf before any check: sent as a large number)."""
+
+    KIND: ClassVar[str] = "monitor_report"
+    SPEC: ClassVar[dict[str, Spec]] = {"checks": I, "violations": I, "unchecked": I,
+                                       "lag_p99": Spec("float", minimum=0.0), "lag_max": Spec("float", minimum=0.0),
+                                       "min_margin": F, "min_separation": F}
+    checks: int
+    violations: int
+    unchecked: int
+    lag_p99: float
+    lag_max: float
+    min_margin: float
+    min_separation: float
+
+
 MESSAGE_TYPES: dict[str, type[Message]] = {cls.KIND: cls for cls in (
     HumanRaw, HumanState, Goal, TrajectoryMsg, JointCommand, ScalerStatus, JointState, SafetyEvent, DriverRequest,
-    LatencyReport, DriveLagReport)}
+    LatencyReport, DriveLagReport, MonitorReport)}
 
 
 def _same_rows(msg: Message, *names: str) -> None:

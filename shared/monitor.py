@@ -15,6 +15,12 @@ stopped, or that is moving away, is not the robot's approach: SSM governs the ro
 a speed exceedance as a violation only when the robot does not react and brake as the formula assumes
 (within T_r, then to a stop within T_s). (Overlapping capsules give no meaningful direction, coal's penetration
 witness points being arbitrary: there any motion of the robot's point counts as approaching.)
+
+``SafetyMonitor.check_batch`` is the same rule for many states at once, as the monitor service runs it so
+that it never falls behind: pinocchio for each state's link frames and twists, then one vectorised numpy
+closest-point computation over every (state, link, human capsule) (Ericson's segment-segment closest
+points, written here in numpy, not the scaling layer's compiled kernel). ``check`` (coal, one state) is
+the reference it is tested against.
 """
 
 from __future__ import annotations
@@ -74,6 +80,27 @@ class SafetyMonitor:
                                 coal.Capsule(cap.radius, length)))
         self._request = coal.DistanceRequest()
         self._request.enable_signed_distance = True
+        self._segments = [(self.model.getFrameId(cap.link), np.asarray(cap.a, float), np.asarray(cap.b, float))
+                          for cap in robot.capsules]
+        self._radii = np.array([cap.radius for cap in robot.capsules], dtype=float)
+
+    def check_batch(self, qs: np.ndarray, qds: np.ndarray,
+                    humans: list[HumanCapsules | None]) -> list[MonitorResult]:
+        """check() for many measured states (N, 6), each against its own human state, vectorised: states
+        that share a human state (the usual case: several joint states per tracker sample) are checked
+        together. The same results as check(), to rounding (tested)."""
+        qs, qds = np.asarray(qs, dtype=float).reshape(-1, self.model.nq), np.asarray(qds, dtype=float).reshape(-1, self.model.nq)
+        results: list[MonitorResult | None] = [None] * qs.shape[0]
+        groups: dict[int, list[int]] = {}
+        for k, h in enumerate(humans):
+            if h is None or h.count == 0:
+                results[k] = MonitorResult()
+            else:
+                groups.setdefault(id(h), []).append(k)
+        for members in groups.values():
+            for k, r in zip(members, _batch(self, qs[members], qds[members], humans[members[0]])):
+                results[k] = r
+        return results
 
     def check(self, q: np.ndarray, qd: np.ndarray, humans: HumanCapsules | None) -> MonitorResult:
         result = MonitorResult()
@@ -122,6 +149,84 @@ class SafetyMonitor:
                 if d < self.ssm.min_separation - self.tolerance and approach > self.tolerance:
                     result.violations.append(Violation(link, j, "separation", float(d), approach, limit))
         return result
+
+
+def _segment_closest(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters (s, t) in [0, 1] of the closest points p1 + s (q1 - p1), p2 + t (q2 - p2) of segment pairs,
+    vectorised over any leading shape (Ericson, Real-Time Collision Detection, 5.1.9; degenerate segments
+    are points)."""
+    eps = 1e-12
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e = np.einsum("...i,...i", d1, d1), np.einsum("...i,...i", d2, d2)
+    b, c, f = np.einsum("...i,...i", d1, d2), np.einsum("...i,...i", d1, r), np.einsum("...i,...i", d2, r)
+    a_ok, e_ok = a > eps, e > eps
+    safe_a, safe_e = np.where(a_ok, a, 1.0), np.where(e_ok, e, 1.0)
+    denom = a * e - b * b
+    s = np.where(denom > eps * np.maximum(a * e, eps), np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0, 1), 0.0)
+    t = (b * s + f) / safe_e
+    s = np.where(t < 0.0, np.clip(-c / safe_a, 0, 1), np.where(t > 1.0, np.clip((b - c) / safe_a, 0, 1), s))
+    t = np.clip(t, 0.0, 1.0)
+    # one or both segments are points
+    s = np.where(~a_ok, 0.0, np.where(~e_ok, np.clip(-c / safe_a, 0, 1), s))
+    t = np.where(~e_ok, 0.0, np.where(~a_ok, np.clip(f / safe_e, 0, 1), t))
+    return s, t
+
+
+def _batch(monitor: "SafetyMonitor", qs: np.ndarray, qds: np.ndarray, humans: HumanCapsules) -> list[MonitorResult]:
+    """check() for states (N, 6) against one human state, vectorised over states, links and capsules."""
+    n, links = qs.shape[0], len(monitor._links)
+    a_w, b_w = np.empty((n, links, 3)), np.empty((n, links, 3))
+    origin, lin, ang = np.empty((n, links, 3)), np.empty((n, links, 3)), np.empty((n, links, 3))
+    model, data = monitor.model, monitor.data
+    for k in range(n):
+        pin.computeJointJacobians(model, data, qs[k])
+        pin.updateFramePlacements(model, data)
+        for i, (fid, a_local, b_local) in enumerate(monitor._segments):
+            frame = data.oMf[fid]
+            rot, pos = frame.rotation, frame.translation
+            a_w[k, i], b_w[k, i], origin[k, i] = rot @ a_local + pos, rot @ b_local + pos, pos
+            twist = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED) @ qds[k]
+            lin[k, i], ang[k, i] = twist[:3], twist[3:]
+    ha, hb = humans.segments[:, 0], humans.segments[:, 1]                    # (M, 3)
+    shape = (n, links, humans.count, 3)
+    p1, q1 = np.broadcast_to(a_w[:, :, None], shape), np.broadcast_to(b_w[:, :, None], shape)
+    p2, q2 = np.broadcast_to(ha[None, None], shape), np.broadcast_to(hb[None, None], shape)
+    s, t = _segment_closest(p1, q1, p2, q2)
+    on_robot = p1 + s[..., None] * (q1 - p1)
+    on_human = p2 + t[..., None] * (q2 - p2)
+    diff = on_human - on_robot
+    centre = np.linalg.norm(diff, axis=-1)
+    radii = monitor._radii[None, :, None] + humans.radii[None, None, :]
+    d = centre - radii
+    defined = centre > 1e-9
+    normal = diff / np.where(defined, centre, 1.0)[..., None]
+    p_robot = on_robot + monitor._radii[None, :, None, None] * normal                   # its surface point
+    v_robot = lin[:, :, None] + np.cross(ang[:, :, None], p_robot - origin[:, :, None])
+    approach = np.where(defined, np.einsum("...i,...i", normal, v_robot), np.linalg.norm(v_robot, axis=-1))
+    v_h_point = (1 - t)[..., None] * humans.velocities[None, None, :, 0] + t[..., None] * humans.velocities[None, None, :, 1]
+    v_h_known = np.where(defined, np.maximum(0.0, -np.einsum("...i,...i", normal, v_h_point)),
+                         np.linalg.norm(v_h_point, axis=-1))
+    v_h = np.where(humans.velocity_known[None, None, :], v_h_known, default_human_speed(d, monitor.ssm))
+    limit = velocity_limit(d, v_h, monitor.ssm)
+    margin = np.maximum(limit, 0.0) - approach
+    speeding = margin < -monitor.tolerance
+    too_close = (d < monitor.ssm.min_separation - monitor.tolerance) & (approach > monitor.tolerance)
+    results = []
+    flat = margin.reshape(n, -1)
+    worst = np.argmin(flat, axis=1)
+    for k in range(n):
+        i, j = np.unravel_index(worst[k], margin.shape[1:])
+        r = MonitorResult(float(d[k].min()), float(margin[k, i, j]), float(approach[k, i, j]), float(limit[k, i, j]))
+        for i, j in zip(*np.nonzero(speeding[k] | too_close[k])):
+            name = monitor._links[i][0]
+            if speeding[k, i, j]:
+                r.violations.append(Violation(name, int(j), "speed", float(d[k, i, j]), float(approach[k, i, j]),
+                                              float(limit[k, i, j])))
+            if too_close[k, i, j]:
+                r.violations.append(Violation(name, int(j), "separation", float(d[k, i, j]),
+                                              float(approach[k, i, j]), float(limit[k, i, j])))
+        results.append(r)
+    return results
 
 
 class ReactionWindow:
@@ -194,6 +299,17 @@ class HumanHistory:
             self._stamps.popleft()
             self._states.popleft()
 
+    @property
+    def newest(self) -> float | None:
+        """The sample time of the newest kept human state, None when none is kept."""
+        return self._stamps[-1] if self._stamps else None
+
+    def pair(self, stamp: float) -> tuple[float, HumanCapsules | None] | None:
+        """(sample time, state) of the newest sample taken at or before `stamp`; None when every kept sample
+        is newer (the person of that moment is not known: no guess)."""
+        k = bisect_right(self._stamps, stamp)
+        return (self._stamps[k - 1], self._states[k - 1]) if k else None
+
     def at(self, stamp: float) -> HumanCapsules | None:
         """The person at `stamp`: the newest sample taken at or before it. A joint state older than every
         kept sample gets the oldest kept (the nearest in time there is); none kept: None."""
@@ -201,3 +317,55 @@ class HumanHistory:
             return None
         k = bisect_right(self._stamps, stamp)
         return self._states[max(k - 1, 0)]
+
+
+@dataclass
+class Backlog:
+    """The joint states waiting for the monitor, and the rule for when each can be checked (pure).
+
+    A state is checked against the person of its own moment: the newest human sample taken at or before
+    it (``HumanHistory.pair``). That pairing is final once a sample newer than the state has arrived; until
+    then the state waits, at most ``pair_wait`` seconds. A state is *unchecked* (counted and reported,
+    never a violation and never a pass) when no human state of its moment is known: none taken at or
+    before it, the one before it older than ``pair_age`` (the tracker was silent: the scaler had stopped
+    the robot, and what the person did then is not known), or an invalid track; and when the monitor
+    reaches it more than ``deadline`` seconds after it was measured (a monitor that fell that far behind
+    skips ahead instead of reporting the past as if it were now).
+    """
+
+    pair_wait: float = 0.1
+    pair_age: float = 0.1
+    deadline: float = 0.5
+    _pending: list = field(default_factory=list)
+
+    def add(self, stamp: float, q: np.ndarray, qd: np.ndarray) -> None:
+        self._pending.append((stamp, q, qd))
+
+    def __len__(self) -> int:
+        return len(self._pending)
+
+    def take(self, now: float, history: HumanHistory) -> tuple[list[tuple[float, np.ndarray, np.ndarray, HumanCapsules]],
+                                                            list[tuple[float, str]]]:
+        """(states to check now with their person, states that cannot be checked with the reason); the
+        rest stay for a later pass. Both lists in measurement order."""
+        ready, unchecked, keep = [], [], []
+        newest = history.newest
+        for stamp, q, qd in sorted(self._pending, key=lambda item: item[0]):
+            age = now - stamp
+            if age > self.deadline:
+                unchecked.append((stamp, f"reached {age * 1e3:.0f} ms after it was measured"))
+                continue
+            if (newest is None or newest <= stamp) and age < self.pair_wait:
+                keep.append((stamp, q, qd))                   # the person of its moment may still arrive
+                continue
+            paired = history.pair(stamp)
+            if paired is None:
+                unchecked.append((stamp, "no human state taken at or before it"))
+            elif stamp - paired[0] > self.pair_age:
+                unchecked.append((stamp, f"the human state of its moment is {(stamp - paired[0]) * 1e3:.0f} ms old"))
+            elif paired[1] is None:
+                unchecked.append((stamp, "the tracker had no valid track"))
+            else:
+                ready.append((stamp, q, qd, paired[1]))
+        self._pending = keep
+        return ready, unchecked

@@ -11,7 +11,14 @@ Safety rules kept here:
 * the SSM rows are hard; acceleration limits take a slack;
 * beta (replan request) follows the *safe* bound on alpha, not alpha itself, so the acceleration ramp
   after a stop never asks for a replan; it rises at bound <= alpha_min and falls at bound >= alpha_release
-  (hysteresis), and is never raised while stopped for missing data (a new plan cannot fix that).
+  (hysteresis), and is never raised while stopped for missing data (a new plan cannot fix that);
+* a stop is the fastest the drives can make along the path: the path speed falls by at most what the
+  drives' deceleration allows in one period (``braking_floor``), so every command is one the drives
+  follow and the robot stays on its path and stops where the commands end. Commanding less would not
+  stop it sooner: the drive (or the driver's setpoint limiter) would brake at that rate anyway, then
+  pull the robot back to where the command had stopped. While braking, a command can exceed the SSM
+  bound; that is the braking the ISO formula allows for (T_s at a_max), and the step says so
+  (method '+braking').
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ from shared.ssm import SsmParameters
 from shared.trajectory import Trajectory
 
 SOLVERS = ("piqp", "closed_form")
+BRAKING_SHARE = 1.0      # of the drives' deceleration a stop plans for: all of it, as the driver's limiter would
 
 
 @dataclass(frozen=True)
@@ -170,6 +178,17 @@ class ScalingLayer:
             alpha, lowered = bound * (1.0 - 1e-9), True
         return 0.0, True
 
+    def braking_floor(self, dq_ds: np.ndarray) -> float:
+        """The least path speed this cycle can have: the current one less what the drives' deceleration
+        (``monitor_acceleration``, 6 rad/s^2, BRAKING_SHARE of it) takes off in one period along a path of
+        tangent dq_ds (rad per unit s). 0 once the robot can be at rest by the end of the period."""
+        speed = np.abs(np.asarray(dq_ds, dtype=float))
+        moving = speed > 1e-9
+        if not np.any(moving):
+            return 0.0
+        deceleration = BRAKING_SHARE * float(np.min(self.robot.limits.monitor_acceleration[moving] / speed[moving]))
+        return max(0.0, self.sdot - deceleration * self.params.period)
+
     def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool) -> StepStatus:
         """What this cycle may do with its inputs: stop for missing or stale human data (the age check
         also catches NaN), finished at the end of the path, else running."""
@@ -209,6 +228,9 @@ class ScalingLayer:
                 method += "+verified"
             if rows.ssm is not None:
                 min_sep, min_margin = rows.ssm.closest(alpha)
+        floor = self.braking_floor(dq) if running else 0.0
+        if floor > alpha:
+            alpha, method = floor, method + "+braking"
         if status is StepStatus.RUNNING and safe_alpha <= self.params.alpha_min:
             self.beta = True
         elif status is not StepStatus.RUNNING or safe_alpha >= self.params.alpha_release:

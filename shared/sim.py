@@ -6,9 +6,11 @@ horizon check on every human sample (Alg. 1), replans and merges when the path a
 and when the scaling layer raises beta, and plans each new shuttle around the humans. Every command is
 judged at the state it commands by the independent monitor's rule (shared.monitor: coal distances,
 the ISO limit at the closest points, the react-within-T_r-then-brake allowance), counting violations;
-`command_exceedances` counts, stricter, every command whose conservative end-point bound exceeds the
-limit at all. The robot is taken to follow its command exactly (the drive model comes with the CAN
-emulator). With charge_planning, the planner's measured compute time passes on the simulated clock
+`command_exceedances` counts, stricter, every command the scaling layer chose (not one where it was
+braking at the drives' limit, `braking_cycles`) whose conservative end-point bound exceeds the limit at
+all. The robot is taken to follow its command exactly: the commands are followable by construction
+(the scaling layer slows down no faster than the drives can brake), and the drive model itself comes
+with the CAN emulator. With charge_planning, the planner's measured compute time passes on the simulated clock
 before its result is used (the robot keeps executing the old trajectory meanwhile, and a new shuttle,
 planned in the cycle its predecessor ends, waits for its plan); without it, results are used in the
 cycle that asked for them. The predictions are told how long the scaling layer has been asking for a
@@ -64,6 +66,7 @@ class SimResult:
     shuttles: int = 0
     violations: int = 0
     command_exceedances: int = 0
+    braking_cycles: int = 0
     beta_requests: int = 0
     progress: float = 0.0        # shuttles completed plus the fraction of the current leg covered
 
@@ -91,6 +94,7 @@ class SimResult:
             "min_margin_m_s": round(min(margins), 4) if margins else None,
             "violations": self.violations,
             "command_exceedances": self.command_exceedances,
+            "braking_cycles": self.braking_cycles,
             "compute_us": {"p50": round(float(np.percentile(compute, 50)), 1),
                            "p99": round(float(np.percentile(compute, 99)), 1)},
         }
@@ -225,7 +229,9 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         points, jac = robot.capsule_kinematics(step.q_command)
         check = pair_ssm(points, robot.radii, jac @ step.qd_command, humans, config.ssm)
         margin = float(check.margin.min()) if check.margin.size else float("inf")
-        if margin < -1e-9:
+        braking = step.method.endswith("+braking")
+        result.braking_cycles += braking
+        if margin < -1e-9 and not braking:
             result.command_exceedances += 1
         judged = monitor.check(step.q_command, step.qd_command, humans) if margin < 0.02 else MonitorResult()
         result.violations += len(window.update(t, judged))

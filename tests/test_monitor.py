@@ -154,3 +154,54 @@ def test_a_lagging_monitor_pairs_each_joint_state_with_the_person_of_its_moment(
     assert history.at(12.9) is near and history.at(13.1) is None
     history.add(15.5, far)
     assert history.at(12.9) is None                              # 10.5 s fell out of the 2 s span
+
+
+def _random_person(rng, m):
+    segs = rng.uniform(-0.8, 0.8, (m, 2, 3))
+    segs[..., 2] += 0.6
+    return HumanCapsules(segs, rng.uniform(0.04, 0.15, m), rng.uniform(-1.5, 1.5, (m, 2, 3)), rng.random(m) < 0.7)
+
+
+def test_the_batched_check_is_the_coal_check():
+    """check_batch (numpy closest points, many states at once) against check (coal, one state): the same
+    separations, margins and violations, penetrating pairs and untracked velocities included."""
+    rng = np.random.default_rng(11)
+    people = [_random_person(rng, 10), _random_person(rng, 3), None, HumanCapsules.empty()]
+    n = 120
+    qs = rng.uniform(ROBOT.limits.lower, ROBOT.limits.upper, (n, 6))
+    qds = rng.uniform(-1.57, 1.57, (n, 6))
+    humans = [people[k % len(people)] for k in range(n)]
+    batch = MONITOR.check_batch(qs, qds, humans)
+    violations = 0
+    for q, qd, h, b in zip(qs, qds, humans, batch):
+        ref = MONITOR.check(q, qd, h)
+        assert b.min_separation == pytest.approx(ref.min_separation, abs=1e-9)
+        assert b.min_margin == pytest.approx(ref.min_margin, abs=1e-9)
+        key = lambda v: (v.link, v.capsule, v.kind)                               # noqa: E731
+        assert sorted(map(key, b.violations)) == sorted(map(key, ref.violations))
+        violations += len(ref.violations)
+    assert violations > 50                                   # the comparison covered violations too
+
+
+def test_a_state_is_checked_against_the_person_of_its_moment_or_counted_unchecked():
+    from shared.monitor import Backlog, HumanHistory
+    person = _random_person(np.random.default_rng(2), 2)
+    history = HumanHistory()
+    backlog = Backlog(pair_wait=0.1, pair_age=0.1, deadline=0.5)
+    q = np.zeros(6)
+    backlog.add(0.95, q, q)                  # before any human state: unknown person
+    history.add(1.0, person)
+    backlog.add(1.01, q, q)                  # newer than every human sample: waits for the next one
+    ready, unchecked = backlog.take(1.02, history)
+    assert ready == [] and [s for s, _ in unchecked] == [0.95] and len(backlog) == 1
+    history.add(1.02, None)                  # the next sample: the tracker lost the track
+    ready, unchecked = backlog.take(1.03, history)
+    assert [(s, h is person) for s, _, _, h in ready] == [(1.01, True)] and unchecked == []
+    backlog.add(1.03, q, q)                  # paired with the invalid track: unchecked, not a pass
+    ready, unchecked = backlog.take(1.2, history)
+    assert ready == [] and [s for s, _ in unchecked] == [1.03] and "no valid track" in unchecked[0][1]
+    backlog.add(1.5, q, q)                   # the tracker silent since 1.02: its person is 0.48 s old
+    backlog.add(0.2, q, q)                   # reached long after it was measured: skipped, not judged
+    ready, unchecked = backlog.take(1.7, history)
+    assert ready == [] and [s for s, _ in unchecked] == [0.2, 1.5]
+    assert "after it was measured" in unchecked[0][1] and "ms old" in unchecked[1][1] and len(backlog) == 0

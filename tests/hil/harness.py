@@ -499,10 +499,11 @@ def system_near_human(cell: Cell) -> dict:
     feed.running = False
     with cell.lock:
         summaries = [e for _, e in cell.events if e.source == "safety_monitor" and e.event == "monitor_summary"]
+        violations = [e.text for _, e in cell.events if e.source == "safety_monitor" and e.event == "ssm_violation"]
     last = summaries[-1]
     return {"ok": reached is not None and reached > traj.duration * 1.05 and last.value == 0
             and "inf" not in last.text, "nominal_s": traj.duration, "reached_after_s": reached,
-            "monitor": last.text}
+            "monitor": last.text, "violations": violations[:3]}
 
 
 def monitor_report(cell: Cell) -> dict:
