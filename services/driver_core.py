@@ -67,7 +67,11 @@ COMMAND_TIMEOUT = 0.05         # s: a command older than this stops the drives
 HEARTBEAT_TIMEOUT = 0.3        # s: a drive's heartbeat older than this stops the drives
 
 
-CLAMP_TOLERANCE = 1e-9        # rad: a setpoint this close to the command is the command
+EXACT = 1e-9                  # rad: a setpoint this close to the command is the command
+# rad: a setpoint further than this from the command is a clamp worth a warning. Below it the limiter
+# absorbs timing (the scaler's ticks and the SYNC on two clocks: a late command costs one period's
+# extrapolation, an early one a catch-up a few mrad long), which is not a command beyond the drives.
+CLAMP_TOLERANCE = 0.02
 
 
 def follow_step(command: np.ndarray, command_velocity: np.ndarray, setpoint: np.ndarray, velocity: np.ndarray,
@@ -79,7 +83,8 @@ def follow_step(command: np.ndarray, command_velocity: np.ndarray, setpoint: np.
     acceleration allows, so it lands on a command that stopped instead of overshooting it), then the
     velocity is limited to the joint's velocity limit and its change to the drive's acceleration
     (``limits.monitor_acceleration``) and to what still stops before a position limit. A command that is
-    itself followable is reproduced exactly: setpoint == command. Vectorised over the joints; pure.
+    itself followable is reproduced exactly: setpoint == command. `clamped`: the setpoint is further than
+    CLAMP_TOLERANCE from the command (or the command is beyond a position limit). Vectorised; pure.
     """
     lower, upper = limits.lower, limits.upper
     v_max, a = limits.velocity, limits.monitor_acceleration
@@ -95,8 +100,8 @@ def follow_step(command: np.ndarray, command_velocity: np.ndarray, setpoint: np.
     new_v = np.clip(new_v, -np.minimum(v_max, room_down), np.minimum(v_max, room_up))
     new_s = np.clip(setpoint + new_v * period, lower, upper)
     new_v = (new_s - setpoint) / period
-    clamped = bool(np.any(np.abs(new_s - command) > CLAMP_TOLERANCE))
-    exact = np.abs(new_s - target) <= CLAMP_TOLERANCE
+    clamped = bool(np.any(np.abs(new_s - command) > CLAMP_TOLERANCE) or np.any(target != command))
+    exact = np.abs(new_s - target) <= EXACT
     return np.where(exact, target, new_s), new_v, clamped
 
 
@@ -111,6 +116,7 @@ class DriverCore:
         self.mode = Mode.ENABLING
         self._command: np.ndarray | None = None
         self._command_velocity: np.ndarray | None = None
+        self._command_used = False          # a SYNC has already taken the latest command
         self._command_time = -math.inf
         self._setpoint: np.ndarray | None = None
         self._setpoint_velocity = np.zeros(limits.lower.size)
@@ -131,7 +137,7 @@ class DriverCore:
             qd = (q - self._command) / elapsed if self._command is not None and 0.0 < elapsed <= 2 * self.period \
                 else np.zeros_like(q)
         self._command, self._command_velocity = q, np.asarray(qd, dtype=float).copy()
-        self._command_time = now
+        self._command_time, self._command_used = now, False
         if self.mode is not Mode.RUNNING or self._setpoint is None:
             return None
         return self._next()[0]
@@ -210,12 +216,17 @@ class DriverCore:
         return self._command is not None and now - self._command_time <= self.command_timeout
 
     def _next(self) -> tuple[np.ndarray, np.ndarray, bool]:
-        """The setpoint the latest command gives from the last SYNC's setpoint (see follow_step)."""
-        return follow_step(self._command, self._command_velocity, self._setpoint, self._setpoint_velocity,
+        """The setpoint the latest command gives from the last SYNC's setpoint (see follow_step). The scaler
+        ticks on its own clock: now and then a SYNC comes before its next command. A command a SYNC has
+        already taken then goes on one period along its own velocity (the motion it describes, inside the
+        reaction time T_r the SSM allows for), and no further: a second miss brakes."""
+        command = self._command + self._command_velocity * self.period if self._command_used else self._command
+        return follow_step(command, self._command_velocity, self._setpoint, self._setpoint_velocity,
                            self.limits, self.period)
 
     def _follow(self) -> list[Event]:
         self._setpoint, self._setpoint_velocity, clamped = self._next()
+        self._command_used = True
         events = []
         if clamped and not self._clamping:
             events.append(Event("command_clamped", "warning",

@@ -200,3 +200,35 @@ def test_a_stop_at_full_speed_is_the_drives_fastest_stop():
     dv = np.abs(np.diff(velocities)) / T
     assert dv.max() <= 6.0 + 1e-6                                # decelerating at the drive's limit, no faster
     assert np.abs(cell.q - held).max() < 1e-3                    # and back where the command stopped
+
+
+def test_a_scaler_on_its_own_clock_is_followed_without_clamping():
+    """The scaler ticks every 10 ms on its own clock, at a phase of its own and late now and then (a busy
+    machine): some SYNCs find no new command (the last one is taken twice), the next finds two (one is
+    never taken). The setpoints follow the motion the commands describe: no clamping, no drive behind."""
+    from shared.scenarios import Q_GOAL
+    from shared.trajectory import straight_line_trajectory
+    rng = np.random.default_rng(3)
+    cell = Cell()
+    enable(cell)
+    traj = straight_line_trajectory(cell.q, Q_GOAL, LIM.velocity, LIM.acceleration)
+    t0, events, late = cell.t, [], 0
+    arrivals = []                                  # (arrival time, tick number)
+    for k in range(int(traj.duration / T) + 30):
+        delay = 0.004 + (0.008 if rng.random() < 0.15 else rng.uniform(0.0, 0.003))
+        arrivals.append((t0 + k * T + delay, k))
+    sent = 0
+    while cell.t < t0 + traj.duration + 0.25:
+        fresh = False
+        while sent < len(arrivals) and arrivals[sent][0] <= cell.t:
+            k = arrivals[sent][1]
+            q, dq, _ = traj.sample(min((k + 1) * T, traj.duration))
+            cell.core.command(q, arrivals[sent][0], dq if (k + 1) * T < traj.duration else np.zeros(6))
+            sent, fresh = sent + 1, True
+        late += not fresh
+        out = cell.step()
+        events += [e.event for e in out.events]
+        assert not any(d.saturated for d in cell.drives)
+    assert late > 5                                # the case did happen
+    assert "command_clamped" not in events
+    assert np.abs(cell.q - Q_GOAL).max() < 1e-3
