@@ -82,10 +82,13 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
     wd = DriveLimits.sync_timeout_factor * DriveLimits.period
     human = max(config.scaling.human_timeout, 0.05)
     horizon = config.ssm.reaction_time + config.ssm.stopping_time
-    command_stop = Expectation("stop", ct + p + brake, f"command timeout {ct * 1e3:.0f} ms + SYNC {p * 1e3:.0f} ms "
-                                                       f"+ braking from full speed {brake * 1e3:.0f} ms")
-    human_stop = Expectation("stop", human + 2 * p + brake,
-                             f"human data timeout {human * 1e3:.0f} ms + tick and SYNC {2 * p * 1e3:.0f} ms + "
+    # + one SYNC more everywhere the drives keep reporting: a drive reports the position of the SYNC
+    # instant, so a standstill reached between two SYNCs is seen at the next one
+    command_stop = Expectation("stop", ct + 2 * p + brake, f"command timeout {ct * 1e3:.0f} ms + SYNC and report "
+                                                           f"{2 * p * 1e3:.0f} ms + braking from full speed "
+                                                           f"{brake * 1e3:.0f} ms")
+    human_stop = Expectation("stop", human + 3 * p + brake,
+                             f"human data timeout {human * 1e3:.0f} ms + tick, SYNC and report {3 * p * 1e3:.0f} ms + "
                              f"braking {brake * 1e3:.0f} ms")
     driver_stop = Expectation("stop", wd + brake, f"drives' SYNC watchdog {wd * 1e3:.0f} ms + braking "
                                                   f"{brake * 1e3:.0f} ms")
@@ -94,8 +97,8 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
         "kill_scaler": command_stop, "freeze_scaler": command_stop,
         "kill_tracker_ingest": human_stop, "tracker_silent": human_stop, "tracker_nan": human_stop,
         "kill_robot_driver": driver_stop, "freeze_robot_driver": driver_stop,
-        "heartbeat_stop": Expectation("stop", hb + p + brake, f"heartbeat timeout {hb * 1e3:.0f} ms + SYNC + braking "
-                                                              f"{brake * 1e3:.0f} ms"),
+        "heartbeat_stop": Expectation("stop", hb + 2 * p + brake, f"heartbeat timeout {hb * 1e3:.0f} ms + SYNC and "
+                                                                  f"report + braking {brake * 1e3:.0f} ms"),
         "kill_planner": carry_on, "kill_safety_monitor": carry_on,
         "can_drop": Expectation("any", None, "lost frames: the drive lags or faults; either is safe"),
         "human_jump": Expectation("slow", config.ssm.reaction_time,

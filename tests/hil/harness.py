@@ -492,6 +492,10 @@ def system_near_human(cell: Cell) -> dict:
     seg, radii = body_segments(-1.3, 0.0, 0.6, np.array([-0.45, 0.0, 0.6]), lean=0.3)
     feed.humans = HumanCapsules.from_arrays(seg, radii, np.zeros_like(seg), np.ones(len(radii), bool))
     time.sleep(0.3)
+    # a trajectory from rest is only for a robot at rest: an earlier scenario's motion (resumed now that
+    # human data flows again) ends first; a new one published mid-motion would make the drives reverse
+    # (the planner service never does that: it merges)
+    _wait(lambda: np.abs(cell.latest().qd).max() < 1e-3, 5.0)
     goal = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
     traj = _publish_trajectory(cell, goal, 5)
     reached = _wait(lambda: np.abs(cell.latest().q - goal).max() < 0.005, traj.duration * 8)

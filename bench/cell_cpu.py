@@ -1,0 +1,105 @@
+"""Benchmark of the cell's CPU budget (not a test: it prints figures).
+
+The whole cell on its processes, as `hrc demo` runs it (the PRBT emulator on CAN, the robot driver,
+tracker_ingest, the scaler, the planner, the safety monitor), at 100 Hz, shuttling between q_s and q_g
+while two scripted people (10 capsules: one crossing, one wandering) move through the cell. After a
+warm-up, each process's CPU time (user + system, /proc) is read at the start and the end of the measured
+window: its steady-state share of one core. Goals (the safety-chain issue): robot_driver + scaler +
+tracker_ingest + safety_monitor together <= 40 % of one core, the emulator <= 10 %, the planner idle when
+nothing needs planning.
+
+udp_multicast runs inside a private network namespace: the script re-runs itself in one when needed.
+Last line: one JSON object.
+
+    python bench/cell_cpu.py [--seconds 60] [--warmup 8] [--seed 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from services.demo import choose_bus, reexec_in_namespace  # noqa: E402
+from services.launch import CellProcesses, free_port  # noqa: E402
+from services.operator import HumanFeed, Recorder, Shuttle  # noqa: E402
+from services.report import Recording  # noqa: E402
+from shared.keys import KeySpace  # noqa: E402
+from shared.scenarios import make_scenario  # noqa: E402
+from shared.zenoh_session import open_session  # noqa: E402
+
+SAFETY_CHAIN = ("robot_driver", "scaler", "tracker_ingest", "safety_monitor")
+
+
+def measure(seconds: float, warmup: float, seed: int) -> dict:
+    interface, channel = choose_bus()
+    keys = KeySpace("bench/cpu")
+    with tempfile.TemporaryDirectory(prefix="hrc-cell-cpu-") as tmp:
+        cell = CellProcesses(Path(tmp), keys.prefix, interface, channel, planner_seed=seed)
+        session = open_session("peer", listen=[f"tcp/127.0.0.1:{free_port()}"], connect=[cell.endpoint])
+        feed = recorder = None
+        try:
+            cell.start(session)
+            rec = Recording(t0=time.monotonic())
+            recorder = Recorder(session, keys, rec)
+            people = make_scenario("two_humans", seed, warmup + seconds + 5.0)
+            capsules = people.at(0.0).count
+            feed = HumanFeed(session, keys, people, rec.t0, source="bench")
+            feed.start()
+            shuttle = Shuttle(session, keys, recorder, rec)
+            shuttle.start(time.monotonic())
+            t_start = rec.t0 + warmup
+            before = None
+            while (now := time.monotonic()) < t_start + seconds:
+                if before is None and now >= t_start:
+                    before, t_before = cell.cpu_seconds(), now
+                shuttle.step(now)
+                time.sleep(0.02)
+            after, t_after = cell.cpu_seconds(), time.monotonic()
+            shuttles, statuses = rec.shuttles, len(rec.statuses)
+        finally:
+            if feed is not None:
+                feed.running = False
+            if recorder is not None:
+                recorder.close()
+            cell.stop()
+            session.close()
+    span = t_after - t_before
+    share = {name: round(100.0 * (after[name] - before[name]) / span, 1) for name in after if name in before}
+    return {"bench": "cell_cpu", "seconds": round(span, 1), "capsules": capsules, "can": interface,
+            "percent_of_core": share,
+            "services_total": round(sum(share.get(n, 0.0) for n in SAFETY_CHAIN), 1),
+            "emulator": share.get("hwsim"), "planner": share.get("planner"),
+            "total": round(sum(share.values()), 1), "shuttles": shuttles,
+            "control_rate_hz": round(statuses / (t_after - rec.t0), 1)}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=60.0, help="measured window (s)")
+    parser.add_argument("--warmup", type=float, default=8.0, help="running before the window opens (s)")
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    if args.seconds <= 0 or args.warmup < 0:
+        parser.error("--seconds must be positive and --warmup not negative")
+    code = reexec_in_namespace([sys.executable, __file__, *sys.argv[1:]])
+    if code is not None:
+        return code
+    result = measure(args.seconds, args.warmup, args.seed)
+    for name, pct in sorted(result["percent_of_core"].items(), key=lambda kv: -kv[1]):
+        print(f"{name:<16} {pct:5.1f} % of one core")
+    print(f"safety chain (driver + scaler + tracker + monitor): {result['services_total']} % (goal <= 40); "
+          f"emulator {result['emulator']} % (goal <= 10); all {result['total']} %; {result['capsules']} capsules, "
+          f"{result['shuttles']} shuttles, control {result['control_rate_hz']} Hz")
+    print(json.dumps(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
