@@ -26,6 +26,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/planning.py
 	$(BIN)/python bench/can_loop.py
 	$(BIN)/python bench/end_to_end.py
+	$(BIN)/python bench/cell_cpu.py
 	$(BIN)/python bench/compare.py
 
 clean:

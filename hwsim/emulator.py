@@ -53,6 +53,9 @@ class EmulatedNode:
         self.drop = 0.0
         self.frozen = False
         self._unannounced: list[int] = []              # EMCY codes of faults entered while frozen
+        self.syncs = 0
+        # CiA 301 transmission type of each TPDO (0x1800+n-1:2): 1-240 = every that many SYNCs
+        self.every = {n: int(self.node.sdo[0x1800 + n - 1][2].raw) for n in (1, 2, 3)}
         self.node.sdo[0x607D][1].raw = to_counts(limits.lower)
         self.node.sdo[0x607D][2].raw = to_counts(limits.upper)
         self.node.sdo[0x6065].raw = to_counts(limits.following_window)
@@ -109,6 +112,8 @@ class EmulatedNode:
                 self.drive.limits.following_timeout = int(value) / 1000.0
             elif index == 0x2F00:
                 self._inject(subindex, int(value))
+            elif 0x1800 <= index <= 0x1802 and subindex == 2:
+                self.every[index - 0x1800 + 1] = int(value)
 
     def _inject(self, subindex: int, value: int) -> None:
         if subindex == 1:
@@ -163,9 +168,12 @@ class EmulatedNode:
         with self.lock:
             self._emcy(self.drive.on_sync(now))
             values = self._publish()
+        self.syncs += 1
         if self.node.nmt.state != "OPERATIONAL":
             return
         for n in (1, 2, 3):
+            if 1 <= self.every[n] <= 240 and self.syncs % self.every[n]:
+                continue
             tpdo = self.node.tpdo[n]
             for var in tpdo:
                 key = (var.index, var.subindex)

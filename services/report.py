@@ -234,6 +234,9 @@ def write_trace(out: Path, rec: Recording) -> None:
     _write_csv(out / "trace.csv", header, rows)
     rows = []
     for h in rec.human_states:
+        if not h.valid or h.radii.size == 0:        # the tracker's invalid (or empty) states: one row, no capsule
+            rows.append([_fmt(h.stamp - rec.t0), h.seq, int(h.valid)] + [""] * 15)
+            continue
         for j in range(h.radii.size):
             rows.append([_fmt(h.stamp - rec.t0), h.seq, int(h.valid), j, *map(_fmt, h.segments[j].ravel().tolist()),
                          _fmt(float(h.radii[j])), *map(_fmt, h.velocities[j].ravel().tolist()),

@@ -319,12 +319,16 @@ class HumanHistory:
         return self._states[max(k - 1, 0)]
 
 
+AT_REST = 1e-4     # rad/s: every joint slower than this is at rest (0.1 mm/s at a metre: below the tolerance)
+
+
 @dataclass
 class Backlog:
     """The joint states waiting for the monitor, and the rule for when each can be checked (pure).
 
     A state is checked against the person of its own moment: the newest human sample taken at or before
-    it (``HumanHistory.pair``). That pairing is final once a sample newer than the state has arrived; until
+    it (``HumanHistory.pair``). A robot at rest (every joint slower than AT_REST) needs no person: the
+    rule counts nothing where no link approaches, so such a state passes whoever is there. That pairing is final once a sample newer than the state has arrived; until
     then the state waits, at most ``pair_wait`` seconds. A state is *unchecked* (counted and reported,
     never a violation and never a pass) when no human state of its moment is known: none taken at or
     before it, the one before it older than ``pair_age`` (the tracker was silent: the scaler had stopped
@@ -359,7 +363,9 @@ class Backlog:
                 keep.append((stamp, q, qd))                   # the person of its moment may still arrive
                 continue
             paired = history.pair(stamp)
-            if paired is None:
+            if np.abs(qd).max() <= AT_REST and (paired is None or paired[1] is None or stamp - paired[0] > self.pair_age):
+                ready.append((stamp, q, qd, HumanCapsules.empty()))
+            elif paired is None:
                 unchecked.append((stamp, "no human state taken at or before it"))
             elif stamp - paired[0] > self.pair_age:
                 unchecked.append((stamp, f"the human state of its moment is {(stamp - paired[0]) * 1e3:.0f} ms old"))
