@@ -117,6 +117,10 @@ def campaign_human(duration: float = 3600.0) -> ScriptedHuman:
     return ScriptedHuman(frames)
 
 
+class InjectionError(RuntimeError):
+    """A fault could not be injected or lifted (the emulator did not answer its SDO requests)."""
+
+
 class CanProbe:
     """The campaign's own node on the CAN bus: fault injection into the emulated drives by SDO (0x2F00) and
     a record of every EMCY, independent of the robot driver."""
@@ -140,8 +144,20 @@ class CanProbe:
             with self.lock:
                 self.emcy.append((time.monotonic(), nid, int.from_bytes(data[:2], "little")))
 
-    def inject(self, node: int, subindex: int, value: int) -> None:
-        self.nodes[node].sdo[0x2F00][subindex].raw = value
+    def inject(self, node: int, subindex: int, value: int, tries: int = 3) -> None:
+        """SDO write 0x2F00:subindex = value, tried `tries` times (a busy emulator can miss one request);
+        InjectionError with what was asked and the last answer if none went through."""
+        import canopen
+
+        for attempt in range(tries):
+            try:
+                self.nodes[node].sdo[0x2F00][subindex].raw = value
+                return
+            except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+                last = exc
+                time.sleep(0.05 * (attempt + 1))
+        raise InjectionError(f"node {node}: SDO write 0x2F00:{subindex} = {value} not answered after {tries} tries "
+                             f"({last})")
 
     def emcy_since(self, t: float) -> list[tuple[float, int, int]]:
         with self.lock:
@@ -253,9 +269,17 @@ class Campaign:
         before = self.recorder.get(ScalerStatus)
         self.shuttle.recovering = False
         t_inject = time.monotonic()
-        lift = self._inject(name, old_pid)
+        try:
+            lift = self._inject(name, old_pid)
+        except InjectionError as exc:           # nothing was injected: no verdict to give, said so
+            self.shuttle.recovering = True
+            verdict.notes.append(f"not injected: {exc}")
+            return verdict
         time.sleep(HOLD)
-        lift()
+        try:
+            lift()
+        except InjectionError as exc:
+            verdict.notes.append(f"not lifted: {exc}")
         t_lift = time.monotonic()
         shuttles = self.rec.shuttles
         self.shuttle.recovering = True
