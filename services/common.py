@@ -128,6 +128,21 @@ def run_paced(period: float, tick, stop: threading.Event, name: str | None = Non
         tick(now)
 
 
+def run_synced(period: float, tick, stop: threading.Event, ready: threading.Event, name: str | None = None) -> None:
+    """Call tick(now) each time `ready` is set (by whoever feeds the loop: the scaler sets it on every joint
+    state, one a SYNC), or after 1.5 periods without it (so the loop goes on when its feed stops). Locked
+    to the robot's own clock, a loop never runs ahead of the drives: a SYNC that comes late delays its
+    tick instead of leaving the robot a period behind the commands, which a trajectory at the velocity
+    limit can never make up. Scheduling as run_paced."""
+    sys.setswitchinterval(0.0005)
+    if name is not None:
+        realtime(name)
+    while not stop.is_set():
+        ready.wait(1.5 * period)
+        ready.clear()
+        tick(time.monotonic())
+
+
 def open_service(name: str, args: argparse.Namespace):
     """(cell config, shell) of a service, or None after printing a clear error (the caller exits 2)."""
     from shared.config import load_config

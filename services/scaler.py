@@ -1,8 +1,11 @@
 """scaler: the trajectory scaling layer as a service (a thin shell around shared.scaling_layer).
 
-Each tick (the configured control period, 100 Hz by default) it takes the last trajectory, the last
-human state and the last joint state received, runs ScalingLayer.step, and publishes the joint command
-and its status. Rules of the shell:
+Each tick it takes the last trajectory, the last human state and the last joint state received, runs
+ScalingLayer.step, and publishes the joint command and its status. It ticks on every joint state (the
+driver publishes one a SYNC, 100 Hz), falling back to 1.5 control periods without one (services.common.
+run_synced): locked to the drives' clock, its path never runs ahead of the robot (on its own clock, a
+SYNC cycle lost under load left the robot one period behind a command at full speed, for good, and
+the braking that followed overshot the stop). Rules of the shell:
 * no trajectory yet, or none taken: it commands the measured position (hold), so the driver can enable;
 * a new trajectory version is taken without a jump: a fresh plan (base_version -1) when the robot is at
   its start; a merged one when the follower has not passed its junction (it continues at the same s);
@@ -24,7 +27,7 @@ import time
 
 import numpy as np
 
-from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
+from services.common import ServiceShell, open_service, run_synced, serve, service_parser, setup_logging
 from shared.convert import humans_from_msg, trajectory_from_msg
 from shared.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, encode
 from shared.robot_model import default_robot
@@ -43,6 +46,7 @@ class Scaler:
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
         self.robot_following = False       # the driver runs and follows commands (JointState.enabled)
+        self.joint_state_arrived = threading.Event()       # wakes the tick: one a SYNC
         self.pending: TrajectoryMsg | None = None
         self.version = -1
         self.seq = 0
@@ -63,6 +67,7 @@ class Scaler:
         with self.lock:
             self.joint_q = np.asarray(msg.q)
             self.robot_following = msg.enabled
+        self.joint_state_arrived.set()
 
     def on_trajectory(self, msg: TrajectoryMsg) -> None:
         with self.lock:
@@ -134,8 +139,9 @@ def main(argv: list[str] | None = None) -> int:
     layer = ScalingLayer(default_robot(), config.ssm, config.scaling)
     layer.warm_up()                  # compile before the first deadline, not at it
     scaler = Scaler(shell, layer)
-    return serve(shell, f"scaler: {1 / config.scaling.period:.0f} Hz, solver {config.scaling.solver}, keys "
-                        f"{shell.keys.prefix}/", lambda stop: run_paced(config.scaling.period, scaler.tick, stop, "scaler"))
+    return serve(shell, f"scaler: {1 / config.scaling.period:.0f} Hz on the drives' SYNC, solver "
+                        f"{config.scaling.solver}, keys {shell.keys.prefix}/",
+                 lambda stop: run_synced(config.scaling.period, scaler.tick, stop, scaler.joint_state_arrived, "scaler"))
 
 
 if __name__ == "__main__":
