@@ -6,7 +6,8 @@ while two scripted people (10 capsules: one crossing, one wandering) move throug
 warm-up, each process's CPU time (user + system, /proc) is read at the start and the end of the measured
 window: its steady-state share of one core. Goals (the safety-chain issue): robot_driver + scaler +
 tracker_ingest + safety_monitor together <= 40 % of one core, the emulator <= 10 %, the planner idle when
-nothing needs planning.
+nothing needs planning. With people moving through the cell it also counts the drive faults (EMCY) and
+the driver's clamp warnings: a robot that trips its drives in ordinary work is not usable.
 
 udp_multicast runs inside a private network namespace: the script re-runs itself in one when needed.
 Last line: one JSON object.
@@ -63,6 +64,8 @@ def measure(seconds: float, warmup: float, seed: int) -> dict:
                 time.sleep(0.02)
             after, t_after = cell.cpu_seconds(), time.monotonic()
             shuttles, statuses = rec.shuttles, len(rec.statuses)
+            faults = [e.text for e in rec.events if e.source == "robot_driver" and e.event in ("emcy", "drive_fault")]
+            clamps = sum(e.event == "command_clamped" for e in rec.events)
         finally:
             if feed is not None:
                 feed.running = False
@@ -76,7 +79,8 @@ def measure(seconds: float, warmup: float, seed: int) -> dict:
             "percent_of_core": share,
             "services_total": round(sum(share.get(n, 0.0) for n in SAFETY_CHAIN), 1),
             "emulator": share.get("hwsim"), "planner": share.get("planner"),
-            "total": round(sum(share.values()), 1), "shuttles": shuttles,
+            "total": round(sum(share.values()), 1), "shuttles": shuttles, "drive_faults": faults,
+            "command_clamped": clamps,
             "control_rate_hz": round(statuses / (t_after - rec.t0), 1)}
 
 
@@ -96,7 +100,8 @@ def main() -> int:
         print(f"{name:<16} {pct:5.1f} % of one core")
     print(f"safety chain (driver + scaler + tracker + monitor): {result['services_total']} % (goal <= 40); "
           f"emulator {result['emulator']} % (goal <= 10); all {result['total']} %; {result['capsules']} capsules, "
-          f"{result['shuttles']} shuttles, control {result['control_rate_hz']} Hz")
+          f"{result['shuttles']} shuttles, control {result['control_rate_hz']} Hz; drive faults "
+          f"{len(result['drive_faults'])}, clamp warnings {result['command_clamped']}")
     print(json.dumps(result))
     return 0
 
