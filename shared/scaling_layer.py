@@ -28,6 +28,7 @@ import math
 import time
 from dataclasses import dataclass, fields
 
+import numba
 import numpy as np
 
 from shared.errors import ConfigError
@@ -85,6 +86,18 @@ class ScalingParameters:
         if unknown:
             raise ConfigError(f"scaling: unknown key(s) {unknown}; known: {sorted(known)}")
         return cls(**raw)
+
+
+@numba.njit(cache=True)
+def _path_deceleration(dq_ds, acceleration):
+    """The largest path deceleration (1/s^2) no joint's acceleration limit forbids: min a_j / |q'_j| over
+    the joints that move (inf when none does)."""
+    best = np.inf
+    for j in range(dq_ds.shape[0]):
+        speed = abs(dq_ds[j])
+        if speed > 1e-9:
+            best = min(best, acceleration[j] / speed)
+    return best
 
 
 class StepStatus(str, enum.Enum):
@@ -182,11 +195,8 @@ class ScalingLayer:
         """The least path speed this cycle can have: the current one less what the drives' deceleration
         (``monitor_acceleration``, 6 rad/s^2, BRAKING_SHARE of it) takes off in one period along a path of
         tangent dq_ds (rad per unit s). 0 once the robot can be at rest by the end of the period."""
-        speed = np.abs(np.asarray(dq_ds, dtype=float))
-        moving = speed > 1e-9
-        if not np.any(moving):
-            return 0.0
-        deceleration = BRAKING_SHARE * float(np.min(self.robot.limits.monitor_acceleration[moving] / speed[moving]))
+        deceleration = BRAKING_SHARE * _path_deceleration(np.asarray(dq_ds, dtype=np.float64),
+                                                          self.robot.limits.monitor_acceleration)
         return max(0.0, self.sdot - deceleration * self.params.period)
 
     def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool) -> StepStatus:
