@@ -30,6 +30,23 @@ class LatencyCheck:
     p99: float
 
 
+class Episode:
+    """A verdict (a bound exceeded or not) that is reported only when it changes: once per episode."""
+
+    def __init__(self) -> None:
+        self.exceeded = False
+
+    def verdict(self, exceeded: bool, value: float, warning: tuple[str, str],
+                ok: tuple[str, str]) -> "LatencyCheck | None":
+        """Take the current verdict; a LatencyCheck (warning: event and text, or ok: the same, info) when
+        it differs from the last one, else None."""
+        if exceeded == self.exceeded:
+            return None
+        self.exceeded = exceeded
+        event, text = warning if exceeded else ok
+        return LatencyCheck(event, "warning" if exceeded else "info", text, value)
+
+
 class LatencyMeter:
     """Rolling window of (sample_to_frame, processing) latencies in seconds, and the T_r verdict."""
 
@@ -40,7 +57,7 @@ class LatencyMeter:
         self.min_samples = min_samples
         self._window: deque[float] = deque(maxlen=window)
         self._pending: list[tuple[float, float]] = []
-        self.exceeded = False
+        self.episode = Episode()
 
     def add(self, sample_to_frame: float, processing: float) -> None:
         """One chain: from the sample's arrival to its frame, and the processing part of that (s).
@@ -69,18 +86,14 @@ class LatencyMeter:
         if p99 is None:
             return None
         chain = p99 + max(motion_lag, 0.0)
-        exceeded = chain > self.reaction_time
-        if exceeded == self.exceeded:
-            return None
-        self.exceeded = exceeded
         parts = f"sample -> frame p99 {p99 * 1e3:.1f} ms + drive lag {motion_lag * 1e3:.1f} ms"
-        if exceeded:
-            return LatencyCheck("reaction_time_exceeded", "warning",
-                                f"measured reaction chain {chain * 1e3:.1f} ms ({parts}) exceeds the configured "
-                                f"T_r {self.reaction_time * 1e3:.0f} ms: the SSM distances assume a faster system; "
-                                f"raise ssm.reaction_time in the cell configuration", chain)
-        return LatencyCheck("reaction_time_ok", "info", f"reaction chain {chain * 1e3:.1f} ms ({parts}) is within "
-                            f"T_r {self.reaction_time * 1e3:.0f} ms again", chain)
+        return self.episode.verdict(
+            chain > self.reaction_time, chain,
+            ("reaction_time_exceeded", f"measured reaction chain {chain * 1e3:.1f} ms ({parts}) exceeds the configured "
+                                       f"T_r {self.reaction_time * 1e3:.0f} ms: the SSM distances assume a faster "
+                                       f"system; raise ssm.reaction_time in the cell configuration"),
+            ("reaction_time_ok", f"reaction chain {chain * 1e3:.1f} ms ({parts}) is within T_r "
+                                 f"{self.reaction_time * 1e3:.0f} ms again"))
 
 
 class DriveLagMeter:
@@ -102,7 +115,7 @@ class DriveLagMeter:
         self._lags = [deque(maxlen=window) for _ in range(dof)]
         self._pending_lag = [[] for _ in range(dof)]
         self._pending_error = np.zeros(dof)
-        self.exceeded = False
+        self.episode = Episode()
 
     def add(self, setpoint: np.ndarray, velocity: np.ndarray, measured: np.ndarray,
             following_error: np.ndarray | None = None) -> None:
@@ -142,14 +155,10 @@ class DriveLagMeter:
         worst = self.worst()
         if worst is None:
             return None
-        exceeded = worst > self.bound
-        if exceeded == self.exceeded:
-            return None
-        self.exceeded = exceeded
-        if exceeded:
-            return LatencyCheck("drive_lag_exceeded", "warning",
-                                f"the joints run {worst * 1e3:.1f} ms (p99) behind their setpoints, more than the "
-                                f"configured ssm.drive_lag {self.bound * 1e3:.0f} ms that the scaling layer's tracking "
-                                f"margin assumes: raise it, or find why the drives fall behind", worst)
-        return LatencyCheck("drive_lag_ok", "info", f"drive lag p99 {worst * 1e3:.1f} ms is within ssm.drive_lag "
-                            f"{self.bound * 1e3:.0f} ms again", worst)
+        return self.episode.verdict(
+            worst > self.bound, worst,
+            ("drive_lag_exceeded", f"the joints run {worst * 1e3:.1f} ms (p99) behind their setpoints, more than the "
+                                   f"configured ssm.drive_lag {self.bound * 1e3:.0f} ms that the scaling layer's "
+                                   f"tracking margin assumes: raise it, or find why the drives fall behind"),
+            ("drive_lag_ok", f"drive lag p99 {worst * 1e3:.1f} ms is within ssm.drive_lag {self.bound * 1e3:.0f} ms "
+                             f"again"))
