@@ -144,10 +144,14 @@ def run_synced(period: float, tick, stop: threading.Event, ready: threading.Even
 
 
 def open_service(name: str, args: argparse.Namespace):
-    """(cell config, shell) of a service, or None after printing a clear error (the caller exits 2)."""
+    """(cell config, shell) of a service, or None after printing a clear error (the caller exits 2). The
+    process takes its scheduling first (``shared.scheduling.realtime``), so that every thread it starts,
+    Zenoh's included, has it: a safety-chain thread waiting for the GIL must not wait behind a thread of
+    its own process that a busy machine has preempted."""
     from shared.config import load_config
     from shared.errors import HrcError
 
+    realtime(name)
     try:
         config = load_config(getattr(args, "config", None))
         return config, ServiceShell(name, args)

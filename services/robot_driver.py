@@ -53,6 +53,7 @@ from shared.messages import (DriveLagReport, DriverRequest, JointCommand, JointS
 from shared.prbt_drive import (EDS_PATH, FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, NODE_IDS, PERIOD, to_counts,
                                to_rad)
 from shared.robot_model import default_robot
+from shared.scheduling import realtime
 
 log = logging.getLogger("robot_driver")
 
@@ -311,9 +312,10 @@ class Driver:
 
 async def serve(args: argparse.Namespace) -> int:
     config = load_config(args.config)
+    scheduling = realtime("robot_driver")   # every thread of the process: the GIL holder runs at the cycle's priority
     bus = open_bus(args.interface, args.channel)
     print(f"robot_driver: CANopen master on {describe(args.interface, args.channel)}, SYNC every "
-          f"{args.period * 1000:.1f} ms", flush=True)
+          f"{args.period * 1000:.1f} ms, {scheduling}", flush=True)
     master = CanMaster(bus)
     await asyncio.to_thread(master.bring_up)
     shell = ServiceShell("robot_driver", args)

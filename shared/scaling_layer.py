@@ -89,15 +89,18 @@ class ScalingParameters:
 
 
 @numba.njit(cache=True)
-def _path_deceleration(dq_ds, acceleration):
-    """The largest path deceleration (1/s^2) no joint's acceleration limit forbids: min a_j / |q'_j| over
-    the joints that move (inf when none does)."""
+def _path_deceleration(dq_ds, d2q_ds2, sdot, acceleration):
+    """The largest path deceleration d (1/s^2) at which no joint's acceleration q'_j (-d) + q''_j sdot^2
+    leaves +-a_j: min over the moving joints of (a_j + sign(q'_j) q''_j sdot^2) / |q'_j|, at least 0 (inf
+    when no joint moves). The curvature term counts: where the nominal trajectory itself decelerates, less
+    path deceleration is left to the drives."""
     best = np.inf
     for j in range(dq_ds.shape[0]):
         speed = abs(dq_ds[j])
         if speed > 1e-9:
-            best = min(best, acceleration[j] / speed)
-    return best
+            curvature = d2q_ds2[j] * sdot * sdot
+            best = min(best, (acceleration[j] + (curvature if dq_ds[j] > 0 else -curvature)) / speed)
+    return max(best, 0.0)
 
 
 class StepStatus(str, enum.Enum):
@@ -191,12 +194,14 @@ class ScalingLayer:
             alpha, lowered = bound * (1.0 - 1e-9), True
         return 0.0, True
 
-    def braking_floor(self, dq_ds: np.ndarray) -> float:
+    def braking_floor(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray | None = None) -> float:
         """The least path speed this cycle can have: the current one less what the drives' deceleration
         (``monitor_acceleration``, 6 rad/s^2, BRAKING_SHARE of it) takes off in one period along a path of
-        tangent dq_ds (rad per unit s). 0 once the robot can be at rest by the end of the period."""
-        deceleration = BRAKING_SHARE * _path_deceleration(np.asarray(dq_ds, dtype=np.float64),
-                                                          self.robot.limits.monitor_acceleration)
+        tangent dq_ds (rad per unit s) and curvature d2q_ds2 (rad per unit s^2; None: straight). 0 once the
+        robot can be at rest by the end of the period."""
+        dq = np.asarray(dq_ds, dtype=np.float64)
+        d2q = np.zeros_like(dq) if d2q_ds2 is None else np.asarray(d2q_ds2, dtype=np.float64)
+        deceleration = BRAKING_SHARE * _path_deceleration(dq, d2q, self.sdot, self.robot.limits.monitor_acceleration)
         return max(0.0, self.sdot - deceleration * self.params.period)
 
     def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool) -> StepStatus:
@@ -238,7 +243,7 @@ class ScalingLayer:
                 method += "+verified"
             if rows.ssm is not None:
                 min_sep, min_margin = rows.ssm.closest(alpha)
-        floor = self.braking_floor(dq) if running else 0.0
+        floor = self.braking_floor(dq, ddq) if running else 0.0
         if floor > alpha:
             alpha, method = floor, method + "+braking"
         if status is StepStatus.RUNNING and safe_alpha <= self.params.alpha_min:

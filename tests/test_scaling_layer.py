@@ -116,7 +116,7 @@ def test_every_command_meets_the_ssm_limit(seed, s):
     humans = HumanCapsules.from_arrays(rng.uniform([-1.0, -1.0, 0.2], [0.2, 1.0, 1.2], (m, 1, 3))
                                        + rng.normal(scale=0.15, size=(m, 2, 3)), rng.uniform(0.03, 0.15, m),
                                        rng.normal(scale=0.8, size=(m, 2, 3)), rng.random(m) < 0.8)
-    floor = lay.braking_floor(lay.trajectory.sample(lay.s)[1])
+    floor = lay.braking_floor(*lay.trajectory.sample(lay.s)[1:])
     step = lay.step(humans, 0.0)
     points, jac = ROBOT.capsule_kinematics(step.q_command)
     check = pair_ssm(points, ROBOT.radii, jac @ step.qd_command, humans, SsmParameters())
