@@ -34,6 +34,7 @@ from shared.robot_model import default_robot
 from shared.scheduling import realtime
 
 log = logging.getLogger("hwsim")
+WATCHDOG_POLL = 0.005        # s: how often the drives look for a missing SYNC between SYNCs
 
 
 class EmulatedNode:
@@ -205,7 +206,7 @@ def run(interface: str, channel: str | None, start: np.ndarray, seed: int, stop:
     print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}, {scheduling}",
           flush=True)
     try:
-        while not stop.wait(0.005):
+        while not stop.wait(WATCHDOG_POLL):
             now = time.monotonic()
             for n in nodes:
                 n.watchdog(now)

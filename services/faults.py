@@ -33,6 +33,7 @@ from typing import Callable
 import numpy as np
 
 from hwsim.drive import DriveLimits
+from hwsim.emulator import WATCHDOG_POLL
 from shared.prbt_drive import EMCY_SYNC_TIMEOUT, PERIOD
 from services import driver_core
 from services.cell import service_info
@@ -79,7 +80,7 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
     brake = float(np.max(robot.limits.velocity / robot.limits.monitor_acceleration))
     # the robot driver's and the emulated drives' own defaults, as the cell runs them (hrc up)
     p, ct, hb = PERIOD, driver_core.COMMAND_TIMEOUT, driver_core.HEARTBEAT_TIMEOUT
-    wd = DriveLimits.sync_timeout_factor * DriveLimits.period
+    wd = DriveLimits.sync_timeout_factor * DriveLimits.period + WATCHDOG_POLL     # the drives look every 5 ms
     human = max(config.scaling.human_timeout, 0.05)
     horizon = config.ssm.reaction_time + config.ssm.stopping_time
     # + one SYNC more everywhere the drives keep reporting: a drive reports the position of the SYNC
@@ -90,7 +91,7 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
     human_stop = Expectation("stop", human + 3 * p + brake,
                              f"human data timeout {human * 1e3:.0f} ms + tick, SYNC and report {3 * p * 1e3:.0f} ms + "
                              f"braking {brake * 1e3:.0f} ms")
-    driver_stop = Expectation("stop", wd + brake, f"drives' SYNC watchdog {wd * 1e3:.0f} ms + braking "
+    driver_stop = Expectation("stop", wd + brake, f"drives' SYNC watchdog {wd * 1e3:.0f} ms (timeout and poll) + braking "
                                                   f"{brake * 1e3:.0f} ms")
     carry_on = Expectation("any", None, "not in the chain that stops the robot: the motion stays scaled")
     return {
