@@ -78,9 +78,11 @@ def measure(interface: str, channel: str | None, seconds: float) -> dict:
         while time.monotonic() < t_end:          # a slow sine on joint 1, a new setpoint every 10 ms
             k += 1
             q[0] = 1.57 - 0.2 * np.sin(k * 0.01)
+            qd = np.zeros(6)
+            qd[0] = -0.2 * np.cos(k * 0.01)           # rad/s: the sine's own velocity, as the scaler sends it
             counts = to_counts(q[0])
             t_pub = time.monotonic()
-            cell.command(q)
+            cell.command(q, qd)
             sent.append((counts, t_pub))
             time.sleep(0.01 - (time.monotonic() - t_pub) % 0.01)
         time.sleep(0.1)

@@ -165,10 +165,11 @@ class Cell:
         with self.lock:
             return self.states[-1][1] if self.states else None
 
-    def command(self, q: np.ndarray) -> None:
+    def command(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:
+        """A joint command as the scaler sends it: position and velocity (none given: at rest)."""
         self.seq += 1
-        self.cmd_pub.put(encode(JointCommand(q=np.asarray(q, float), qd=np.zeros(6), trajectory_version=0, s=0.0,
-                                             seq=self.seq, stamp=time.monotonic())))
+        self.cmd_pub.put(encode(JointCommand(q=np.asarray(q, float), qd=np.zeros(6) if qd is None else np.asarray(qd, float),
+                                             trajectory_version=0, s=0.0, seq=self.seq, stamp=time.monotonic())))
 
     def request(self, action: str) -> None:
         self.req_pub.put(encode(DriverRequest(action=action, source="hil")))
