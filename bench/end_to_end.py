@@ -7,8 +7,8 @@ service over Zenoh; on udp_multicast it re-runs itself in a private network name
 * processing_ms: the part of that which is not waiting for the scaler's next tick;
 * replan_stall_ms: for every replan request (beta), the time the robot stood or stayed on the old
   trajectory until it moved on the new one (or the request cleared);
-* monitor_lag_ms: how far behind the independent monitor checked the joint states (p99: the worst
-  per-second p99 it reported; max), and how many states it left unchecked;
+* monitor_lag_ms: how far behind the independent monitor checked the joint states (p99 and max over its
+  run), and how many states it left unchecked;
 * drive_lag_ms: the worst per-joint p99 lag of the measured joints behind the driver's setpoints;
 and whether the configured T_r covers the measured p99 (the driver warns on the bus when it does not).
 The last line is one JSON object.

@@ -111,10 +111,9 @@ def monitor_summary(rec: Recording, series: dict[str, np.ndarray], violations: i
     recount over the trace, and a flag when the two disagree."""
     last = rec.monitor[-1] if rec.monitor else None
     recount = int(series["violations"].sum())
-    lag_p99 = [r.lag_p99 for r in rec.monitor if r.checks]
     return {"checks": None if last is None else last.checks, "unchecked": None if last is None else last.unchecked,
-            "lag_ms": {"p99": round(max(lag_p99) * 1e3, 1) if lag_p99 else None,
-                       "max": round(max(r.lag_max for r in rec.monitor) * 1e3, 1) if rec.monitor else None},
+            "lag_ms": {"p99": None if last is None else round(last.lag_p99 * 1e3, 1),
+                       "max": None if last is None else round(last.lag_max * 1e3, 1)},
             "violations_recounted": recount,
             "disagrees": None if violations is None else violations != recount}
 

@@ -14,7 +14,8 @@ says so when the checks run more than 0.1 s behind or states go unchecked for la
 
 Out: each violation as a SafetyEvent (event 'ssm_violation', severity stop; at most ten a second); once a
 second a summary event ('monitor_summary', value = violations so far) and a MonitorReport on
-<prefix>/diag/monitor (checks, violations, unchecked, lag p99 and max, smallest margin and separation). It
+<prefix>/diag/monitor (checks, violations, unchecked, the lag's p99 and max over the run so far, smallest
+margin and separation). It
 commands nothing: it is the witness, not the guard.
 
     python -m services.safety_monitor --connect tcp/127.0.0.1:7447
@@ -25,7 +26,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 
 import numpy as np
 
@@ -49,7 +50,7 @@ class MonitorService:
         self.backlog = backlog or Backlog()
         self.checks = self.violations = self.unchecked = 0
         self.unchecked_why: Counter[str] = Counter()
-        self.lags: list[float] = []          # s: measurement -> checked, since the last summary
+        self.lags: deque[float] = deque(maxlen=100_000)    # s: measurement -> checked, the whole run (16 min)
         self.behind = False
         self.min_margin = np.inf
         self.min_separation = np.inf
@@ -78,6 +79,7 @@ class MonitorService:
         """Check every state whose person is known, in measurement order; count the ones that cannot be."""
         with self.lock:
             ready, unchecked = self.backlog.take(now, self.humans)
+        done = now
         if ready:
             results = self.monitor.check_batch(np.array([r[1] for r in ready]), np.array([r[2] for r in ready]),
                                                [r[3] for r in ready])
@@ -91,7 +93,7 @@ class MonitorService:
         self.unchecked += len(unchecked)
         self.unchecked_why.update(_kind(reason) for _, reason in unchecked)
         late = [reason for _, reason in unchecked if reason.startswith("reached")]
-        lag = max(self.lags[-len(ready):], default=0.0) if ready else 0.0
+        lag = done - ready[0][0] if ready else 0.0          # the oldest state of this pass
         behind = bool(late) or lag > BEHIND
         if behind and not self.behind:
             self._event("monitor_behind", "warning", f"the safety monitor runs {lag * 1e3:.0f} ms behind; "
@@ -119,8 +121,7 @@ class MonitorService:
             self.summary()
 
     def summary(self) -> None:
-        lags = np.array(self.lags)
-        self.lags = []
+        lags = np.fromiter(self.lags, float)
         p99, worst = (float(np.percentile(lags, 99)), float(lags.max())) if lags.size else (0.0, 0.0)
         why = ", ".join(f"{n} {kind}" for kind, n in self.unchecked_why.most_common())
         text = (f"{self.checks} checks, {self.violations} violations, {self.unchecked} unchecked"

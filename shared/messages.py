@@ -268,7 +268,7 @@ class DriveLagReport(Message):
 class MonitorReport(Message):
     """The safety monitor's running totals (since it started), once a second: joint states checked,
     violations, unchecked states (no human state of their moment, or reached too late), how far behind
-    its checks ran over the last second (lag_p99, lag_max, s: measurement -> checked), the smallest
+    its checks ran over the run so far (lag_p99, lag_max, s: measurement -> checked), the smallest
     margin (m/s) and separation (m) seen (inf before any check: sent as a large number)."""
 
     KIND: ClassVar[str] = "monitor_report"

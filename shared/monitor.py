@@ -327,8 +327,9 @@ class Backlog:
     """The joint states waiting for the monitor, and the rule for when each can be checked (pure).
 
     A state is checked against the person of its own moment: the newest human sample taken at or before
-    it (``HumanHistory.pair``). A robot at rest (every joint slower than AT_REST) needs no person: the
-    rule counts nothing where no link approaches, so such a state passes whoever is there. That pairing is final once a sample newer than the state has arrived; until
+    it (``HumanHistory.pair``). A robot at rest (every joint slower than AT_REST) needs no person and no
+    wait: the rule counts nothing where no link approaches, so such a state passes whoever is there (it is
+    checked against the person of its moment when that one is already known, for the figures). That pairing is final once a sample newer than the state has arrived; until
     then the state waits, at most ``pair_wait`` seconds. A state is *unchecked* (counted and reported,
     never a violation and never a pass) when no human state of its moment is known: none taken at or
     before it, the one before it older than ``pair_age`` (the tracker was silent: the scaler had stopped
@@ -359,19 +360,21 @@ class Backlog:
             if age > self.deadline:
                 unchecked.append((stamp, f"reached {age * 1e3:.0f} ms after it was measured"))
                 continue
-            if (newest is None or newest <= stamp) and age < self.pair_wait:
+            at_rest = np.abs(qd).max() <= AT_REST
+            if not at_rest and (newest is None or newest <= stamp) and age < self.pair_wait:
                 keep.append((stamp, q, qd))                   # the person of its moment may still arrive
                 continue
             paired = history.pair(stamp)
-            if np.abs(qd).max() <= AT_REST and (paired is None or paired[1] is None or stamp - paired[0] > self.pair_age):
+            known = paired is not None and paired[1] is not None and stamp - paired[0] <= self.pair_age
+            if known:
+                ready.append((stamp, q, qd, paired[1]))
+            elif at_rest:                                     # nothing approaches: a pass whoever is there
                 ready.append((stamp, q, qd, HumanCapsules.empty()))
             elif paired is None:
                 unchecked.append((stamp, "no human state taken at or before it"))
             elif stamp - paired[0] > self.pair_age:
                 unchecked.append((stamp, f"the human state of its moment is {(stamp - paired[0]) * 1e3:.0f} ms old"))
-            elif paired[1] is None:
-                unchecked.append((stamp, "the tracker had no valid track"))
             else:
-                ready.append((stamp, q, qd, paired[1]))
+                unchecked.append((stamp, "the tracker had no valid track"))
         self._pending = keep
         return ready, unchecked
