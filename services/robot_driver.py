@@ -184,7 +184,7 @@ class CanMaster:
         """RPDO1 (controlword, IP setpoint) to every node, then SYNC. controlwords None: keep the last ones
         (an early setpoint between SYNCs; the drives take the latest at the next SYNC). A node that an early
         send has already given exactly this controlword and setpoint since the last SYNC is not sent it
-        again: the bus (and every process on it) carries a third fewer frames."""
+        again: six frames a period fewer for every process on the bus."""
         with self.send_lock:
             for k, ((variables, rpdo), sp) in enumerate(zip(self._setpoint_vars, setpoints)):
                 if controlwords is not None:
