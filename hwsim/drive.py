@@ -29,8 +29,8 @@ import math
 from dataclasses import dataclass, field
 
 from shared.cia402 import CW_ENABLE_IP, DriveStateMachine, State, statusword
-from shared.prbt_drive import (COUNTS_PER_RAD, EMCY_FOLLOWING, EMCY_LIMIT, EMCY_RESET, EMCY_RPDO_TIMEOUT, EMCY_SYNC_TIMEOUT,
-                               FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, PERIOD, to_rad)
+from shared.prbt_drive import (COUNTS_PER_RAD, EMCY_FOLLOWING, EMCY_LIMIT, EMCY_RESET, EMCY_RPDO_TIMEOUT,
+                               EMCY_SYNC_TIMEOUT, FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, PERIOD, to_rad)
 
 
 @dataclass
@@ -84,7 +84,6 @@ class Drive:
     def interpolating(self) -> bool:
         return (self.state is State.OPERATION_ENABLED and self.mode == MODE_IP
                 and bool(self.controlword & CW_ENABLE_IP))
-
 
     def statusword(self) -> int:
         return statusword(self.state, ip_active=self.interpolating, internal_limit=self.saturated,

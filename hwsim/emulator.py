@@ -7,7 +7,8 @@ and sends TPDO1 (statusword, mode display), TPDO2 (position demand 0x6062, follo
 TPDO3 (position, velocity actual), the values of the SYNC instant; a timer runs the SYNC watchdog between
 SYNCs. The following error window (0x6065, counts) and time-out (0x6066, ms) are read and written over
 SDO. Every fault is announced by an EMCY with the error register (0x1001) set; a frozen node sends the
-EMCYs of faults it entered while frozen when it is unfrozen. Fault injection through SDO writes to 0x2F00 (any time):
+EMCYs of faults it entered while frozen when it is unfrozen. Fault injection through SDO writes to 0x2F00
+(any time):
 :1 drop that many per mille of the node's frames, :2 heartbeat off, :3 freeze the node (no PDO, no
 heartbeat; SDO still answers so it can be unfrozen), :4 raise a drive fault.
 
@@ -24,12 +25,14 @@ import signal
 import sys
 import threading
 import time
+
 import canopen
 import numpy as np
 
 from hwsim.drive import Drive, DriveLimits
 from shared.canbus import BusError, describe, open_bus
-from shared.prbt_drive import EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register, to_counts, COUNTS_PER_RAD
+from shared.prbt_drive import (COUNTS_PER_RAD, EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register,
+                               to_counts)
 from shared.robot_model import default_robot
 from shared.scheduling import realtime
 
@@ -201,7 +204,8 @@ def run(interface: str, channel: str | None, start: np.ndarray, seed: int, stop:
     network = canopen.Network(bus)
     network.connect()
     rng = random.Random(seed)
-    nodes = [EmulatedNode(network, nid, lim, float(q), rng) for nid, lim, q in zip(NODE_IDS, build_limits(PERIOD), start)]
+    nodes = [EmulatedNode(network, nid, lim, float(q), rng)
+             for nid, lim, q in zip(NODE_IDS, build_limits(PERIOD), start)]
     network.subscribe(0x80, lambda can_id, data, ts: [n.on_sync(time.monotonic()) for n in nodes])
     print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}, {scheduling}",
           flush=True)

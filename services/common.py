@@ -9,17 +9,16 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
 import sys
 import threading
 import time
 from pathlib import Path
 
 from shared.errors import MessageError
-from shared.scheduling import realtime
 from shared.keys import KeySpace
 from shared.messages import Message, decode
 from shared.pki import TlsIdentity
+from shared.scheduling import realtime
 from shared.zenoh_session import open_session
 
 LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s %(message)s"
@@ -107,15 +106,13 @@ class ServiceShell:
         self.session.close()
 
 
-def run_paced(period: float, tick, stop: threading.Event, name: str | None = None) -> None:
+def run_paced(period: float, tick, stop: threading.Event) -> None:
     """Call tick(now) every period: deadline sleeping (clock_nanosleep, tens of microseconds late), no
     spinning (that would hold the GIL while a callback waits); an overrun re-syncs instead of bursting.
     Python hands the GIL over every 5 ms by default, which would let any callback thread delay a tick that
-    long: the switch interval is set to 0.5 ms. The thread runs at the real-time priority of service
-    `name` (``realtime``): the safety chain's, or normal scheduling for the rest."""
+    long: the switch interval is set to 0.5 ms. The thread runs with its process's scheduling, which the
+    process took at start (``open_service``, or the driver's and emulator's own start-up)."""
     sys.setswitchinterval(0.0005)
-    if name is not None:
-        realtime(name)
     deadline = time.monotonic()
     while not stop.is_set():
         deadline += period
@@ -128,15 +125,13 @@ def run_paced(period: float, tick, stop: threading.Event, name: str | None = Non
         tick(now)
 
 
-def run_synced(period: float, tick, stop: threading.Event, ready: threading.Event, name: str | None = None) -> None:
+def run_synced(period: float, tick, stop: threading.Event, ready: threading.Event) -> None:
     """Call tick(now) each time `ready` is set (by whoever feeds the loop: the scaler sets it on every joint
     state, one a SYNC), or after 1.5 periods without it (so the loop goes on when its feed stops). Locked
     to the robot's own clock, a loop never runs ahead of the drives: a SYNC that comes late delays its
     tick instead of leaving the robot a period behind the commands, which a trajectory at the velocity
-    limit can never make up. Scheduling as run_paced."""
+    limit can never make up. Switch interval and scheduling as run_paced."""
     sys.setswitchinterval(0.0005)
-    if name is not None:
-        realtime(name)
     while not stop.is_set():
         ready.wait(1.5 * period)
         ready.clear()

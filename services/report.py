@@ -76,8 +76,9 @@ def replan_stalls(statuses: list[ScalerStatus], t0: float = 0.0) -> list[dict]:
 
 
 def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dict[str, np.ndarray]:
-    """At every measured joint state, with the human state of its moment (shared.monitor.HumanHistory, the
-    monitor service's own pairing): separation, and the robot's approach speed against its ISO/TS 15066
+    """At every measured joint state, with the human state of its moment (shared.monitor.HumanHistory.pair,
+    the monitor service's own pairing; a state measured before any human sample is not checked, as the
+    service leaves it unchecked): separation, and the robot's approach speed against its ISO/TS 15066
     limit at the pair closest to its limit (the independent monitor's check, recomputed for the figures),
     and ``late_excess``: by how much (m/s) the measured approach speed exceeded the limit at a pair whose
     exceedance had lasted longer than T_r (0 where none had): the formula gives the robot T_r to react to
@@ -91,7 +92,7 @@ def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dic
     states = rec.joint_states
     results = monitor.check_batch(np.array([js.q for js in states]).reshape(-1, 6),
                                   np.array([js.qd for js in states]).reshape(-1, 6),
-                                  [history.at(js.stamp) for js in states])
+                                  [paired[1] if (paired := history.pair(js.stamp)) else None for js in states])
     rows, since = [], {}
     for js, r in zip(states, results):
         speeding = {(v.link, v.capsule): v.approach_speed - max(v.limit, 0.0) for v in r.violations

@@ -322,8 +322,7 @@ async def serve(args: argparse.Namespace) -> int:
     core = DriverCore(default_robot().limits, args.period, args.command_timeout)
     driver = Driver(master, core, shell, args.period, LatencyMeter(config.ssm.reaction_time),
                     DriveLagMeter(config.ssm.drive_lag))
-    thread = threading.Thread(target=run_paced, args=(args.period, driver.cycle, driver.stop, "robot_driver"),
-                              name="can-cycle",
+    thread = threading.Thread(target=run_paced, args=(args.period, driver.cycle, driver.stop), name="can-cycle",
                               daemon=True)
     thread.start()
     loop = asyncio.get_running_loop()

@@ -15,8 +15,7 @@ says so when the checks run more than 0.1 s behind or states go unchecked for la
 Out: each violation as a SafetyEvent (event 'ssm_violation', severity stop; at most ten a second); once a
 second a summary event ('monitor_summary', value = violations so far) and a MonitorReport on
 <prefix>/diag/monitor (checks, violations, unchecked, the lag's p99 and max over the run so far, smallest
-margin and separation). It
-commands nothing: it is the witness, not the guard.
+margin and separation). It commands nothing: it is the witness, not the guard.
 
     python -m services.safety_monitor --connect tcp/127.0.0.1:7447
 """
@@ -91,8 +90,8 @@ class MonitorService:
                 self.min_separation = min(self.min_separation, result.min_separation)
                 self._count(self.window.update(stamp, result))
         self.unchecked += len(unchecked)
-        self.unchecked_why.update(_kind(reason) for _, reason in unchecked)
-        late = [reason for _, reason in unchecked if reason.startswith("reached")]
+        self.unchecked_why.update(u.kind for u in unchecked)
+        late = [u for u in unchecked if u.kind == "late"]
         lag = done - ready[0][0] if ready else 0.0          # the oldest state of this pass
         behind = bool(late) or lag > BEHIND
         if behind and not self.behind:
@@ -134,17 +133,6 @@ class MonitorService:
             checks=self.checks, violations=self.violations, unchecked=self.unchecked, lag_p99=p99, lag_max=worst,
             min_margin=float(min(self.min_margin, HUGE)), min_separation=float(min(self.min_separation, HUGE)),
             seq=self.seq, stamp=time.monotonic())))
-
-
-def _kind(reason: str) -> str:
-    """The short class of an unchecked state's reason, for the summary."""
-    if reason.startswith("reached"):
-        return "late"
-    if "no valid track" in reason:
-        return "invalid track"
-    if reason.endswith("ms old"):
-        return "tracker silent"
-    return "before any human state"
 
 
 def main(argv: list[str] | None = None) -> int:

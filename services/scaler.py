@@ -141,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     scaler = Scaler(shell, layer)
     return serve(shell, f"scaler: {1 / config.scaling.period:.0f} Hz on the drives' SYNC, solver "
                         f"{config.scaling.solver}, keys {shell.keys.prefix}/",
-                 lambda stop: run_synced(config.scaling.period, scaler.tick, stop, scaler.joint_state_arrived, "scaler"))
+                 lambda stop: run_synced(config.scaling.period, scaler.tick, stop, scaler.joint_state_arrived))
 
 
 if __name__ == "__main__":

@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=args.window, dropout=args.dropout)))
     return serve(shell, f"tracker_ingest: least-squares velocity over {args.window * 1000:.0f} ms, dropout "
                         f"{args.dropout * 1000:.0f} ms, keys {shell.keys.prefix}/",
-                 lambda stop: run_paced(0.01, service.check, stop, "tracker_ingest"))
+                 lambda stop: run_paced(0.01, service.check, stop))
 
 if __name__ == "__main__":
     sys.exit(main())

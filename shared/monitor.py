@@ -28,6 +28,7 @@ from __future__ import annotations
 from bisect import bisect_right
 from collections import deque
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import coal
 import numpy as np
@@ -315,8 +316,17 @@ class HumanHistory:
         kept sample gets the oldest kept (the nearest in time there is); none kept: None."""
         if not self._stamps:
             return None
-        k = bisect_right(self._stamps, stamp)
-        return self._states[max(k - 1, 0)]
+        paired = self.pair(stamp)
+        return self._states[0] if paired is None else paired[1]
+
+
+class Unchecked(NamedTuple):
+    """A joint state the monitor could not check: when it was measured, the kind of reason ('late',
+    'before any human state', 'tracker silent', 'invalid track') and the reason in words."""
+
+    stamp: float
+    kind: str
+    reason: str
 
 
 AT_REST = 1e-4     # rad/s: every joint slower than this is at rest (0.1 mm/s at a metre: below the tolerance)
@@ -327,15 +337,16 @@ class Backlog:
     """The joint states waiting for the monitor, and the rule for when each can be checked (pure).
 
     A state is checked against the person of its own moment: the newest human sample taken at or before
-    it (``HumanHistory.pair``). A robot at rest (every joint slower than AT_REST) needs no person and no
-    wait: the rule counts nothing where no link approaches, so such a state passes whoever is there (it is
-    checked against the person of its moment when that one is already known, for the figures). That pairing is final once a sample newer than the state has arrived; until
-    then the state waits, at most ``pair_wait`` seconds. A state is *unchecked* (counted and reported,
-    never a violation and never a pass) when no human state of its moment is known: none taken at or
-    before it, the one before it older than ``pair_age`` (the tracker was silent: the scaler had stopped
-    the robot, and what the person did then is not known), or an invalid track; and when the monitor
-    reaches it more than ``deadline`` seconds after it was measured (a monitor that fell that far behind
-    skips ahead instead of reporting the past as if it were now).
+    it (``HumanHistory.pair``). That pairing is final once a sample newer than the state has arrived; until
+    then the state waits, at most ``pair_wait`` seconds. A robot at rest (every joint slower than AT_REST)
+    needs no person and no wait: the rule counts nothing where no link approaches, so such a state passes
+    whoever is there (checked against the person of its moment when that one is already known, for the
+    figures). A state is *unchecked* (counted and reported, never a violation and never a pass) when no
+    human state of its moment is known: none taken at or before it, the one before it older than
+    ``pair_age`` (the tracker was silent: the scaler had stopped the robot, and what the person did then is
+    not known), or an invalid track; and when the monitor reaches it more than ``deadline`` seconds after
+    it was measured (a monitor that fell that far behind skips ahead instead of reporting the past as if it
+    were now).
     """
 
     pair_wait: float = 0.1
@@ -350,7 +361,7 @@ class Backlog:
         return len(self._pending)
 
     def take(self, now: float, history: HumanHistory) -> tuple[list[tuple[float, np.ndarray, np.ndarray, HumanCapsules]],
-                                                            list[tuple[float, str]]]:
+                                                            list[Unchecked]]:
         """(states to check now with their person, states that cannot be checked with the reason); the
         rest stay for a later pass. Both lists in measurement order."""
         ready, unchecked, keep = [], [], []
@@ -358,7 +369,7 @@ class Backlog:
         for stamp, q, qd in sorted(self._pending, key=lambda item: item[0]):
             age = now - stamp
             if age > self.deadline:
-                unchecked.append((stamp, f"reached {age * 1e3:.0f} ms after it was measured"))
+                unchecked.append(Unchecked(stamp, "late", f"reached {age * 1e3:.0f} ms after it was measured"))
                 continue
             at_rest = np.abs(qd).max() <= AT_REST
             if not at_rest and (newest is None or newest <= stamp) and age < self.pair_wait:
@@ -371,10 +382,11 @@ class Backlog:
             elif at_rest:                                     # nothing approaches: a pass whoever is there
                 ready.append((stamp, q, qd, HumanCapsules.empty()))
             elif paired is None:
-                unchecked.append((stamp, "no human state taken at or before it"))
+                unchecked.append(Unchecked(stamp, "before any human state", "no human state taken at or before it"))
             elif stamp - paired[0] > self.pair_age:
-                unchecked.append((stamp, f"the human state of its moment is {(stamp - paired[0]) * 1e3:.0f} ms old"))
+                unchecked.append(Unchecked(stamp, "tracker silent", f"the human state of its moment is "
+                                                                    f"{(stamp - paired[0]) * 1e3:.0f} ms old"))
             else:
-                unchecked.append((stamp, "the tracker had no valid track"))
+                unchecked.append(Unchecked(stamp, "invalid track", "the tracker had no valid track"))
         self._pending = keep
         return ready, unchecked

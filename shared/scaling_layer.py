@@ -39,7 +39,6 @@ from shared.ssm import SsmParameters
 from shared.trajectory import Trajectory
 
 SOLVERS = ("piqp", "closed_form")
-BRAKING_SHARE = 1.0      # of the drives' deceleration a stop plans for: all of it, as the driver's limiter would
 
 
 @dataclass(frozen=True)
@@ -194,14 +193,13 @@ class ScalingLayer:
             alpha, lowered = bound * (1.0 - 1e-9), True
         return 0.0, True
 
-    def braking_floor(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray | None = None) -> float:
-        """The least path speed this cycle can have: the current one less what the drives' deceleration
-        (``monitor_acceleration``, 6 rad/s^2, BRAKING_SHARE of it) takes off in one period along a path of
-        tangent dq_ds (rad per unit s) and curvature d2q_ds2 (rad per unit s^2; None: straight). 0 once the
-        robot can be at rest by the end of the period."""
-        dq = np.asarray(dq_ds, dtype=np.float64)
-        d2q = np.zeros_like(dq) if d2q_ds2 is None else np.asarray(d2q_ds2, dtype=np.float64)
-        deceleration = BRAKING_SHARE * _path_deceleration(dq, d2q, self.sdot, self.robot.limits.monitor_acceleration)
+    def braking_floor(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
+        """The least path speed this cycle can have: the current one less what the drives' full deceleration
+        (``monitor_acceleration``, 6 rad/s^2, as the driver's setpoint limiter would brake) takes off in one
+        period along a path of tangent dq_ds (rad per unit s) and curvature d2q_ds2 (rad per unit s^2). 0
+        once the robot can be at rest by the end of the period."""
+        deceleration = _path_deceleration(np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
+                                          self.sdot, self.robot.limits.monitor_acceleration)
         return max(0.0, self.sdot - deceleration * self.params.period)
 
     def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool) -> StepStatus:

@@ -195,15 +195,16 @@ def test_a_state_is_checked_against_the_person_of_its_moment_or_counted_unchecke
     backlog.add(1.01, q, moving)             # newer than every human sample: waits for the next one
     ready, unchecked = backlog.take(1.02, history)
     assert [(s, h.count) for s, _, _, h in ready] == [(0.94, 0)]
-    assert [s for s, _ in unchecked] == [0.95] and len(backlog) == 1
+    assert [(u.stamp, u.kind) for u in unchecked] == [(0.95, "before any human state")] and len(backlog) == 1
     history.add(1.02, None)                  # the next sample: the tracker lost the track
     ready, unchecked = backlog.take(1.03, history)
     assert [(s, h is person) for s, _, _, h in ready] == [(1.01, True)] and unchecked == []
     backlog.add(1.03, q, moving)             # paired with the invalid track: unchecked, not a pass
     ready, unchecked = backlog.take(1.2, history)
-    assert ready == [] and [s for s, _ in unchecked] == [1.03] and "no valid track" in unchecked[0][1]
+    assert ready == [] and [(u.stamp, u.kind) for u in unchecked] == [(1.03, "invalid track")]
+    assert "no valid track" in unchecked[0].reason
     backlog.add(1.5, q, moving)              # the tracker silent since 1.02: its person is 0.48 s old
     backlog.add(0.2, q, moving)              # reached long after it was measured: skipped, not judged
     ready, unchecked = backlog.take(1.7, history)
-    assert ready == [] and [s for s, _ in unchecked] == [0.2, 1.5]
-    assert "after it was measured" in unchecked[0][1] and "ms old" in unchecked[1][1] and len(backlog) == 0
+    assert ready == [] and [(u.stamp, u.kind) for u in unchecked] == [(0.2, "late"), (1.5, "tracker silent")]
+    assert "after it was measured" in unchecked[0].reason and "ms old" in unchecked[1].reason and len(backlog) == 0
