@@ -4,7 +4,8 @@ figures). Scenario kinds: the paper's four phases, a person crossing at 1.6 m/s,
 the path, two people, random walks near the robot. Per strategy: shuttles per minute (over all scenarios),
 time stopped (shuttles count fractionally: the part of the current shuttle's path done at the end), the smallest margin to the limit (conservative end-point bound, m), and violations counted
 by the independent monitor's rule. The full architecture pays its planning time on the simulated clock.
-Writes a plot (compare.png) into --out. The last line is one JSON object.
+Prints progress with an estimate of the time left. Writes a plot (compare.png) into --out. The last line
+is one JSON object (overall and per kind: "kinds": {kind: {strategy: shuttles per minute}}).
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
 """
@@ -110,16 +111,19 @@ def main() -> int:
         rows = []
         for k, row in enumerate(pool.map(_run, tasks, chunksize=4)):
             rows.append(row)
-            if (k + 1) % 100 == 0:
-                print(f"{k + 1}/{len(tasks)} scenarios, {time.perf_counter() - started:.0f} s", flush=True)
+            if (k + 1) % max(1, min(100, len(tasks) // 10)) == 0 or k + 1 == len(tasks):
+                spent = time.perf_counter() - started
+                print(f"{k + 1}/{len(tasks)} scenarios, {spent:.0f} s, about "
+                      f"{spent / (k + 1) * (len(tasks) - k - 1):.0f} s left", flush=True)
     from shared.ssm import SsmParameters
     horizon = SsmParameters().horizon
     strategies = aggregate(rows, horizon)
     args.out.mkdir(parents=True, exist_ok=True)
     plot(rows, args.out, horizon)
     (args.out / "scenarios.json").write_text(json.dumps(rows))
+    per_kind = {}
     for kind in kinds:
-        per = aggregate([r for r in rows if r["kind"] == kind], horizon)
+        per = per_kind[kind] = aggregate([r for r in rows if r["kind"] == kind], horizon)
         print(f"{kind:<12} " + "  ".join(f"{s}: {per[s]['shuttles_per_min']:6.2f}/min stopped "
                                           f"{per[s]['stopped_fraction']:.2f} viol {per[s]['violations']}"
                                           for s in STRATEGIES))
@@ -128,7 +132,8 @@ def main() -> int:
     full, zones, scale = (strategies[s]["shuttles_per_min"] for s in ("full", "zones", "scale_only"))
     print(json.dumps({"bench": "compare", "scenarios": len(rows), "strategies": strategies,
                       "speedup_vs_zones": round(full / zones, 3) if zones else None,
-                      "speedup_vs_scale_only": round(full / scale, 3) if scale else None}))
+                      "speedup_vs_scale_only": round(full / scale, 3) if scale else None,
+                      "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in STRATEGIES} for k in kinds}}))
     return 0
 
 

@@ -3,11 +3,12 @@
 Seeded random humans around the paper's experiment: a person stands 0.75 to 1.2 m from the robot on the
 side the shuttle sweeps, leans in and reaches a forearm across the flange's arc at a random point and height.
 For each placement:
-* plan: RRT-Connect + simplification + time parameterisation from q_s to q_g around the person;
+* a new goal, side by side: RRT-Connect + simplification + toppra (a collision-free path, clearance only)
+  against the planning layer's search (the path fastest under the SSM, shared.path_search), each
+  predicted by the SSM-aware time cost with the person staying --stay seconds, and the straight line;
 * replan + merge: the robot runs the straight shuttle; at the moment the horizon check (1 s ahead) first
-  sees the person, Alg. 1 + 2 build the merged trajectory.
-Reported: median / p95 wall time of each, the success rate (a placement that leaves no feasible goal or
-start counts as neither success nor failure), and configuration checks per second. Last line: JSON.
+  sees the person, Alg. 1 + 2 and the keep-or-replace decision (taken, old kept, failed).
+Reported: median / p95 wall time of each, the predicted times and their ratios. Last line: JSON.
 
     python bench/planning.py [--placements N]
 """
@@ -23,7 +24,7 @@ import numpy as np
 from shared.collision import CollisionModel
 from shared.humans import HumanCapsules
 from shared.planner import JointPlanner, PlannerOptions, PlanningError
-from shared.replanning import HorizonOptions, ReplanFailed, Replanner, horizon_check
+from shared.replanning import HorizonOptions, ReplanFailed, ReplanOptions, Replanner, horizon_check
 from shared.robot_model import default_robot
 from shared.scenarios import Q_GOAL, Q_START, body_segments
 from shared.scene import load_scene
@@ -46,56 +47,71 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--placements", type=int, default=60)
     parser.add_argument("--seed", type=int, default=2026)
+    parser.add_argument("--stay", type=float, default=5.0, help="how long the person is assumed to stay (s)")
     args = parser.parse_args()
+    if args.placements < 1 or args.stay < 0:
+        parser.error("--placements must be >= 1 and --stay >= 0")
     robot = default_robot()
     collision = CollisionModel(robot, load_scene("deploy/scene.yaml"))
     planner = JointPlanner(collision, PlannerOptions(seed=args.seed, time_budget=1.0))
-    replanner = Replanner(collision, planner, SsmParameters())
+    replanner = Replanner(collision, planner, SsmParameters(), options=ReplanOptions(patience=args.stay))
     old = straight_line_trajectory(Q_START, Q_GOAL, robot.limits.velocity, robot.limits.acceleration)
     rng = np.random.default_rng(args.seed)
-    plan_ms, replan_ms, tried, ok = [], [], 0, 0
-    checks, check_time = 0, 0.0
+    rrt_ms, search_ms, replan_ms = [], [], []
+    rrt_time, search_time, direct_time = [], [], []
+    taken = kept = failed = 0
     parameterize(np.vstack([Q_START, Q_GOAL]), robot.limits)         # warm the JIT and toppra
+    replanner.path(Q_START, Q_GOAL, placement(np.random.default_rng(0)))
     for _ in range(args.placements):
         humans = placement(rng)
         if not (collision.feasible(Q_START, humans) and collision.feasible(Q_GOAL, humans)):
             continue
-        tried += 2
-        before = collision.checks
+        # a new goal with the person there: RRT-Connect (clearance only) against the search (time under SSM)
         t0 = time.perf_counter()
         try:
-            parameterize(planner.plan(Q_START, Q_GOAL, humans), robot.limits, collision=collision, humans=humans)
-            plan_ms.append((time.perf_counter() - t0) * 1e3)
-            ok += 1
+            rrt = parameterize(planner.plan(Q_START, Q_GOAL, humans), robot.limits, collision=collision, humans=humans)
         except (PlanningError, TimingError):
-            pass
-        checks += collision.checks - before
-        check_time += time.perf_counter() - t0
-        # replan: the first s at which a 1 s horizon sees the person
+            rrt = None
+        rrt_ms.append((time.perf_counter() - t0) * 1e3)
+        t0 = time.perf_counter()
+        try:
+            searched = replanner.plan_fresh(Q_START, Q_GOAL, humans, 0)
+        except (PlanningError, TimingError):
+            searched = None
+        search_ms.append((time.perf_counter() - t0) * 1e3)
+        if rrt is not None and searched is not None:
+            rrt_time.append(replanner.predicted_time(rrt, 0.0, humans))
+            search_time.append(replanner.predicted_time(searched, 0.0, humans))
+            direct_time.append(replanner.predicted_time(old, 0.0, humans))
+        # a replan: the robot on the straight shuttle, the moment a 1 s horizon first sees the person
         full = horizon_check(old, 0.0, collision, humans, HorizonOptions(samples=200, spacing=0.02))
         if full.first_infeasible is None:
-            tried -= 1                                               # nothing in the way: no replan needed
-            continue
+            continue                                                 # nothing in the way: no replan needed
         s_seen = max(0.0, float(full.s[full.first_infeasible]) - 1.0)
         t0 = time.perf_counter()
         try:
-            result = replanner.on_horizon(old, s_seen, Q_GOAL, humans)
-            if result is not None:
-                replan_ms.append((time.perf_counter() - t0) * 1e3)
-                ok += 1
-        except ReplanFailed:
-            pass
+            taken += replanner.on_horizon(old, s_seen, Q_GOAL, humans) is not None
+        except ReplanFailed as exc:
+            kept += "kept the old" in str(exc)
+            failed += "kept the old" not in str(exc)
+        replan_ms.append((time.perf_counter() - t0) * 1e3)
     stats = lambda xs: {"median": round(float(np.median(xs)), 1), "p95": round(float(np.percentile(xs, 95)), 1)} \
         if xs else {"median": None, "p95": None}
-    result = {"bench": "planning", "plan_ms": stats(plan_ms), "replan_ms": stats(replan_ms),
-              "success_rate": round(ok / tried, 3) if tried else None,
-              "checks_per_s": round(checks / check_time) if check_time else None,
-              "cases": {"plans": len(plan_ms), "replans": len(replan_ms), "attempts": tried}}
-    print(f"plan:          median {result['plan_ms']['median']} ms, p95 {result['plan_ms']['p95']} ms "
-          f"({len(plan_ms)} plans)")
-    print(f"replan+merge:  median {result['replan_ms']['median']} ms, p95 {result['replan_ms']['p95']} ms "
-          f"({len(replan_ms)} replans)")
-    print(f"success rate {result['success_rate']}  ({ok} of {tried}); {result['checks_per_s']} configuration checks/s")
+    ratio = lambda a, b: round(float(np.sum(a) / np.sum(b)), 3) if a else None
+    result = {"bench": "planning", "stay_s": args.stay, "rrt_plan_ms": stats(rrt_ms), "search_plan_ms": stats(search_ms),
+              "replan_ms": stats(replan_ms),
+              "predicted_s": {"direct": stats(direct_time), "rrt_connect": stats(rrt_time), "search": stats(search_time)},
+              "search_vs_rrt_connect": ratio(search_time, rrt_time), "search_vs_direct": ratio(search_time, direct_time),
+              "replans": {"taken": taken, "kept_old": kept, "failed": failed},
+              "cases": {"placements": len(rrt_ms), "compared": len(rrt_time), "replans": len(replan_ms)}}
+    print(f"new goal, predicted time under the SSM (person staying {args.stay:g} s), median over "
+          f"{len(rrt_time)} placements: direct {result['predicted_s']['direct']['median']} s, RRT-Connect "
+          f"{result['predicted_s']['rrt_connect']['median']} s, search {result['predicted_s']['search']['median']} s")
+    print(f"  search / RRT-Connect {result['search_vs_rrt_connect']}, search / direct {result['search_vs_direct']} "
+          f"(sums); compute median RRT-Connect {result['rrt_plan_ms']['median']} ms, search "
+          f"{result['search_plan_ms']['median']} ms (p95 {result['search_plan_ms']['p95']} ms)")
+    print(f"horizon replans: {taken} taken, {kept} kept the old trajectory, {failed} failed; compute median "
+          f"{result['replan_ms']['median']} ms, p95 {result['replan_ms']['p95']} ms")
     print(json.dumps(result))
 
 

@@ -378,13 +378,21 @@ def markdown_table(verdicts: list[FaultVerdict]) -> str:
     return "\n".join(rows)
 
 
+def time_left(done: int, total: int, elapsed: float) -> str:
+    """' (N s so far, about M s left)' from the mean time of the faults done; '' before the first."""
+    if done <= 0:
+        return ""
+    return f" ({elapsed:.0f} s so far, about {elapsed / done * (total - done):.0f} s left)"
+
+
 def run_campaign(prefix: str, endpoint: str, interface: str, channel: str | None, config: CellConfig,
                  robot: RobotModel, names: list[str], out: Path | None, say: Callable[[str], None] = print) -> list[FaultVerdict]:
     campaign = Campaign(prefix, endpoint, interface, channel, config, robot, say)
     verdicts = []
+    started = time.monotonic()
     try:
-        for name in names:
-            say(f"hrc faults: {name} ...")
+        for k, name in enumerate(names):
+            say(f"hrc faults: [{k + 1}/{len(names)}] {name} ...{time_left(k, len(names), time.monotonic() - started)}")
             verdict = campaign.run(name)
             verdicts.append(verdict)
             say(json.dumps({"fault": verdict.as_dict()}))

@@ -3,8 +3,8 @@
 Inputs (the latest of each is kept): goals, human states, joint states, scaler status. A worker thread
 (OMPL holds the GIL: planning never runs in a latency-critical process) then, in this order:
 * a new goal: a plan from where the robot is (base_version -1; Replanner.plan_goal: the direct line
-  unless a way round the people is predicted faster), or, while a trajectory is being followed, a merge
-  into it;
+  unless the path searched fastest under the SSM is predicted faster), or, while a trajectory is being
+  followed, a merge into it;
 * a replan request (beta in the scaler status, at most every beta_cooldown): Replanner.on_beta, which
   keeps the old trajectory unless the new one is predicted to be 10 % faster;
 * every new human state (at most every horizon_period): the horizon check, and a merge when the path
@@ -29,15 +29,18 @@ from services.common import ServiceShell, open_service, serve, service_parser, s
 from shared.collision import CollisionModel
 from shared.convert import humans_from_msg, trajectory_to_msg
 from shared.errors import HrcError
+from shared.humans import HumanCapsules
 from shared.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
+from shared.path_search import SearchOptions
 from shared.planner import JointPlanner, PlannerOptions, PlanningError
-from shared.replanning import HoldClock, ReplanFailed, Replanner, ReplanResult
+from shared.replanning import HoldClock, ReplanFailed, ReplanOptions, Replanner, ReplanResult
 from shared.robot_model import default_robot
 from shared.scene import Scene, load_scene
 from shared.timing import TimingError
 from shared.trajectory import Trajectory
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
+SEARCH_BUDGET = 0.08     # s of wall clock per path search (a replan may search twice: RRT-Connect seeding)
 
 
 class PlannerService:
@@ -195,15 +198,21 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     config, shell = opened
     collision = CollisionModel(default_robot(), scene, config.ssm.min_separation)
-    replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm)
+    # the wall clock bounds every search (anytime: the best path found by then is used); the simulation
+    # bounds it by counts instead, for repeatable evidence
+    options = ReplanOptions(seed=args.seed or 0, search=SearchOptions(time_budget=SEARCH_BUDGET))
+    replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
+                          options=options)
     lim = collision.robot.limits
     mid = (lim.lower + lim.upper) / 2
-    try:                             # compile the collision kernels and warm toppra before serving
+    someone = HumanCapsules.from_arrays([[[-3.0, 0.0, 0.9], [-3.0, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
+    try:                             # compile the kernels (collision, SSM time cost) and warm toppra
         replanner.plan_fresh(mid, mid + 0.05, None, 0)
+        replanner.path(mid, mid + 0.3, someone)
     except (PlanningError, TimingError):
         pass
     service = PlannerService(shell, replanner, beta_replans=not args.no_beta)
-    return serve(shell, f"planner: RRT-Connect, scene with {len(scene.names)} obstacles, keys {shell.keys.prefix}/",
+    return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, keys {shell.keys.prefix}/",
                  service.run, on_stop=service.wake.set)
 
 if __name__ == "__main__":

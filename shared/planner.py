@@ -100,7 +100,7 @@ class JointPlanner:
         if self.options.seed is not None:
             seed_ompl(self.options.seed)
 
-    def _check_ends(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
+    def check_ends(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
                     inflation: float) -> None:
         lim = self.collision.robot.limits
         for label, q in (("start", q_start), ("goal", q_goal)):
@@ -121,7 +121,7 @@ class JointPlanner:
         """Waypoints (K, 6), q_start first and q_goal last, every segment free; or a PlanningError."""
         q_start = np.asarray(q_start, dtype=float)
         q_goal = np.asarray(q_goal, dtype=float)
-        self._check_ends(q_start, q_goal, humans, inflation)
+        self.check_ends(q_start, q_goal, humans, inflation)
         started = time.perf_counter()
         checks_before = self.collision.checks
         if self.collision.motion_free(q_start, q_goal, humans, inflation)[0]:

@@ -1,25 +1,31 @@
-"""The planning layer's online part: horizon check (Alg. 1), replan and merge (Alg. 2), beta replans.
+"""The planning layer's online part: horizon check (Alg. 1), replan and merge (Alg. 2), beta replans,
+all planning for time under the SSM.
 
 * ``horizon_check``: the next n configurations of the trajectory from the current path parameter (n and
   spacing configurable), all checked at once against the latest human capsules; returns the first
   infeasible one.
-* ``Replanner.on_horizon``: the path ahead is blocked: a merge that keeps, where it can, the separation
-  at which the human allows full speed (then half of it, then the bare margin), kept only when
-  predicted faster than the old path (on which the scaling layer holds the robot back). Predictions
-  cap the wait for a person in the way at the time already waited (``HoldClock``; ski rental: go
-  round once waiting has cost what the way round costs extra).
-* ``Replanner.plan_goal``: a new goal: the direct line unless going round the people is predicted faster.
+* Every new path is the one a seeded search finds fastest under the SSM (``shared.path_search`` on the
+  time cost of ``shared.ssm_time``): a person near the direct line gets a small detour that keeps the
+  robot out of their slowdown, or none when crawling past is quicker. RRT-Connect (``shared.planner``)
+  seeds the search only where no simple detour is free (a cluttered static scene).
+* Keep or replace: the old trajectory and the new one are both predicted by the same cost, from the
+  same moment, with the same people assumed to stay for ``patience`` plus the time the robot has already
+  been held (``HoldClock``; ski rental: once waiting has cost what the way round costs extra, go round).
+  A person who passes (tracked velocity) clears the old path in the prediction and is waited for; one
+  who stays makes it slow and is gone round. The reason, with both predicted times, is the result's
+  detail (the planner's event).
+* ``Replanner.plan_goal``: a new goal: the direct line (the exact trapezoid) unless the searched path is
+  predicted faster.
 * ``Replanner.replan``: keeps the old trajectory unchanged up to a junction s_j, and from there follows
-  the old path geometry to a branch point (the last feasible horizon configuration), then a new
-  RRT-Connect path to the goal. The new part is time-parameterised starting with the old nominal
-  velocity at s_j (its spline starts tangent to the old path), so position and velocity are continuous
-  at the junction; following the old geometry for a while gives toppra room to slow down before any turn.
-  Junctions further back are tried when a turn is too sharp. The result gets the next version number;
-  a follower anywhere before s_j continues at the same s.
-* ``Replanner.on_beta``: the scaling layer asked (alpha too low): plan against humans inflated by the
-  separation that would allow full speed, then by less, and keep the new trajectory only when its
-  predicted time to the goal, executed under the SSM limit with the humans where they are now, beats
-  the old one's by at least ``min_gain`` (10 %).
+  the old path geometry to a branch point, then the searched path to the goal. The new part is
+  time-parameterised starting with the old nominal velocity at s_j, so position and velocity are
+  continuous at the junction; following the old geometry for a while gives toppra room to slow down
+  before any turn. Junctions further back are tried when a turn is too sharp, then stop-and-go. The
+  result gets the next version number; a follower anywhere before s_j continues at the same s. A robot
+  at rest gets a trajectory from rest where it stands instead (free to leave in any direction).
+* ``Replanner.on_horizon`` (the path ahead is blocked) and ``Replanner.on_beta`` (the scaling layer
+  asks: alpha too low) build such a trajectory and keep it only when predicted faster than the old one
+  (a beta replan by at least ``min_gain``).
 """
 
 from __future__ import annotations
@@ -32,11 +38,12 @@ import numpy as np
 from shared.collision import CollisionModel
 from shared.errors import HrcError
 from shared.humans import HumanCapsules
+from shared.path_search import SearchOptions, PathSearch
 from shared.planner import JointPlanner, PlanningError
-from shared.scaling import ssm_alpha_bound
-from shared.ssm import SsmParameters, protective_separation_distance
+from shared.ssm import SsmParameters
+from shared.ssm_time import SsmTimeCost, TimeCostOptions
 from shared.timing import TimingError, parameterize
-from shared.trajectory import Trajectory, straight_line_trajectory
+from shared.trajectory import Trajectory, polyline_trajectory, straight_line_trajectory
 
 
 @dataclass(frozen=True)
@@ -90,7 +97,8 @@ class ReplanResult:
     junction: float       # s where the new trajectory starts to differ from the old one
     reason: str           # 'horizon', 'beta' or 'goal'
     plan_s: float         # wall time spent (s)
-    inflation: float      # extra clearance (m) the accepted plan kept from the humans
+    predicted: float = float("nan")   # its predicted time to the goal under the SSM (s)
+    baseline: float = float("nan")    # the old trajectory's, predicted the same way (s)
     detail: str = ""
     from_rest: bool = False   # True: a new trajectory from the robot's configuration at rest (junction =
     # the s it was planned at); take it only while the robot is still there, with path speed 0
@@ -122,35 +130,29 @@ class ReplanOptions:
     """lookback: nominal seconds of old path kept ahead of the branch point as room to slow down (and
     tried further back when a turn is too sharp); lead: nominal seconds ahead of the current s that the
     junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
-    beta replan must save; prediction_step: nominal seconds between the samples of that prediction;
-    inflated_budget (s): RRT-Connect's time for an attempt with extra clearance (when such a path exists
-    it is found fast; the bare-margin attempt keeps the planner's full budget);
-    rest_speed (rad/s): below it the robot counts as at rest for a replan; extrapolation (s): how far
-    ahead the prediction moves people on at their tracked velocities; patience (s): how long people in
-    the way are expected to stay there before the robot has waited at all (the cap on a prediction's
-    delay is patience + the time already held, see predicted_time). 0 is the ski-rental rule: keep the
-    old path, and once held as long as the way round costs extra, go round; never worse than twice the
-    better of the two, however long the person stays (a cell where people are known to stay at a station
-    may set more); escape_*: how the escape waypoint is searched (random joint offsets of growing
-    radius, seeded)."""
+    beta replan must save (a blocked horizon needs only to be faster); rest_speed (rad/s): below it the
+    robot counts as at rest for a replan; patience (s): how long people in the way are expected to stay
+    before the robot has waited at all; a prediction assumes they stay patience + the time already held
+    (0 is pure ski rental: never worse than twice the better choice, however long the person stays; a
+    cell where people are known to stay at a station may set more); rrt_budget (s): RRT-Connect's time
+    when it has to seed the search; seed: the search's seed (each query gets its own stream, derived
+    from the seed and the query, so the same query gives the same path in any order); search, cost:
+    the search's bounds and the time cost's sampling."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
     lead: float = 0.1
     min_gain: float = 0.10
-    prediction_step: float = 0.05
-    alpha_floor: float = 0.02
-    inflated_budget: float = 0.1
     rest_speed: float = 0.02
-    extrapolation: float = 1.0
-    patience: float = 0.0
-    escape_radii: tuple[float, ...] = (0.2, 0.4, 0.8)
-    escape_alpha: float = 0.2
-    escape_samples: int = 64
+    patience: float = 1.5
+    rrt_budget: float = 0.2
     seed: int = 0
+    search: SearchOptions = SearchOptions()
+    cost: TimeCostOptions = TimeCostOptions()
 
 
 class Replanner:
-    """Builds merged trajectories; pure apart from OMPL's random sampling (seed it for repeatability)."""
+    """Builds merged trajectories that are fastest under the SSM; pure apart from the clock (the search's
+    optional wall-clock budget) and OMPL's sampling where RRT-Connect seeds it."""
 
     def __init__(self, collision: CollisionModel, planner: JointPlanner, ssm: SsmParameters,
                  horizon: HorizonOptions = HorizonOptions(), options: ReplanOptions = ReplanOptions()) -> None:
@@ -160,104 +162,107 @@ class Replanner:
         self.horizon = horizon
         self.options = options
         self.limits = collision.robot.limits
-        self._rng = np.random.default_rng(options.seed)
+        self.cost = SsmTimeCost(collision.robot, ssm, options.cost)
+        self.search = PathSearch(collision, self.cost, options.search)
 
-    def _escape(self, q: np.ndarray, humans: HumanCapsules | None, inflation: float, kept: float) -> np.ndarray | None:
-        """A configuration near q with the full inflation's clearance that q reaches without coming closer
-        to a human than it is now (motion checked at the kept inflation), and towards which the SSM lets the
-        robot set off at a useful speed (alpha >= escape_alpha with the humans where they are: a person
-        close by allows only motions that approach none of their capsules); None if none is found. The
-        nearest such candidate (in joint distance) is taken."""
-        for radius in self.options.escape_radii:
-            cands = q + self._rng.uniform(-radius, radius, size=(self.options.escape_samples, q.size))
-            cands = cands[np.all((cands >= self.limits.lower) & (cands <= self.limits.upper), axis=1)]
-            ok = cands[self.collision.clearances(cands, humans, inflation) > self.collision.margins.tolerance]
-            for cand in ok[np.argsort(np.abs(ok - q).sum(axis=1))][:16]:
-                heading = (cand - q) / np.abs(cand - q).max() * float(self.limits.velocity.min())
-                if humans is not None and ssm_alpha_bound(self.collision.robot, q, heading, humans,
-                                                          self.ssm) < self.options.escape_alpha:
-                    continue
-                if self.collision.motion_free(q, cand, humans, kept)[0]:
-                    return cand
-        return None
+    # ------------------------------------------------------------------------------------ predictions
+    def stay(self, waited: float) -> float:
+        """How long (s) a prediction assumes the people present stay: patience + the time already held."""
+        return self.options.patience + max(0.0, waited)
 
-    # ----------------------------------------------------------------------------------------- plans
+    def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None,
+                       waited: float = 0.0) -> float:
+        """Time (s) from s_from to the end of the trajectory under the SSM (shared.ssm_time), the people
+        staying patience + waited seconds: the one prediction both sides of every decision get."""
+        return self.cost.trajectory_time(trajectory, s_from, humans, self.stay(waited))
+
+    def _rng(self, q_from: np.ndarray, q_goal: np.ndarray) -> np.random.Generator:
+        """The search's random stream for this query: the seed and the query's ends (to 1 mrad)."""
+        ends = np.round(np.concatenate([q_from, q_goal]) * 1000.0).astype(np.int64) + 100_000
+        return np.random.default_rng([self.options.seed, *ends.tolist()])
+
+    # ----------------------------------------------------------------------------------------- paths
+    def path(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, waited: float = 0.0,
+             from_rest: bool = True) -> np.ndarray:
+        """Waypoints (K, 6) of the path the search finds fastest under the SSM, every segment free of the
+        scene and the people (never closer to them than the ends already are); RRT-Connect seeds the search where no simple detour is free (raises
+        PlanningError when nothing is found)."""
+        q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
+        direct = np.vstack([q_from, q_goal])
+        inflation = self._capped(0.0, direct, humans)      # < 0 where a person has come closer already
+        self.planner.check_ends(q_from, q_goal, humans, inflation)
+        rng = self._rng(q_from, q_goal)
+        stay = self.stay(waited)
+        found = self.search.search(q_from, q_goal, humans, rng, stay, (direct,), from_rest, inflation)
+        if found is None:
+            rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=self.options.rrt_budget)
+            found = self.search.search(q_from, q_goal, humans, rng, stay, (rrt,), from_rest, inflation)
+            if found is None:                               # out of time before reaching it: it is free
+                return rrt
+        return found.waypoints
+
     def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
-                   inflation: float = 0.0) -> Trajectory:
-        """A rest-to-rest trajectory to a new goal (raises PlanningError or TimingError)."""
-        waypoints = self.planner.plan(q_start, q_goal, humans, inflation)
-        return self._from_rest(waypoints, humans, inflation, version)
+                   waited: float = 0.0) -> Trajectory:
+        """A rest-to-rest trajectory to a new goal on the searched path (raises PlanningError or TimingError)."""
+        return self._from_rest(self.path(q_start, q_goal, humans, waited), humans, version)
 
     def plan_goal(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
                   waited: float = 0.0) -> Trajectory:
-        """A new goal from rest. The direct line (the exact trapezoid) when the static scene allows it,
-        even if a person is in its way now, unless a way round the people is predicted faster: the same
-        ski-rental rule as replans (predicted_time; the scaling layer keeps the robot back from a person
-        who stays, and the horizon and beta replans go round once the wait has cost as much). Else, with
-        the direct line blocked by the scene, a plan around everything (raises PlanningError or
-        TimingError)."""
+        """A new goal from rest: the direct line (the exact trapezoid) when the static scene allows it, even
+        if a person is in its way now (the scaling layer holds the robot back), unless the searched path is
+        predicted faster; else the searched path (raises PlanningError or TimingError)."""
         q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
         if not self.collision.motion_free(q_start, q_goal)[0]:
-            return self.plan_fresh(q_start, q_goal, humans, version)
+            return self.plan_fresh(q_start, q_goal, humans, version, waited)
         direct = straight_line_trajectory(q_start, q_goal, self.limits.velocity, self.limits.acceleration,
                                           version=version)
-        if humans is None or humans.count == 0 or self.collision.motion_free(q_start, q_goal, humans)[0]:
+        if humans is None or humans.count == 0:
             return direct
+        direct_time = self.predicted_time(direct, 0.0, humans, waited)
+        if direct_time <= direct.duration + self.cost.options.trajectory_step:
+            return direct                                  # the people do not slow it: nothing to gain
         try:
-            around = self.plan_fresh(q_start, q_goal, humans, version)
+            searched = self.plan_fresh(q_start, q_goal, humans, version, waited)
         except (PlanningError, TimingError):
             return direct
-        faster = self.predicted_time(around, 0.0, humans, waited) < self.predicted_time(direct, 0.0, humans, waited)
-        return around if faster else direct
+        return searched if self.predicted_time(searched, 0.0, humans, waited) < direct_time else direct
 
-    def _from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, inflation: float,
-                   version: int) -> Trajectory:
-        """Rest to rest through waypoints. A direct connection (two waypoints, already checked free by the
-        planner) gets the exact trapezoid, which is time-optimal for a straight line and needs none of the
-        acceleration headroom toppra's grid calls for where a path bends (2 % faster on the paper's
-        shuttle); a bent path gets toppra."""
+    def _from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, version: int) -> Trajectory:
+        """Rest to rest through waypoints. A direct connection gets the exact trapezoid, which is
+        time-optimal for a straight line and needs none of the acceleration headroom toppra's grid calls
+        for where a path bends (2 % faster on the paper's shuttle); a bent path gets toppra, its smoothed
+        path checked never to come closer to the people than its ends are, or, where the smoothing cuts a
+        corner too close, the exact polyline with a stop at each corner (its segments are checked free)."""
         if len(waypoints) == 2:
             return straight_line_trajectory(waypoints[0], waypoints[1], self.limits.velocity,
                                             self.limits.acceleration, version=version)
-        return parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
-                            inflation=inflation, version=version)
+        try:
+            return parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
+                                inflation=self._capped(0.0, waypoints[[0, -1]], humans), version=version)
+        except TimingError:          # the smoothed path cuts a corner into a person: stop at the corners
+            return polyline_trajectory(waypoints, self.limits.velocity, self.limits.acceleration, version=version)
 
     def _capped(self, inflation: float, configs: np.ndarray, humans: HumanCapsules | None) -> float:
         """The inflation, lowered to the clearance that the configurations a plan must start or end in
         already have (so it may turn negative: a robot a person has walked up to is not refused a way
-        out). The plan then never comes closer to a human than it is now."""
+        out). The smoothed trajectory is then checked never to come closer to a human than that."""
         if humans is None or humans.count == 0:
             return max(0.0, inflation)
         have = float(self.collision.clearances(configs, humans, inflation=0.0).min()) - 2 * self.collision.margins.tolerance
         return min(inflation, have)
 
-    def _tail(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, inflation: float,
-              kept: float) -> np.ndarray:
-        budget = self.options.inflated_budget if inflation > 0 else None
-        """Waypoints from q_from to the goal: when q_from cannot have the full inflation (kept < inflation),
-        first to an escape configuration that has it, then planned with the inflation all the way."""
-        escape = self._escape(q_from, humans, self._capped(inflation, q_goal[None, :], humans), kept) \
-            if kept < inflation else None
-        if escape is None:
-            return self.planner.plan(q_from, q_goal, humans, kept, time_budget=budget)
-        rest = self.planner.plan(escape, q_goal, humans, self._capped(inflation, np.vstack([escape, q_goal]), humans),
-                                 time_budget=budget)
-        return np.vstack([q_from, rest])
-
     def _branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
-                humans: HumanCapsules | None, inflation: float, version: int) -> tuple[Trajectory, float, float]:
-        """Merge at a junction s_j before s_branch: from s_j the old geometry to the branch point, then a
-        new path to the goal. First continuously through the branch point (junctions further back give
+                humans: HumanCapsules | None, version: int, waited: float) -> tuple[Trajectory, float]:
+        """Merge at a junction s_j before s_branch: from s_j the old geometry to the branch point, then the
+        searched path to the goal. First continuously through the branch point (junctions further back give
         more room to slow down before turning); else stop-and-go: decelerate along the old path to rest at
-        the branch point, then the new path from rest. Returns (merged, s_j, inflation kept)."""
+        the branch point, then the new path from rest. Returns (merged, s_j)."""
         s_first = min(s_now + self.options.lead, s_branch)     # never before the planning lead
         junctions = sorted({max(s_first, s_branch - lb) for lb in self.options.lookback}, reverse=True)
         q_branch = old.sample(float(s_branch))[0]
-        # the new part is planned with the inflation the branch point and the goal allow; the lead-in is
-        # the old, already checked path, so the smoothed whole is verified at what the lead-in has too
-        kept = self._capped(inflation, np.vstack([q_branch, q_goal]), humans)
-        tail = self._tail(q_branch, q_goal, humans, inflation, kept)
-        check = min(kept, self._capped(kept, old.sample(np.linspace(s_first, s_branch, 8))[0], humans))
+        tail = self.path(q_branch, q_goal, humans, waited, from_rest=False)
+        # the lead-in is the old, already accepted path: the smoothed whole is verified at what it has
+        check = min(0.0, self._capped(0.0, old.sample(np.linspace(s_first, s_branch, 8))[0], humans))
         errors = []
 
         def lead_in(s_j: float) -> np.ndarray:
@@ -268,7 +273,7 @@ class Replanner:
                 part = parameterize(np.vstack([lead_in(s_j), tail[1:]]), self.limits,
                                     start_velocity=old.sample(float(s_j))[1], collision=self.collision,
                                     humans=humans, inflation=min(check, self._capped(check, lead_in(s_j), humans)))
-                return merge(old, s_j, part, version), s_j, kept
+                return merge(old, s_j, part, version), s_j
             except TimingError as exc:
                 errors.append(f"through at s={s_j:.2f}: {exc}")
         s_j = junctions[-1]                          # stop-and-go, with the most room to stop
@@ -276,28 +281,53 @@ class Replanner:
             stop = parameterize(lead_in(s_j), self.limits, start_velocity=old.sample(float(s_j))[1],
                                 collision=self.collision, humans=humans,
                                 inflation=min(check, self._capped(check, lead_in(s_j), humans)))
-            go = parameterize(tail, self.limits, collision=self.collision, humans=humans, inflation=min(kept, check))
+            go = self._from_rest(tail, humans, version)
         except TimingError as exc:
             raise ReplanFailed("no junction allows a continuous merge: "
                                + "; ".join(errors + [f"stop-and-go: {exc}"])) from None
-        return merge(merge(old, s_j, stop, version), s_j + stop.duration, go, version), s_j, kept
+        return merge(merge(old, s_j, stop, version), s_j + stop.duration, go, version), s_j
 
     def replan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-               reason: str, inflation: float = 0.0, s_branch: float | None = None) -> ReplanResult:
-        """Alg. 2 from s_branch (default: the current s plus the lead)."""
+               reason: str, s_branch: float | None = None, waited: float = 0.0) -> ReplanResult:
+        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path."""
         started = time.perf_counter()
         s_branch = min(old.duration, s_now + self.options.lead) if s_branch is None else s_branch
         try:
             if s_branch >= old.duration - 1e-9:          # at the end, at rest: a fresh plan from there
-                q_end = old.positions[-1]
-                kept = self._capped(inflation, np.vstack([q_end, q_goal]), humans)
-                merged = merge(old, old.duration, self.plan_fresh(q_end, q_goal, humans, 0, kept), old.version + 1)
-                s_j = old.duration
+                fresh = self.plan_fresh(old.positions[-1], q_goal, humans, 0, waited)
+                merged, s_j = merge(old, old.duration, fresh, old.version + 1), old.duration
             else:
-                merged, s_j, kept = self._branch(old, s_now, s_branch, q_goal, humans, inflation, old.version + 1)
+                merged, s_j = self._branch(old, s_now, s_branch, q_goal, humans, old.version + 1, waited)
         except (PlanningError, TimingError) as exc:
             raise ReplanFailed(f"{type(exc).__name__}: {exc}") from None
-        return ReplanResult(merged, s_j, reason, time.perf_counter() - started, kept)
+        return ReplanResult(merged, s_j, reason, time.perf_counter() - started,
+                            self.predicted_time(merged, s_now, humans, waited))
+
+    def _rest_plan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                   reason: str, waited: float) -> ReplanResult:
+        """A trajectory from rest where the robot stands (old at s_now) to the goal, on the searched path
+        (raises ReplanFailed)."""
+        started = time.perf_counter()
+        q_now = old.sample(float(s_now))[0]
+        try:
+            waypoints = self.path(q_now, q_goal, humans, waited)
+            traj = self._from_rest(waypoints, humans, old.version + 1)
+        except (PlanningError, TimingError) as exc:
+            raise ReplanFailed(f"from rest: {type(exc).__name__}: {exc}") from None
+        return ReplanResult(traj, s_now, reason, time.perf_counter() - started,
+                            self.predicted_time(traj, 0.0, humans, waited), from_rest=True)
+
+    def _decide(self, result: ReplanResult, baseline: float, gain: float, started: float, what: str) -> ReplanResult:
+        """Keep the new trajectory when its prediction beats the old one's by `gain`, else ReplanFailed;
+        either way the reason carries both predicted times."""
+        how = "from rest" if result.from_rest else f"merged at s={result.junction:.2f}"
+        if result.predicted <= (1.0 - gain) * baseline:
+            return ReplanResult(result.trajectory, result.junction, result.reason, time.perf_counter() - started,
+                                result.predicted, baseline, f"{what}, {how}: predicted {result.predicted:.2f} s "
+                                f"instead of {baseline:.2f} s", result.from_rest)
+        need = f"{100 * gain:.0f} % faster than" if gain > 0 else "faster than"
+        raise ReplanFailed(f"{what}, kept the old trajectory: the new one ({how}) predicted "
+                           f"{result.predicted:.2f} s, not {need} the old {baseline:.2f} s")
 
     def passing(self, old: Trajectory, s_now: float, check: HorizonResult, humans: HumanCapsules) -> bool:
         """The horizon is blocked now, but the people in the way are moving out of it: with their tracked
@@ -317,13 +347,11 @@ class Replanner:
     def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                    speed_now: float | None = None, waited: float = 0.0) -> ReplanResult | None:
         """Alg. 1 + 2: None when the horizon is clear, or when the people in the way are passing
-        (``passing``); else a merged trajectory branching at the last feasible horizon configuration
-        (ReplanFailed when none can be built, saying why). speed_now: the robot's joint speed (rad/s); at
-        rest, the new trajectory starts from rest where the robot stands (a merge in nominal time would have
-        to leave at the old nominal speed, which a stopped robot cannot). Either way the new trajectory is
-        kept only when predicted to reach the goal sooner than the old one (on which the scaling layer holds
-        the robot back from the person for as long as they stay: safe, only slower). waited: as in
-        predicted_time."""
+        (``passing``); else a new trajectory branching at the last feasible horizon configuration, kept
+        only when predicted to reach the goal sooner than the old one (ReplanFailed saying why, with both
+        predicted times). speed_now: the robot's joint speed (rad/s); at rest, the new trajectory starts
+        from rest where the robot stands (a merge in nominal time would have to leave at the old nominal
+        speed, which a stopped robot cannot). waited: as in predicted_time."""
         started = time.perf_counter()
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
         # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
@@ -331,117 +359,19 @@ class Replanner:
         if check.first_infeasible in (None, 0) or self.passing(old, s_now, check, humans):
             return None
         blocked = float(check.s[check.first_infeasible])
-        at_rest = speed_now is not None and speed_now < self.options.rest_speed
         baseline = self.predicted_time(old, s_now, humans, waited)
-        # A path that only just clears the human is collision-free but slow: within the SSM's fixed distance
-        # an approaching link gets alpha = 0. So the inflation ladder of a beta replan (the separation that
-        # allows full speed, half of it, the bare margin), each branching at the last horizon sample that
-        # still has that clearance: earlier, with room to keep it.
-        q_horizon = old.sample(check.s)[0]
-
-        def branch_at(inflation: float) -> float:
-            ok = self.collision.clearances(q_horizon, humans, inflation) > self.collision.margins.tolerance
-            first_bad = int(np.argmin(ok)) if not ok.all() else len(ok)
-            s_branch = float(check.s[first_bad - 1]) if first_bad > 0 else s_now
-            if s_branch < s_now + self.options.lead:
-                # too close to branch in front of it: branch at the planning lead; the new path may not come
-                # closer to the human than that point is (the scaling layer keeps the speed safe)
-                s_branch = min(old.duration, s_now + self.options.lead)
-            return s_branch
-
-        errors = []
-        for inflation, result, why in self._ladder(old, s_now, q_goal, humans, "horizon", at_rest, branch_at):
-            if result is None:
-                errors.append(f"inflation {inflation:.2f} m: {why}")
-                continue
-            # The way round must be predicted faster than keeping the old path. People walk on: without
-            # this a stopped robot next to a moving person re-planned every few ticks, each plan blocked
-            # again, and a moving one took long detours round a person who had gone by the time it got there
-            predicted = self._worth_it(result, old, s_now, humans, baseline, gain=0.0, waited=waited)
-            if predicted is None:
-                errors.append(f"inflation {inflation:.2f} m: {'from rest ' if at_rest else ''}not faster than the "
-                              f"old {baseline:.2f} s")
-                continue
-            how = "from rest" if result.from_rest else f"merged at s={result.junction:.2f}"
-            return ReplanResult(result.trajectory, result.junction, result.reason, time.perf_counter() - started,
-                                result.inflation, f"path blocked at s={blocked:.2f}, {how}, kept "
-                                f"{result.inflation:.2f} m extra, predicted {predicted:.2f} s instead of "
-                                f"{baseline:.2f} s", result.from_rest)
-        raise ReplanFailed(f"path blocked at s={blocked:.2f}; " + "; ".join(errors))
-
-    def _ladder(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-                reason: str, at_rest: bool, branch_at):
-        """The inflation ladder of a replan (the separation at which a person standing still allows full
-        speed, half of it, the bare margin): per rung (inflation, the new trajectory or None, why none).
-        At rest a plan from rest where the robot stands; moving, a merge branching at branch_at(inflation)."""
-        full = self.full_speed_inflation()
-        for inflation in (full, full / 2, 0.0):
-            try:
-                if at_rest:
-                    result = self._rest_plan(old, s_now, q_goal, humans, inflation, reason)
-                else:
-                    result = self.replan(old, s_now, q_goal, humans, reason, inflation=inflation,
-                                         s_branch=branch_at(inflation))
-            except (ReplanFailed, PlanningError, TimingError) as exc:
-                yield inflation, None, str(exc)
-                continue
-            yield inflation, result, ""
-
-    def _rest_plan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-                   inflation: float, reason: str) -> ReplanResult:
-        """A trajectory from rest where the robot stands (old at s_now) to the goal, keeping `inflation`
-        extra clearance where it can (raises PlanningError or TimingError)."""
-        q_now = old.sample(float(s_now))[0]
-        kept = self._capped(inflation, np.vstack([q_now, q_goal]), humans)
-        traj = self._from_rest(self._tail(q_now, q_goal, humans, inflation, kept), humans, min(kept, 0.0),
-                               old.version + 1)
-        return ReplanResult(traj, s_now, reason, 0.0, kept, from_rest=True)
-
-    # ------------------------------------------------------------------------------------ beta replans
-    def full_speed_inflation(self, robot_speed: float = 1.0) -> float:
-        """Extra clearance (m) beyond the planner's own margin at which a human standing still allows a
-        link moving at robot_speed: S_p(robot_speed, 0) - d_min - human margin."""
-        sp = float(protective_separation_distance(robot_speed, 0.0, self.ssm))
-        return max(0.0, sp - self.collision.min_separation - self.collision.margins.human)
-
-    def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None,
-                       waited: float = 0.0) -> float:
-        """Nominal remaining time stretched by the SSM: sum over samples of ds / alpha(s), alpha the
-        safe bound with the humans where they will be when the robot gets there: moved on at their tracked
-        velocities for up to options.extrapolation seconds, then standing (unknown velocities: standing
-        from now). Floored at alpha_floor. The stretch (the delay over the nominal time) is capped at
-        options.patience + waited: people in the way do not stay there for ever (uncapped, a path a person
-        stands on now is predicted blocked for good, and any detour wins however long it is), while a robot
-        held for `waited` seconds already expects to wait longer (so a person who stays is gone round)."""
-        step = self.options.prediction_step
-        samples = np.arange(s_from, trajectory.duration, step)
-        if humans is None or samples.size == 0:
-            return max(0.0, trajectory.duration - s_from)
-        q, dq, _ = trajectory.sample(samples)
-        total = 0.0
-        moving = bool(humans.velocity_known.any()) and self.options.extrapolation > 0
-        for qk, dqk in zip(q, dq):
-            there = humans.extrapolated(min(total, self.options.extrapolation)) if moving else humans
-            alpha = ssm_alpha_bound(self.collision.robot, qk, dqk, there, self.ssm)
-            total += step / max(alpha, self.options.alpha_floor)
-        nominal = step * samples.size
-        return nominal + min(total - nominal, self.options.patience + waited)
-
-    def _worth_it(self, result: ReplanResult, old: Trajectory, s_now: float, humans: HumanCapsules | None,
-                  baseline: float, gain: float | None = None, waited: float = 0.0) -> float | None:
-        """The new trajectory's predicted time to the goal when it beats baseline (the old one's) by
-        gain (default min_gain), else None."""
-        gain = self.options.min_gain if gain is None else gain
-        if result.from_rest:
-            predicted = self.predicted_time(result.trajectory, 0.0, humans, waited)
+        if speed_now is not None and speed_now < self.options.rest_speed:
+            result = self._rest_plan(old, s_now, q_goal, humans, "horizon", waited)
         else:
-            predicted = (self.predicted_time(result.trajectory, result.junction, humans, waited)
-                         + (result.junction - s_now))
-        return predicted if predicted <= (1.0 - gain) * baseline else None
+            s_branch = check.last_feasible_s
+            if s_branch is None or s_branch < s_now + self.options.lead:
+                s_branch = min(old.duration, s_now + self.options.lead)
+            result = self.replan(old, s_now, q_goal, humans, "horizon", s_branch, waited)
+        return self._decide(result, baseline, 0.0, started, f"path blocked at s={blocked:.2f}")
 
     def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                 speed_now: float | None = None, waited: float = 0.0) -> ReplanResult:
-        """A replan that is worth it, or ReplanFailed saying why the old trajectory stays.
+        """A replan that is worth it (min_gain), or ReplanFailed saying why the old trajectory stays.
 
         speed_now: the robot's actual joint speed (rad/s, max over joints; None: moving at the nominal
         speed). At rest (below rest_speed) the new trajectory starts at rest from where the robot is:
@@ -450,21 +380,12 @@ class Replanner:
         is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
         new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time)."""
         started = time.perf_counter()
-        v_now = old.sample(float(s_now))[1]
         baseline = self.predicted_time(old, s_now, humans, waited)
-        at_rest = speed_now is not None and speed_now < self.options.rest_speed
-        stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
-        s_branch = min(old.duration, s_now + self.options.lead + stopping)
-        tried = []
-        for inflation, result, why in self._ladder(old, s_now, q_goal, humans, "beta", at_rest, lambda _: s_branch):
-            if result is None:
-                tried.append(f"inflation {inflation:.2f} m: {why}")
-                continue
-            predicted = self._worth_it(result, old, s_now, humans, baseline, waited=waited)
-            if predicted is not None:
-                return ReplanResult(result.trajectory, result.junction, "beta", time.perf_counter() - started,
-                                    result.inflation, f"predicted {predicted:.2f} s instead of {baseline:.2f} s",
-                                    result.from_rest)
-            tried.append(f"inflation {inflation:.2f} m: not {100 * self.options.min_gain:.0f} % faster than the old "
-                         f"{baseline:.2f} s")
-        raise ReplanFailed("kept the old trajectory; " + "; ".join(tried))
+        if speed_now is not None and speed_now < self.options.rest_speed:
+            result = self._rest_plan(old, s_now, q_goal, humans, "beta", waited)
+        else:
+            v_now = old.sample(float(s_now))[1]
+            stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
+            s_branch = min(old.duration, s_now + self.options.lead + stopping)
+            result = self.replan(old, s_now, q_goal, humans, "beta", s_branch, waited)
+        return self._decide(result, baseline, self.options.min_gain, started, "replan request")

@@ -10,7 +10,8 @@ Safety rules kept here:
 * no human data yet, or data older than ``human_timeout``: alpha = 0 (stop), whatever the solver says;
 * the SSM rows are hard; acceleration limits take a slack;
 * beta (replan request) follows the *safe* bound on alpha, not alpha itself, so the acceleration ramp
-  after a stop never asks for a replan; it rises at bound <= alpha_min and falls at bound >= alpha_release
+  after a stop never asks for a replan (the bound includes the check of where the command leads, so a
+  robot held at the start of a path from rest, whose tangent there is zero, asks too); it rises at bound <= alpha_min and falls at bound >= alpha_release
   (hysteresis), and is never raised while stopped for missing data (a new plan cannot fix that);
 * a stop is the fastest the drives can make along the path: the path speed falls by at most what the
   drives' deceleration allows in one period (``braking_floor``), so every command is one the drives
@@ -237,8 +238,9 @@ class ScalingLayer:
             solution = solve(rows, self.params.acceleration_weight, self._piqp)
             alpha, safe_alpha, method = solution.alpha, rows.upper, solution.method
             alpha, lowered = self._verified(traj, alpha, humans, q_kin - q_nom)
-            if lowered:
-                method += "+verified"
+            if lowered:              # the bound where the command leads: what the SSM allows (and beta sees;
+                method += "+verified"  # at the start of a path from rest the rows alone see no motion)
+                safe_alpha = min(safe_alpha, alpha)
             if rows.ssm is not None:
                 min_sep, min_margin = rows.ssm.closest(alpha)
         floor = self.braking_floor(dq, ddq) if running else 0.0

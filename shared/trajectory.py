@@ -107,6 +107,27 @@ def straight_line_trajectory(q_start: np.ndarray, q_goal: np.ndarray, v_max: np.
     return Trajectory(t, q_start + r[:, None] * delta, rdot[:, None] * delta, version)
 
 
+def polyline_trajectory(waypoints: np.ndarray, v_max: np.ndarray, a_max: np.ndarray, knot_period: float = 0.01,
+                        version: int = 0) -> Trajectory:
+    """Rest to rest along every straight segment of a waypoint path in turn: the exact polyline (no
+    smoothing leaves it, so a path whose segments were checked free stays free), slower than a smoothed
+    path by a stop at every corner."""
+    w = np.asarray(waypoints, dtype=float)
+    times, positions, velocities = [np.zeros(1)], [w[:1]], [np.zeros((1, w.shape[1]))]
+    offset = 0.0
+    for a, b in zip(w[:-1], w[1:]):
+        if not np.any(np.abs(b - a) > 0):
+            continue
+        leg = straight_line_trajectory(a, b, v_max, a_max, knot_period)
+        times.append(offset + leg.times[1:])
+        positions.append(leg.positions[1:])
+        velocities.append(leg.velocities[1:])
+        offset += leg.duration
+    if offset == 0.0:
+        return straight_line_trajectory(w[0], w[0], v_max, a_max, knot_period, version)
+    return Trajectory(np.concatenate(times), np.vstack(positions), np.vstack(velocities), version)
+
+
 @numba.njit(cache=True)
 def _hermite(times, positions, velocities, s_values, out):
     """Cubic Hermite value, first and second derivative at each s (clamped to the knot range)."""

@@ -1,6 +1,7 @@
 """The hrc command line and the in-process demo of the paper's experiment (`hrc demo --sim`)."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -70,18 +71,17 @@ def test_the_paper_phases_with_both_layers():
         return run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0, replanner=replanner)
 
     scaling_only = run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0)
-    # as shipped (ski rental): each replan request is weighed and a way round is refused unless predicted
-    # faster than waiting: here none is, and the task goes at least as fast as with the scaling layer alone
+    # as shipped: the arm in the path (from 12 s) is gone round by a path planned for time under the SSM,
+    # and the robot completes a shuttle more than with the scaling layer alone; every refusal says why
+    # with both predicted times; no command comes closer than d_min
     result = both_layers(ReplanOptions())
     assert result.violations == 0 and result.beta_requests > 0
-    weighed = [e for e in result.replans if e.reason == "beta"]
-    assert weighed and all("not 10 % faster" in e.detail for e in weighed if not e.ok)
-    assert result.progress >= scaling_only.progress - 1e-9
-    # told that people in the way stay (patience without end), it goes round: the arm in the path (from
-    # 12 s) is replanned around, and the replan requests are answered; no command comes closer than d_min
-    stays = both_layers(ReplanOptions(patience=np.inf))
-    assert stays.violations == 0
-    done = [(round(e.t, 2), e.reason) for e in stays.replans if e.ok]
-    assert any(t >= 12.0 for t, _ in done), done                               # arm in the path: gone round
-    assert any(reason == "beta" for _, reason in done), done                   # alpha below alpha_min
-    assert min(r.step.min_separation for r in stays.records) >= 0.0
+    done = [(round(e.t, 2), e.reason) for e in result.replans if e.ok]
+    assert any(t >= 12.0 and reason in ("horizon", "beta") for t, reason in done), done
+    assert result.shuttles >= scaling_only.shuttles + 1 and result.progress >= scaling_only.progress + 0.3
+    for refused in (e for e in result.replans if not e.ok):
+        assert re.search(r"predicted \d+\.\d\d s, not .*faster than the old \d+\.\d\d s", refused.detail) \
+            or "Error" in refused.detail or "merge" in refused.detail, refused.detail
+    assert min(r.step.min_separation for r in result.records) >= 0.0
+    # pure ski rental (no patience): never slower than the scaling layer alone
+    assert both_layers(ReplanOptions(patience=0.0)).progress >= scaling_only.progress - 1e-9

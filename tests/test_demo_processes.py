@@ -1,6 +1,6 @@
 """`hrc demo` on the real processes (emulator on udp_multicast in a private namespace, five services over
-Zenoh), shortened: it ends with zero violations counted by the monitor, and its report folder holds
-what docs/report-format.md promises."""
+Zenoh), the paper's 24 s: it ends with zero violations counted by the monitor, the planner goes round the
+arm in the path, and its report folder holds what docs/report-format.md promises."""
 
 import csv
 import json
@@ -20,8 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def report(tmp_path_factory):
     require_namespace("the same experiment runs in-process in tests/test_cli_and_demo.py")
     out = tmp_path_factory.mktemp("demo")
-    run = subprocess.run([sys.executable, "-m", "services.cli", "demo", "--duration", "10", "--phase-length", "2.5",
-                          "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=240,
+    run = subprocess.run([sys.executable, "-m", "services.cli", "demo", "--out", str(out)], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300,
                          env=dict(os.environ, PYTHONPATH=str(ROOT)))
     print(run.stdout[-3000:], run.stderr[-3000:])
     return run, out
@@ -33,16 +33,19 @@ def test_runs_to_the_end_with_zero_violations(report):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["violations"] == 0, summary["violation_events"]
     assert summary["mode"] == "processes" and all(summary["services_alive_at_end"].values())
-    assert summary["cycles_completed"] > 800 and abs(summary["mean_cycle_s"] - 0.01) < 0.002
-    assert summary["shuttles_completed"] >= 1
+    assert summary["cycles_completed"] > 2000 and abs(summary["mean_cycle_s"] - 0.01) < 0.002
+    assert summary["shuttles_completed"] >= 5                                # goal after goal reached
     assert summary["min_margin_m"] is not None and summary["min_separation_m"] > 0.05
     assert summary["latency"]["chains"] > 300 and summary["latency"]["sample_to_frame_ms"]["p99"] > 0
-    # the arm in the path: the planner weighed a way round and said what it decided (taken, or refused as
-    # not predicted faster than waiting: the ski-rental rule of shared.replanning)
-    assert summary["replans"], "the planning layer never answered the scaler's replan requests"
+    # the arm in the path (phase 3, from 12 s): the planner goes round it; every refusal says why, with
+    # the old and the new trajectory's predicted times (or the planning error)
+    taken = [e for e in summary["replans"] if e["ok"]]
+    assert any(e["t"] >= 12.0 for e in taken), summary["replans"]
     for entry in summary["replans"]:
         assert entry["reason"] in ("horizon", "beta") and entry["compute_ms"] is not None
-        assert entry["ok"] or "faster" in entry["detail"] or "found no" in entry["detail"], entry
+        assert entry["ok"] or "not 10 % faster than the old" in entry["detail"] \
+            or "not faster than the old" in entry["detail"] or "Error" in entry["detail"] \
+            or "merge" in entry["detail"], entry
     assert "t=" in run.stdout and "alpha=" in run.stdout                     # progress while it ran
 
 

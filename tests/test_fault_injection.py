@@ -37,3 +37,10 @@ def test_an_unanswered_request_is_tried_again():
 def test_a_request_never_answered_is_a_clear_error():
     with pytest.raises(InjectionError, match=r"node 5: SDO write 0x2F00:2 = 1 not answered after 3 tries"):
         probe_with(FlakyEntry(failures=10)).inject(5, 2, 1)
+
+
+def test_the_campaign_estimates_the_time_left_from_the_faults_done():
+    from services.faults import time_left
+    assert time_left(0, 12, 0.0) == ""
+    assert time_left(3, 12, 60.0) == " (60 s so far, about 180 s left)"
+    assert time_left(12, 12, 240.0).endswith("about 0 s left)")

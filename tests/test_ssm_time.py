@@ -1,0 +1,106 @@
+"""The SSM-aware time cost (shared.ssm_time) and the search that minimises it (shared.path_search)."""
+
+import numpy as np
+import pytest
+
+from shared.collision import CollisionModel
+from shared.humans import HumanCapsules
+from shared.path_search import PathSearch, SearchOptions
+from shared.robot_model import default_robot
+from shared.scaling import ssm_alpha_bound
+from shared.scenarios import Q_GOAL, Q_START, body_segments
+from shared.scene import load_scene
+from shared.ssm import SsmParameters
+from shared.ssm_time import SsmTimeCost, TimeCostOptions
+from shared.trajectory import polyline_trajectory, straight_line_trajectory
+
+ROBOT = default_robot()
+LIM = ROBOT.limits
+SSM = SsmParameters()
+COST = SsmTimeCost(ROBOT, SSM)
+CM = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
+OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration)
+
+
+def person(x: float, y: float, reach: float, target, velocity=(0.0, 0.0, 0.0)) -> HumanCapsules:
+    seg, radii = body_segments(x, y, reach, np.asarray(target, dtype=float))
+    vel = np.broadcast_to(np.asarray(velocity, dtype=float), seg.shape).copy()
+    return HumanCapsules.from_arrays(seg, radii, vel, np.ones(len(radii), bool))
+
+
+NEAR = person(-1.0, 0.0, 1.0, (-0.4, 0.0, 0.8))          # reaching over the shuttle's middle
+WALKING = person(-1.6, 0.0, 0.0, (-0.4, 0.0, 0.8), velocity=(0.8, 0.0, 0.0))
+
+
+def reference_time(traj, humans, options=TimeCostOptions()) -> float:
+    """The definition, written out sample by sample with the scaling layer's own bound."""
+    s = np.arange(0.0, traj.duration, options.trajectory_step)
+    q, dq, _ = traj.sample(s)
+    dt = np.diff(np.append(s, traj.duration))
+    total = 0.0
+    for qk, dqk, dtk in zip(q, dq, dt):
+        there = humans.extrapolated(min(total, options.extrapolation))
+        total += dtk / max(ssm_alpha_bound(ROBOT, qk, dqk, there, SSM), options.alpha_floor)
+    return total
+
+
+def test_the_compiled_cost_is_the_scaling_layers_bound_sample_by_sample():
+    for humans in (NEAR, WALKING):
+        assert COST.trajectory_time(OLD, 0.0, humans) == pytest.approx(reference_time(OLD, humans), rel=1e-9)
+    # nobody near, or nobody at all: the nominal time
+    assert COST.trajectory_time(OLD, 0.0, None) == pytest.approx(OLD.duration)
+    far = person(-2.8, 0.0, 0.0, (0, 0, 0.5))
+    assert COST.trajectory_time(OLD, 0.0, far) == pytest.approx(OLD.duration)
+
+
+def test_a_straight_path_costs_its_trapezoid_and_bends_cost_time():
+    assert COST.path_time(np.vstack([Q_START, Q_GOAL]), None) == pytest.approx(OLD.duration, rel=1e-9)
+    via = (Q_START + Q_GOAL) / 2 + np.array([0.0, 0.5, -0.5, 0.0, 0.0, 0.0])
+    bent = np.vstack([Q_START, via, Q_GOAL])
+    assert COST.path_time(bent, None) > OLD.duration
+    # the bent path's real time law (stopping at the corner) is no faster than its estimate says
+    assert polyline_trajectory(bent, LIM.velocity, LIM.acceleration).duration >= COST.path_time(bent, None) - 1e-9
+
+
+def test_people_stay_for_the_stay_and_move_on_along_their_velocities():
+    # a person who leaves at once costs nothing; the longer they stay, the longer the way past them
+    times = [COST.trajectory_time(OLD, 0.0, NEAR, stay) for stay in (0.0, 0.5, 2.0, np.inf)]
+    assert times[0] == pytest.approx(OLD.duration)
+    assert times == sorted(times) and times[-1] > times[0] + 1.0
+    # walking up to the path: slower than where they stand now predicts, because they get closer
+    assert COST.trajectory_time(OLD, 0.0, WALKING) > COST.stretched(COST.trajectory_samples(OLD, 0.0), WALKING,
+                                                                    moving=False)
+
+
+def test_polyline_trajectory_stops_exactly_at_every_corner():
+    via = (Q_START + Q_GOAL) / 2 + np.array([0.0, 0.5, -0.5, 0.0, 0.0, 0.0])
+    traj = polyline_trajectory(np.vstack([Q_START, via, Q_GOAL]), LIM.velocity, LIM.acceleration, version=3)
+    corner = int(np.argmin(np.abs(traj.positions - via).max(axis=1)))
+    assert np.allclose(traj.positions[corner], via) and np.allclose(traj.velocities[corner], 0.0)
+    assert np.allclose(traj.positions[[0, -1]], [Q_START, Q_GOAL]) and traj.version == 3
+    _, dq, _ = traj.sample(np.linspace(0.0, traj.duration, 2000))
+    assert np.all(np.abs(dq) <= LIM.velocity + 1e-9)
+
+
+def test_the_search_goes_round_a_person_who_stays_by_a_short_detour_and_is_repeatable():
+    search = PathSearch(CM, COST, SearchOptions())
+    direct = np.vstack([Q_START, Q_GOAL])
+    found = search.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(5), stay=5.0, seeds=(direct,))
+    assert found is not None and search.free(found.waypoints, NEAR)
+    assert np.allclose(found.waypoints[[0, -1]], direct)
+    slowed = COST.path_time(direct, NEAR, 5.0)
+    assert found.predicted < 0.8 * slowed                        # out of the slowdown ...
+    assert COST.path_time(found.waypoints, None) < 1.8 * OLD.duration   # ... by a short way round
+    again = search.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(5), stay=5.0, seeds=(direct,))
+    assert np.array_equal(again.waypoints, found.waypoints)      # the same seed, the same path
+    # nobody near: the direct line itself is the fastest
+    alone = search.search(Q_START, Q_GOAL, None, np.random.default_rng(5), seeds=(direct,))
+    assert alone.origin == "seed 0" and len(alone.waypoints) == 2
+
+
+def test_the_search_with_no_time_left_returns_the_best_path_found_so_far():
+    search = PathSearch(CM, COST, SearchOptions(time_budget=0.0))
+    direct = np.vstack([Q_START, Q_GOAL])
+    found = search.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(1), stay=5.0, seeds=(direct,))
+    assert found is not None and search.free(found.waypoints, NEAR)
+    assert found.costed < SearchOptions().candidates                 # cut short, yet an answer
