@@ -31,7 +31,7 @@ from shared.convert import humans_from_msg, trajectory_to_msg
 from shared.errors import HrcError
 from shared.humans import HumanCapsules
 from shared.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
-from shared.path_search import SearchOptions
+from shared.path_search import CELL_BUDGET, SearchOptions
 from shared.planner import JointPlanner, PlannerOptions, PlanningError
 from shared.replanning import HoldClock, ReplanFailed, ReplanOptions, Replanner, ReplanResult
 from shared.robot_model import default_robot
@@ -40,7 +40,6 @@ from shared.timing import TimingError
 from shared.trajectory import Trajectory
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
-SEARCH_BUDGET = 0.08     # s of wall clock per path search (a replan may search twice: RRT-Connect seeding)
 
 
 class PlannerService:
@@ -200,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     collision = CollisionModel(default_robot(), scene, config.ssm.min_separation)
     # the wall clock bounds every search (anytime: the best path found by then is used); the simulation
     # bounds it by counts instead, for repeatable evidence
-    options = ReplanOptions(seed=args.seed or 0, search=SearchOptions(time_budget=SEARCH_BUDGET))
+    options = ReplanOptions(seed=args.seed or 0, search=SearchOptions(time_budget=CELL_BUDGET))
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
                           options=options)
     lim = collision.robot.limits

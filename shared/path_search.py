@@ -35,6 +35,9 @@ from shared.scaling import ssm_alpha_bound
 from shared.ssm_time import SsmTimeCost
 
 
+CELL_BUDGET = 0.08   # s of wall clock per search in the planner service (the simulation charges it per search)
+
+
 @dataclass(frozen=True)
 class SearchOptions:
     """candidates: random detours costed per search; refinements: perturbations of the winner;

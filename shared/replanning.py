@@ -135,7 +135,9 @@ class ReplanOptions:
     before the robot has waited at all; a prediction assumes they stay patience + the time already held
     (0 is pure ski rental: never worse than twice the better choice, however long the person stays; a
     cell where people are known to stay at a station may set more); rrt_budget (s): RRT-Connect's time
-    when it has to seed the search; seed: the search's seed (each query gets its own stream, derived
+    when it has to seed the search; worth_searching (s): a new goal's direct line is taken without a
+    search unless the people are predicted to slow it by more than this (the search itself takes up to
+    its budget while the robot waits for its plan); seed: the search's seed (each query gets its own stream, derived
     from the seed and the query, so the same query gives the same path in any order); search, cost:
     the search's bounds and the time cost's sampling."""
 
@@ -145,6 +147,7 @@ class ReplanOptions:
     rest_speed: float = 0.02
     patience: float = 1.5
     rrt_budget: float = 0.2
+    worth_searching: float = 0.25
     seed: int = 0
     search: SearchOptions = SearchOptions()
     cost: TimeCostOptions = TimeCostOptions()
@@ -164,6 +167,7 @@ class Replanner:
         self.limits = collision.robot.limits
         self.cost = SsmTimeCost(collision.robot, ssm, options.cost)
         self.search = PathSearch(collision, self.cost, options.search)
+        self.searches = 0          # path searches run (the simulation charges planning time by them)
 
     # ------------------------------------------------------------------------------------ predictions
     def stay(self, waited: float) -> float:
@@ -193,6 +197,7 @@ class Replanner:
         self.planner.check_ends(q_from, q_goal, humans, inflation)
         rng = self._rng(q_from, q_goal)
         stay = self.stay(waited)
+        self.searches += 1
         found = self.search.search(q_from, q_goal, humans, rng, stay, (direct,), from_rest, inflation)
         if found is None:
             rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=self.options.rrt_budget)
@@ -219,8 +224,8 @@ class Replanner:
         if humans is None or humans.count == 0:
             return direct
         direct_time = self.predicted_time(direct, 0.0, humans, waited)
-        if direct_time <= direct.duration + self.cost.options.trajectory_step:
-            return direct                                  # the people do not slow it: nothing to gain
+        if direct_time <= direct.duration + self.options.worth_searching:
+            return direct                   # the people hardly slow it: a search would cost more than it saves
         try:
             searched = self.plan_fresh(q_start, q_goal, humans, version, waited)
         except (PlanningError, TimingError):

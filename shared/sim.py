@@ -10,8 +10,8 @@ the ISO limit at the closest points, the react-within-T_r-then-brake allowance),
 braking at the drives' limit, `braking_cycles`) whose conservative end-point bound exceeds the limit at
 all. The robot is taken to follow its command exactly: the commands are followable by construction
 (the scaling layer slows down no faster than the drives can brake), and the drive model itself comes
-with the CAN emulator. With charge_planning, the planner's measured compute time passes on the simulated clock
-before its result is used (the robot keeps executing the old trajectory meanwhile, and a new shuttle,
+with the CAN emulator. With charge_planning, the planner's compute time (measured, or a fixed time per
+path search, which keeps runs repeatable) passes on the simulated clock before its result is used (the robot keeps executing the old trajectory meanwhile, and a new shuttle,
 planned in the cycle its predecessor ends, waits for its plan); without it, results are used in the
 cycle that asked for them. The predictions are told how long the scaling layer has been asking for a
 replan (HoldClock), as the planner service tells them.
@@ -111,13 +111,14 @@ def leg_fraction(q: np.ndarray, start: np.ndarray, goal: np.ndarray) -> float:
 def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a: np.ndarray, q_b: np.ndarray,
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
                 beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
-                charge_planning: bool = False, monitor: SafetyMonitor | None = None) -> SimResult:
+                charge_planning: bool | float = False, monitor: SafetyMonitor | None = None) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
     replanner: the planning layer (None: scaling only, straight shuttles). beta_replans: answer the
     scaling layer's replan requests (the paper's ablation switches this off). on_record / on_replan: called
     with each SimRecord / ReplanEvent as it happens. layer: the speed policy (default: a new ScalingLayer).
-    charge_planning: planning takes its measured time on the simulated clock. monitor: the judge (default:
+    charge_planning: planning takes time on the simulated clock: True its measured wall time, a number
+    that many seconds per path search (repeatable whatever the machine's load). monitor: the judge (default:
     a SafetyMonitor of this robot; pass one to reuse it across runs)."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
     monitor = monitor or SafetyMonitor(robot, config.ssm)
@@ -141,21 +142,27 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         if on_replan is not None:
             on_replan(event)
 
+    def charged(started: float, searches: int) -> float:
+        """Simulated seconds a planning call takes (see charge_planning)."""
+        if charge_planning is True:
+            return time.perf_counter() - started
+        return (replanner.searches - searches) * float(charge_planning)
+
     def replan(t: float, reason: str, action, *args) -> None:
         nonlocal busy_until, waiting
-        started = time.perf_counter()
+        started, searches = time.perf_counter(), replanner.searches
         try:
             res = action(*args)
         except ReplanFailed as exc:
             elapsed = (time.perf_counter() - started) * 1e3
-            busy_until = t + elapsed * 1e-3 if charge_planning else busy_until
+            busy_until = t + charged(started, searches) if charge_planning else busy_until
             log_replan(ReplanEvent(t, reason, False, elapsed, str(exc)))
             return
         elapsed = (time.perf_counter() - started) * 1e3
         if res is None:
             return
         if charge_planning:
-            busy_until = t + elapsed * 1e-3
+            busy_until = t + charged(started, searches)
             waiting = (busy_until, res, reason, elapsed)
             return
         take(t, res, reason, elapsed)
@@ -163,19 +170,19 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     def plan_leg(t: float, goal: np.ndarray, humans) -> None:
         """The next shuttle, planned around the humans from where the last one ended."""
         nonlocal busy_until, waiting, pending_leg
-        started = time.perf_counter()
+        started, searches = time.perf_counter(), replanner.searches
         try:
             traj = replanner.plan_goal(layer.trajectory.positions[-1], goal, humans, layer.trajectory.version + 1,
                                        held.waited(t))
             if charge_planning:
-                busy_until = t + time.perf_counter() - started
+                busy_until = t + charged(started, searches)
                 waiting = (busy_until, traj, "goal", 0.0)
             else:
                 layer.set_trajectory(traj)
                 pending_leg = False
         except (PlanningError, TimingError) as exc:       # goal blocked for now: hold and try again
             if charge_planning:
-                busy_until = t + time.perf_counter() - started
+                busy_until = t + charged(started, searches)
             log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
 
     def take(t: float, res, reason: str, elapsed: float) -> None:
