@@ -66,8 +66,11 @@ def build_parser() -> argparse.ArgumentParser:
                                       "(format: docs/report-format.md) and the paper's figures as PNG. --sim: "
                                       "both layers in-process on a simulated clock instead (deterministic, fast).",
                           formatter_class=argparse.RawDescriptionHelpFormatter)
-    demo.add_argument("--duration", type=_positive_float, default=24.0, metavar="SECONDS",
-                      help="seconds to run (default 24: all four phases)")
+    demo.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
+                      help="seconds to run (default: 24, all four phases; with --human, the motion's length)")
+    demo.add_argument("--human", type=Path, default=None, metavar="FILE",
+                      help="a recorded or scripted motion (CSV or JSON, several people, dropouts; format in "
+                           "docs/human-motion.md) in place of the paper's phases")
     demo.add_argument("--phase-length", type=_positive_float, default=6.0, metavar="SECONDS",
                       help="length of each of the four human phases (default 6)")
     demo.add_argument("--config", type=Path, default=None, metavar="FILE",
@@ -115,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
                                          "this asks it to reset faults and enable again. It refuses while the "
                                          "cause is still there (see hrc status and the driver's events).")
     cell_options(recover)
-    human = sub.add_parser("human", help="publish human poses to the tracker")
+    human = sub.add_parser("human", help="publish human poses to the tracker; convert keypoints to capsules")
     human_sub = human.add_subparsers(dest="human_command", metavar="<what>")
     inject = human_sub.add_parser("inject", help="one capsule, once or moving at a constant velocity",
                                   description="Publish a human capsule (end points A and B, radius) as raw tracker "
@@ -130,11 +133,25 @@ def build_parser() -> argparse.ArgumentParser:
     inject.add_argument("--rate", type=_positive_float, default=100.0, metavar="HZ")
     cell_options(inject)
     replay = human_sub.add_parser("replay", help="a recorded or scripted motion (CSV or JSON) at its own rate",
-                                  description="Publish the frames of a replay file (see shared/replay.py for the "
-                                              "CSV and JSON formats) as raw tracker data at their own times.")
-    replay.add_argument("file", type=Path, help="a .csv or .json replay file")
+                                  description="Publish the frames of a motion file (docs/human-motion.md: "
+                                              "CSV or JSON, several people, dropouts) as raw tracker data at "
+                                              "their own times; nothing during a dropout frame.")
+    replay.add_argument("file", type=Path, help="a .csv or .json motion file")
     replay.add_argument("--speed", type=_positive_float, default=1.0, help="playback speed factor (default 1)")
     cell_options(replay)
+    fromkp = human_sub.add_parser("from-keypoints", help="3D body keypoints (CSV) to a motion file of capsules",
+                                  description="Turn a CSV of 3D keypoints (t,person,keypoint,x,y,z: head, "
+                                              "shoulders, elbows, hands, hips) into a motion file of capsules "
+                                              "(docs/human-motion.md), radii from DIN 33402-2's 95th "
+                                              "percentiles. A person missing a keypoint makes a dropout frame.")
+    fromkp.add_argument("input", type=Path, help="keypoints CSV")
+    fromkp.add_argument("output", type=Path, help="motion file to write (.json or .csv)")
+    fromkp.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="input length unit (default m)")
+    fromkp.add_argument("--y-up", action="store_true", help="the capture volume's vertical axis is y (else z)")
+    fromkp.add_argument("--yaw", type=float, default=0.0, metavar="DEG",
+                        help="rotation about the vertical axis into the robot base frame (degrees)")
+    fromkp.add_argument("--translate", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "Z"),
+                        help="then this translation (m, robot base frame)")
     certs = sub.add_parser("certs", help="make the cell's TLS certificates (multi-host, secured)",
                            description="Make the cell CA and one certificate per identity (every service, "
                                        "operator, router) for mutual TLS and the router's access control "
@@ -179,12 +196,19 @@ def _scene(path: Path | None):
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    human = None
+    if args.human is not None:
+        from shared.replay import RecordedMotion
+
+        human = RecordedMotion.load(args.human)        # a bad file: ConfigError naming the frame, nothing starts
+    if args.duration is None:
+        args.duration = max(human.duration, 1.0) if human is not None else 24.0
     if not args.sim:
-        return _demo_processes(args)
-    return _demo_sim(args)
+        return _demo_processes(args, human)
+    return _demo_sim(args, human)
 
 
-def _demo_processes(args: argparse.Namespace) -> int:
+def _demo_processes(args: argparse.Namespace, human) -> int:
     from services import demo
     from shared.config import load_config
     from shared.robot_model import default_robot
@@ -203,7 +227,7 @@ def _demo_processes(args: argparse.Namespace) -> int:
         return code
     try:
         summary = demo.run(args.out, args.duration, args.phase_length, args.config, args.seed, args.no_beta,
-                           args.quiet, default_robot(), config)
+                           args.quiet, default_robot(), config, human, str(args.human or ""))
     except RuntimeError as exc:
         print(f"hrc demo: error: {exc}", file=sys.stderr)
         return 1
@@ -217,7 +241,7 @@ def _demo_processes(args: argparse.Namespace) -> int:
     return 0 if summary["violations"] == 0 else 1
 
 
-def _demo_sim(args: argparse.Namespace) -> int:
+def _demo_sim(args: argparse.Namespace, human) -> int:
     from shared.config import load_config
     from shared.robot_model import default_robot
     from shared.scenarios import Q_GOAL, Q_START, paper_phases
@@ -225,7 +249,7 @@ def _demo_sim(args: argparse.Namespace) -> int:
 
     config = load_config(args.config)
     robot = default_robot()
-    human = paper_phases(args.phase_length)
+    human = human if human is not None else paper_phases(args.phase_length)
     replanner = None
     if not args.no_planner:
         from shared.collision import CollisionModel
@@ -250,7 +274,8 @@ def _demo_sim(args: argparse.Namespace) -> int:
     if not args.quiet:
         layers = "scaling layer only" if replanner is None else \
             "scaling + planning layers" + (" (no beta replans)" if args.no_beta else "")
-        print(f"hrc demo --sim: {layers} on the built-in scenario (in-process, simulated clock)")
+        scenario = f"the motion in {args.human}" if args.human else "the built-in scenario"
+        print(f"hrc demo --sim: {layers} on {scenario} (in-process, simulated clock)")
 
     def replanned(event) -> None:
         if not args.quiet:
@@ -374,9 +399,11 @@ def cmd_human(args: argparse.Namespace) -> int:
 
     if args.human_command == "replay":
         return _replay(args)
+    if args.human_command == "from-keypoints":
+        return _from_keypoints(args)
     if args.human_command != "inject":
-        print("hrc human: error: choose what to do: 'hrc human inject ...' or 'hrc human replay FILE'",
-              file=sys.stderr)
+        print("hrc human: error: choose what to do: 'hrc human inject ...', 'hrc human replay FILE' or "
+              "'hrc human from-keypoints IN OUT'", file=sys.stderr)
         return 2
     a, b = np.array(args.a), np.array(args.b)
     velocity = np.zeros(3) if args.velocity is None else np.array(args.velocity)
@@ -419,12 +446,27 @@ def _publish_raw(args: argparse.Namespace, what: str, frames) -> int:
     return 0
 
 
+def _from_keypoints(args: argparse.Namespace) -> int:
+    import math
+
+    from shared.keypoints import UNITS, FrameTransform, convert
+
+    if not all(math.isfinite(v) for v in (args.yaw, *args.translate)):
+        print("hrc human from-keypoints: error: --yaw and --translate must be finite numbers", file=sys.stderr)
+        return 2
+    transform = FrameTransform(UNITS[args.units], args.y_up, math.radians(args.yaw), tuple(args.translate))
+    frames, dropouts = convert(args.input, args.output, transform)   # ConfigError: exit 2 (main)
+    print(f"hrc human from-keypoints: {frames} frames ({dropouts} dropouts) written to {args.output}")
+    return 0
+
+
 def _replay(args: argparse.Namespace) -> int:
     from shared.replay import load_replay
 
     frames = load_replay(args.file)              # ConfigError: a clear message and exit 2 (main)
     t0 = frames[0].t
-    return _publish_raw(args, "replay", (((f.t - t0) / args.speed, lambda t, f=f: f.segments, f.radii) for f in frames))
+    return _publish_raw(args, "replay", (((f.t - t0) / args.speed, lambda t, f=f: f.segments, f.radii)
+                                         for f in frames if not f.dropout))       # a dropout: silence
 
 
 def cmd_status(args: argparse.Namespace) -> int:

@@ -3,7 +3,8 @@
 Starts the PRBT emulator and every service as child processes (services.launch), on kernel CAN (vcan0)
 where there is one, else on udp_multicast inside a private network namespace that it makes for itself
 (it re-runs itself under `unshare -n`, or `-rn` when not root). Then, as the cell's operator and witness:
-* a scripted human (shared.scenarios.paper_phases) goes out as raw tracker data at 120 Hz;
+* a scripted human (shared.scenarios.paper_phases), or a recorded motion (--human FILE: several people,
+  dropouts; shared.replay), goes out as raw tracker data at 120 Hz;
 * goals shuttle the robot between q_s and q_g: the next goal when the robot has arrived, the same goal
   again when the robot is not following a plan for it (refused, or dropped after a stop); see
   services.operator;
@@ -52,8 +53,9 @@ def reexec_in_namespace(argv: list[str]) -> int | None:
 
 
 def run(out: Path, duration: float, phase_length: float, config_path: Path | None, seed: int, no_beta: bool,
-        quiet: bool, robot, config) -> dict:
-    """The experiment on the real processes; returns the summary (written to out/summary.json)."""
+        quiet: bool, robot, config, human=None, human_name: str = "") -> dict:
+    """The experiment on the real processes; returns the summary (written to out/summary.json). human:
+    a recorded motion (shared.replay.RecordedMotion) in place of the paper's phases."""
     interface, channel = choose_bus()
     keys = KeySpace(PREFIX)
     cell = CellProcesses(out / "logs", PREFIX, interface, channel, config_path, seed,
@@ -67,10 +69,11 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     try:
         started = time.monotonic()
         cell.start(session)
-        say(f"hrc demo: all services up in {time.monotonic() - started:.1f} s; {duration:.0f} s of the paper's four "
-            f"phases{' (no beta replans)' if no_beta else ''}")
+        what = f"the motion in {human_name}" if human is not None else "the paper's four phases"
+        say(f"hrc demo: all services up in {time.monotonic() - started:.1f} s; {duration:.0f} s of {what}"
+            f"{' (no beta replans)' if no_beta else ''}")
         recorder = Recorder(session, keys, rec)
-        human = paper_phases(phase_length)
+        human = human if human is not None else paper_phases(phase_length)
         rec.phase = human.phase
         rec.t0 = time.monotonic()
         feed = HumanFeed(session, keys, human, rec.t0)
@@ -91,7 +94,8 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     say(f"hrc demo: cell stopped (exit codes {codes}); writing the report to {out}")
     extra = {"mode": "processes", "can": interface, "services_alive_at_end": alive, "exit_codes": codes,
              "cpu_s": cpu, "cpus": os.cpu_count(),
-             "bad_messages_seen": recorder.bad, "no_beta": no_beta}
+             "bad_messages_seen": recorder.bad, "no_beta": no_beta,
+             "human": human_name or "built-in: the paper's four phases"}
     return write_report(out, robot, config, rec, extra)
 
 

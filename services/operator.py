@@ -78,8 +78,9 @@ class FeedFault:
 
 
 class HumanFeed(threading.Thread):
-    """Publishes a scripted human (anything with ``at(t) -> HumanCapsules``) as raw tracker data at
-    HUMAN_RATE, time measured from t0. ``fault`` may be changed at any time (FeedFault)."""
+    """Publishes a scripted or recorded human (anything with ``at(t) -> HumanCapsules | None``; None: the
+    tracker sees nobody, nothing is sent) as raw tracker data at HUMAN_RATE, time measured from t0.
+    ``fault`` may be changed at any time (FeedFault)."""
 
     def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo") -> None:
         super().__init__(daemon=True, name="human-feed")
@@ -96,7 +97,7 @@ class HumanFeed(threading.Thread):
             now = time.monotonic()
             caps = self.human.at(now - self.t0)
             fault = self.fault
-            if fault.kind == "silent":
+            if fault.kind == "silent" or caps is None:       # a fault, or a dropout in a recorded motion
                 continue
             shifted = fault.kind == "jump" and (fault.every <= 0 or k % fault.every == 0)
             segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments

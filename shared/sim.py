@@ -1,6 +1,7 @@
 """In-process simulation of both layers on a simulated clock: deterministic, no I/O.
 
-The robot shuttles between two configurations; a scripted human moves through the cell. Every control
+The robot shuttles between two configurations; a scripted human (or a recorded motion, whose dropout
+frames, None, stop the robot as missing data does in the cell) moves through the cell. Every control
 period the scaling layer runs exactly as in the scaler service. The planning layer, when given, runs the
 horizon check on every human sample (Alg. 1), replans and merges when the path ahead is blocked (Alg. 2)
 and when the scaling layer raises beta, and plans each new shuttle around the humans. Every command is
@@ -233,9 +234,11 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed_now, held.waited(t))
         # the commanded motion against the limit: the conservative end-point bound first (fast); where it
         # comes near, the independent monitor judges (its ReactionWindow sees every cycle)
-        points, jac = robot.capsule_kinematics(step.q_command)
-        check = pair_ssm(points, robot.radii, jac @ step.qd_command, humans, config.ssm)
-        margin = float(check.margin.min()) if check.margin.size else float("inf")
+        margin = float("inf")          # a tracker dropout in a recorded motion: nobody to judge against
+        if humans is not None:
+            points, jac = robot.capsule_kinematics(step.q_command)
+            check = pair_ssm(points, robot.radii, jac @ step.qd_command, humans, config.ssm)
+            margin = float(check.margin.min()) if check.margin.size else margin
         braking = step.method.endswith("+braking")
         result.braking_cycles += braking
         if margin < -1e-9 and not braking:
