@@ -86,6 +86,11 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", type=Path, default=Path("hrc-demo-report"), metavar="DIR",
                       help="report folder (default ./hrc-demo-report)")
     demo.add_argument("--quiet", action="store_true", help="print only the summary")
+    demo.add_argument("--view", action="store_true",
+                      help="watch it live in 3D (rerun's web viewer on 127.0.0.1, --view-port); every report "
+                           "folder holds recording.rrd anyway")
+    demo.add_argument("--view-port", type=int, default=9090, help="web viewer port with --view (default 9090)")
+    demo.add_argument("--view-fd", type=int, default=None, help=argparse.SUPPRESS)
 
     upp = sub.add_parser("up", help="start the cell under supervisord",
                          description="Start the PRBT emulator and every service under supervisord "
@@ -152,6 +157,21 @@ def build_parser() -> argparse.ArgumentParser:
                         help="rotation about the vertical axis into the robot base frame (degrees)")
     fromkp.add_argument("--translate", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "Z"),
                         help="then this translation (m, robot base frame)")
+    view = sub.add_parser("view", help="the running cell in 3D (rerun), served on loopback",
+                          description="A live 3D view of a running cell with rerun: the robot's link capsules "
+                                      "at the measured joint state and the commanded ghost, every person's "
+                                      "capsules, the robot-human pair nearest its ISO/TS 15066 limit with its "
+                                      "approach speed against the limit, alpha and beta over time, the planner's "
+                                      "current and merged trajectories. A Zenoh subscriber of its own (a slow "
+                                      "viewer slows nothing else); the web viewer listens on 127.0.0.1 only.")
+    view.add_argument("--web-port", type=int, default=9090, help="web viewer port on 127.0.0.1 (default 9090)")
+    view.add_argument("--grpc-port", type=int, default=9876, help="viewer's gRPC port on 127.0.0.1 (default 9876)")
+    view.add_argument("--save", type=Path, default=None, metavar="FILE",
+                      help="write the view to an .rrd file instead of serving it (open it later with `rerun FILE`)")
+    view.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
+                      help="stop after this long (default: until Ctrl-C)")
+    view.add_argument("--pipe-fd", type=int, default=None, help=argparse.SUPPRESS)
+    cell_options(view)
     certs = sub.add_parser("certs", help="make the cell's TLS certificates (multi-host, secured)",
                            description="Make the cell CA and one certificate per identity (every service, "
                                        "operator, router) for mutual TLS and the router's access control "
@@ -214,23 +234,39 @@ def _demo_processes(args: argparse.Namespace, human) -> int:
     from shared.robot_model import default_robot
 
     if args.no_planner:
-        raise DemoArgumentError("--no-planner needs --sim (the running cell always has its planner)")
+        raise UsageError("--no-planner needs --sim (the running cell always has its planner)")
     if args.scene is not None:
-        raise DemoArgumentError("--scene needs --sim (the planner service reads deploy/scene.yaml)")
+        raise UsageError("--scene needs --sim (the planner service reads deploy/scene.yaml)")
+    from services.launch import free_port
     config = load_config(args.config)              # a bad file is refused here, before anything starts
+    server = None
+    if args.view and args.view_fd is None:         # the viewer is served here, on this side of any namespace
+        from services.view import ViewServer
+
+        _check_port("--view-port", args.view_port)
+        server = ViewServer(free_port(), args.view_port)
+        args.view_fd = server.write_fd
+        print(f"hrc demo: watch it at {server.web_url} (listening on 127.0.0.1 only)", flush=True)
     try:
-        code = demo.reexec_in_namespace([sys.executable, "-m", "services.cli", *args.argv])
-    except RuntimeError as exc:
-        print(f"hrc demo: error: {exc}", file=sys.stderr)
-        return 1
-    if code is not None:
-        return code
-    try:
-        summary = demo.run(args.out, args.duration, args.phase_length, args.config, args.seed, args.no_beta,
-                           args.quiet, default_robot(), config, human, str(args.human or ""))
-    except RuntimeError as exc:
-        print(f"hrc demo: error: {exc}", file=sys.stderr)
-        return 1
+        fds = () if server is None else (server.write_fd,)
+        argv = [sys.executable, "-m", "services.cli", *args.argv] + ([] if server is None else
+                                                                      ["--view-fd", str(server.write_fd)])
+        try:
+            code = demo.reexec_in_namespace(argv, fds)
+        except RuntimeError as exc:
+            print(f"hrc demo: error: {exc}", file=sys.stderr)
+            return 1
+        if code is not None:
+            return code
+        try:
+            summary = demo.run(args.out, args.duration, args.phase_length, args.config, args.seed, args.no_beta,
+                               args.quiet, default_robot(), config, human, str(args.human or ""), args.view_fd)
+        except RuntimeError as exc:
+            print(f"hrc demo: error: {exc}", file=sys.stderr)
+            return 1
+    finally:
+        if server is not None:
+            server.stop()
     print(json.dumps({k: v for k, v in summary.items() if k not in ("replan_stall_ms", "replans")}
                      | {"replans": len(summary["replans"]), "replan_stall_ms": {
                          k: summary["replan_stall_ms"][k] for k in ("median", "max")}}))
@@ -242,6 +278,8 @@ def _demo_processes(args: argparse.Namespace, human) -> int:
 
 
 def _demo_sim(args: argparse.Namespace, human) -> int:
+    if args.view:
+        raise UsageError("--view needs the processes (without --sim); a --sim run is its summary only")
     from shared.config import load_config
     from shared.robot_model import default_robot
     from shared.scenarios import Q_GOAL, Q_START, paper_phases
@@ -469,6 +507,93 @@ def _replay(args: argparse.Namespace) -> int:
                                          for f in frames if not f.dropout))       # a dropout: silence
 
 
+def _check_port(name: str, port: int) -> None:
+    if not 1024 <= port <= 65535:
+        raise UsageError(f"{name} must be in 1024..65535, got {port}")
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    """Serve the viewer on loopback here and log into it from a subscriber (inside the cell's network
+    namespace when it has one: the pipe between the two crosses it)."""
+    import os
+    import subprocess
+
+    from services.cell import reenter_argv
+    from services.view import ViewServer
+
+    if args.pipe_fd is not None or args.save is not None:
+        return _view_log(args)
+    _check_port("--web-port", args.web_port)
+    _check_port("--grpc-port", args.grpc_port)
+    server = ViewServer(args.grpc_port, args.web_port)
+    argv = [sys.executable, "-m", "services.cli", "view", "--pipe-fd", str(server.write_fd), "--prefix", args.prefix,
+            "--timeout", str(args.timeout)] + (["--connect", args.connect] if args.connect else []) \
+        + (["--duration", str(args.duration)] if args.duration else [])
+    inner = reenter_argv(args.prefix, argv) or argv
+    print(f"hrc view: open {server.web_url} (listening on 127.0.0.1 only); Ctrl-C to stop", flush=True)
+    child = subprocess.Popen(inner, pass_fds=(server.write_fd,), env=dict(os.environ, HRC_IN_CELL="1"))
+    try:
+        return child.wait()
+    except KeyboardInterrupt:
+        child.terminate()
+        child.wait()
+        return 130
+    finally:
+        server.stop()
+
+
+def _view_log(args: argparse.Namespace) -> int:
+    """The logging end of `hrc view`: subscribe to the cell and log every message to the pipe or file."""
+    import time
+
+    from services.view import CellLogger, pipe_stream
+    from shared.config import CellConfig
+    from shared.errors import MessageError
+    from shared.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, decode
+    from shared.robot_model import default_robot
+
+    if args.save is not None:
+        import rerun as rr
+
+        stream = rr.RecordingStream("hrc-view")
+        stream.save(str(args.save))
+    else:
+        stream = pipe_stream(args.pipe_fd)
+    session, keys = _session(args)
+    logger = CellLogger(stream, default_robot(), CellConfig().ssm, time.monotonic())
+    counts = {"logged": 0, "bad": 0}
+
+    def keep(kind):
+        def on_sample(sample):
+            try:
+                msg = decode(sample.payload.to_bytes(), kind)
+            except MessageError:
+                counts["bad"] += 1
+                return
+            logger.dispatch(msg)
+            counts["logged"] += 1
+        return on_sample
+
+    subs = [session.declare_subscriber(key, keep(kind)) for key, kind in (
+        (keys.joint_state, JointState), (keys.command, JointCommand), (keys.human_state, HumanState),
+        (keys.scaler_status, ScalerStatus), (keys.trajectory, TrajectoryMsg))]
+    started = time.monotonic()
+    try:
+        while args.duration is None or time.monotonic() - started < args.duration:
+            time.sleep(0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for sub in subs:
+            sub.undeclare()
+        session.close()
+        stream.flush()
+        stream.disconnect()
+    print(f"hrc view: {counts['logged']} messages logged ({counts['bad']} malformed ignored)"
+          + (f" to {args.save}" if args.save else ""))
+    return 0
+
+
 def cmd_status(args: argparse.Namespace) -> int:
     import time
 
@@ -565,8 +690,8 @@ class FaultArgumentError(HrcError):
     """hrc faults was asked for a fault it does not know, or there is no cell to inject into."""
 
 
-class DemoArgumentError(HrcError):
-    """An option of hrc demo that does not fit the chosen mode."""
+class UsageError(HrcError):
+    """An option that does not fit the chosen mode, or a value out of range."""
 
 
 class GoalArgumentError(HrcError):
@@ -589,7 +714,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
                 "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults,
-                "certs": cmd_certs}[args.command](args)
+                "certs": cmd_certs, "view": cmd_view}[args.command](args)
     except HrcError as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 2

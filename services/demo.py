@@ -38,7 +38,7 @@ def choose_bus() -> tuple[str, str | None]:
     return ("socketcan", "vcan0") if os.path.exists("/sys/class/net/vcan0") else ("udp_multicast", None)
 
 
-def reexec_in_namespace(argv: list[str]) -> int | None:
+def reexec_in_namespace(argv: list[str], pass_fds: tuple[int, ...] = ()) -> int | None:
     """When udp_multicast is needed and this process is not in a private namespace: run argv in a new one
     and return its exit code; None when no re-run is needed. Raises RuntimeError when none can be made."""
     from services.cell import in_new_namespace, namespace_reason
@@ -49,13 +49,14 @@ def reexec_in_namespace(argv: list[str]) -> int | None:
     if reason:
         raise RuntimeError(f"no kernel CAN (vcan0), and no private network namespace for udp_multicast ({reason}); "
                            "run 'hrc demo --sim' (in-process) instead")
-    return subprocess.call(in_new_namespace(argv))
+    return subprocess.call(in_new_namespace(argv), pass_fds=pass_fds)
 
 
 def run(out: Path, duration: float, phase_length: float, config_path: Path | None, seed: int, no_beta: bool,
-        quiet: bool, robot, config, human=None, human_name: str = "") -> dict:
+        quiet: bool, robot, config, human=None, human_name: str = "", view_fd: int | None = None) -> dict:
     """The experiment on the real processes; returns the summary (written to out/summary.json). human:
-    a recorded motion (shared.replay.RecordedMotion) in place of the paper's phases."""
+    a recorded motion (shared.replay.RecordedMotion) in place of the paper's phases; view_fd: a pipe to a
+    served 3D viewer (services.view.ViewServer) to log every message into as it arrives."""
     interface, channel = choose_bus()
     keys = KeySpace(PREFIX)
     cell = CellProcesses(out / "logs", PREFIX, interface, channel, config_path, seed,
@@ -76,6 +77,10 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
         human = human if human is not None else paper_phases(phase_length)
         rec.phase = human.phase
         rec.t0 = time.monotonic()
+        if view_fd is not None:
+            from services.view import CellLogger, pipe_stream
+
+            recorder.on_message = CellLogger(pipe_stream(view_fd), robot, config.ssm, rec.t0).dispatch
         feed = HumanFeed(session, keys, human, rec.t0)
         feed.start()
         _direct(session, keys, recorder, rec, duration, say)

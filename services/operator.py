@@ -37,6 +37,7 @@ class Recorder:
     def __init__(self, session, keys: KeySpace, rec: Recording) -> None:
         self.rec, self.lock, self.bad = rec, threading.Lock(), 0
         self.latest: dict[type, object] = {}
+        self.on_message = None           # called with every message kept (the demo's live 3D view)
         table = [(keys.scaler_status, ScalerStatus, rec.statuses), (keys.command, JointCommand, rec.commands),
                  (keys.joint_state, JointState, rec.joint_states), (keys.human_state, HumanState, rec.human_states),
                  (keys.trajectory, TrajectoryMsg, rec.trajectories), (keys.safety_events, SafetyEvent, rec.events),
@@ -55,6 +56,8 @@ class Recorder:
             with self.lock:
                 store.append(msg)
                 self.latest[kind] = msg
+            if self.on_message is not None:
+                self.on_message(msg)
         return on_sample
 
     def get(self, kind):

@@ -21,6 +21,7 @@ from shared.messages import (DriveLagReport, HumanState, JointCommand, JointStat
                              SafetyEvent, ScalerStatus, TrajectoryMsg)
 from shared.monitor import HumanHistory, ReactionWindow, SafetyMonitor
 from shared.robot_model import RobotModel
+from services.view import write_recording
 
 MOVING_ALPHA = 0.01          # a stall ends once the robot moves on at more than this fraction of its speed
 
@@ -362,5 +363,8 @@ def write_report(out: Path, robot: RobotModel, config: CellConfig, rec: Recordin
     summary.update(extra or {})
     write_trace(out, rec)
     summary["figures"] = write_figures(out, rec, series, config)
+    write_recording(out / "recording.rrd", robot, config.ssm, rec.joint_states + rec.commands + rec.human_states
+                    + rec.statuses + rec.trajectories, rec.t0)
+    summary["recording"] = "recording.rrd"
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary

@@ -113,3 +113,20 @@ def capsule_pair_distances(robot_segments: np.ndarray, robot_radii: np.ndarray,
     _pairs_kernel(rs, np.ascontiguousarray(robot_radii, dtype=np.float64), hs,
                   np.ascontiguousarray(human_radii, dtype=np.float64), dist, s, t, cr, ch, normal, degenerate)
     return PairDistances(dist, s, t, cr, ch, normal, degenerate)
+
+
+def capsule_frames(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For capsules given by their axis end points (M, 2, 3): the start point (M, 3), the unit quaternion
+    (x, y, z, w) that turns +z onto the axis (M, 4), and the axis length (M,): the pose of a capsule built
+    along +z from the origin, as 3D viewers (rerun's Capsules3D) draw them. A point capsule (a sphere)
+    gets the identity."""
+    seg = np.asarray(segments, dtype=float).reshape(-1, 2, 3)
+    axis = seg[:, 1] - seg[:, 0]
+    length = np.linalg.norm(axis, axis=1)
+    d = np.divide(axis, length[:, None], out=np.tile([0.0, 0.0, 1.0], (len(seg), 1)), where=length[:, None] > 0)
+    # the rotation of +z onto d: axis z x d, angle acos(d_z); as a quaternion (z x d, 1 + d_z), normalised
+    quat = np.column_stack([-d[:, 1], d[:, 0], np.zeros(len(seg)), 1.0 + d[:, 2]])
+    flipped = quat[:, 3] < 1e-9                                  # d = -z: half a turn about x
+    quat[flipped] = [1.0, 0.0, 0.0, 0.0]
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    return seg[:, 0].copy(), quat, length

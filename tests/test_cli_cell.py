@@ -114,3 +114,72 @@ def test_human_replay(cell, tmp_path):
     path.write_text("t,ax\n1,2\n")
     out = hrc(port, "human", "replay", str(path))
     assert out.returncode == 2 and "line 1" in out.stderr and "Traceback" not in out.stderr
+
+
+def _publish_cell_state(session, stop):
+    """The robot and one person, as the cell would publish them, every 20 ms until stop is set."""
+    from shared.messages import HumanState
+    pub_js, pub_h = session.declare_publisher(KEYS.joint_state), session.declare_publisher(KEYS.human_state)
+    q = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+    while not stop.is_set():
+        now = time.monotonic()
+        pub_js.put(encode(JointState(q=q, qd=np.zeros(6), drive_state="enabled", enabled=True, fault=False,
+                                     stamp=now)))
+        pub_h.put(encode(HumanState(segments=np.array([[[-1.0, 0, 0.9], [-1.0, 0, 1.5]]]), radii=np.array([0.17]),
+                                    velocities=np.zeros((1, 2, 3)), velocity_known=np.ones(1, bool), valid=True,
+                                    sample_stamp=now, stamp=now)))
+        time.sleep(0.02)
+
+
+def test_view_saves_what_the_cell_publishes(cell, tmp_path):
+    import threading
+    from rerun.chunk import RrdReader
+
+    port, _, session = cell
+    stop = threading.Event()
+    feeder = threading.Thread(target=_publish_cell_state, args=(session, stop), daemon=True)
+    feeder.start()
+    try:
+        out = hrc(port, "view", "--save", str(tmp_path / "view.rrd"), "--duration", "2")
+    finally:
+        stop.set()
+        feeder.join()
+    assert out.returncode == 0, out.stderr
+    rows = {}
+    for chunk in RrdReader(tmp_path / "view.rrd").stream():
+        rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.num_rows
+    assert rows.get("/world/robot/measured", 0) > 20 and rows.get("/world/humans", 0) > 20, rows
+
+
+def listening(port: int) -> list[str]:
+    """Local addresses (hex, as in /proc/net/tcp and tcp6) listening on a port."""
+    found = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        with open(table) as f:
+            for line in f.readlines()[1:]:
+                local, state = line.split()[1], line.split()[3]
+                if state == "0A" and int(local.rsplit(":", 1)[1], 16) == port:
+                    found.append(local.rsplit(":", 1)[0])
+    return found
+
+
+def test_view_serves_the_viewer_on_loopback_only(cell):
+    import urllib.request
+
+    port, _, _ = cell
+    web, grpc = free_port(), free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "services.cli", "view", "--connect", f"tcp/127.0.0.1:{port}",
+                             "--prefix", KEYS.prefix, "--duration", "6", "--web-port", str(web), "--grpc-port", str(grpc)],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_for(lambda: listening(web) and listening(grpc), timeout=15), "the viewer did not start"
+        assert set(listening(web)) | set(listening(grpc)) == {"0100007F"}          # 127.0.0.1, nothing else
+        assert urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=5).status == 200
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert f"http://127.0.0.1:{web}/" in out
+    assert wait_for(lambda: not listening(web), timeout=5)                         # the viewer is gone too

@@ -65,3 +65,11 @@ def test_report_folder_holds_the_trace_and_the_figures(report):
     assert humans and {"t", "capsule", "ax", "radius", "vbz", "valid"} <= humans[0].keys()
     trajectories = json.loads((out / "trajectories.json").read_text())
     assert trajectories and all(len(t["times"]) == len(t["positions"]) for t in trajectories)
+    # the 3D recording of the run: robot, people, the closest pair, alpha, the planner's paths
+    from rerun.chunk import RrdReader
+    assert summary["recording"] == "recording.rrd"
+    rows: dict[str, int] = {}
+    for chunk in RrdReader(out / "recording.rrd").stream():
+        rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.num_rows
+    assert rows["/world/robot/measured"] > 2000 and rows["/world/humans"] > 1000, rows
+    assert rows["/scaling/alpha"] == summary["cycles_completed"] and rows["/world/planner/current"] >= 5, rows
