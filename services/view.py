@@ -67,6 +67,20 @@ def closest_pair(robot: RobotModel, q: np.ndarray, qd: np.ndarray, humans_segmen
                        float(pairs.limit[i, j]), float(pairs.distance[i, j]))
 
 
+def layout():
+    """The view's layout: the cell in 3D on the left; alpha, safe alpha and beta, and the closest pair's
+    approach speed against its limit, over time on the right."""
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(origin="world", name="cell"),
+            rrb.Vertical(rrb.TimeSeriesView(origin="scaling", name="alpha, safe alpha, beta"),
+                         rrb.TimeSeriesView(origin="ssm", name="closest pair: approach speed and limit (m/s)")),
+            column_shares=[3, 2]),
+        collapse_panels=True)
+
+
 class CellLogger:
     """Logs the cell's messages to a rerun RecordingStream, time from t0 (the senders' monotonic stamps)."""
 
@@ -78,6 +92,7 @@ class CellLogger:
         self.humans: HumanState | None = None
         self.followed = -1
         self.trajectories: dict[int, TrajectoryMsg] = {}
+        stream.send_blueprint(layout())
         stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
     def _at(self, stamp: float) -> None:

@@ -260,7 +260,25 @@ class RecordedMotion:
         return self.frames[max(0, k)]
 
     def at(self, t: float) -> HumanCapsules | None:
-        return self.frame(t).capsules()
+        """The frame holding at t, its velocities the change of each capsule (matched by person and name)
+        since the frame before, as a tracker would measure them; unknown for a capsule that was not there
+        (the ISO 13855 speeds then apply). None in a dropout."""
+        k = max(0, int(np.searchsorted(self.times, t, side="right")) - 1)
+        frame = self.frames[k]
+        caps = frame.capsules()
+        if caps is None or k == 0 or self.frames[k - 1].dropout or caps.count == 0:
+            return caps
+        before = self.frames[k - 1]
+        index = {key: i for i, key in enumerate(zip(before.people, before.names))}
+        dt = frame.t - before.t
+        velocities = np.zeros_like(caps.segments)
+        known = np.zeros(caps.count, dtype=bool)
+        for i, key in enumerate(zip(frame.people, frame.names)):
+            j = index.get(key)
+            if j is not None:
+                velocities[i] = (frame.segments[i] - before.segments[j]) / dt
+                known[i] = True
+        return HumanCapsules(caps.segments, caps.radii, velocities, known)
 
     def phase(self, t: float) -> str:
         f = self.frame(t)

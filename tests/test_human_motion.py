@@ -39,12 +39,21 @@ def test_both_formats_give_the_same_people_dropouts_and_empty_frames():
     assert a[1].dropout and a[2].segments.shape == (0, 2, 3) and not a[2].dropout
 
 
+def test_a_recorded_motion_measures_velocities_from_frame_to_frame_like_a_tracker():
+    doc = {"schema": "hrc-human-motion/1", "frames": [
+        {"t": 0.0, "people": [{"id": "a", "capsules": [{"name": "torso", "a": [0, 0, 0], "b": [0, 0, 1], "radius": 0.2}]}]},
+        {"t": 0.5, "people": [{"id": "a", "capsules": [{"name": "torso", "a": [0.5, 0, 0], "b": [0.5, 0, 1], "radius": 0.2}]},
+                              {"id": "b", "capsules": [{"name": "torso", "a": [2, 0, 0], "b": [2, 0, 1], "radius": 0.2}]}]}]}
+    later = RecordedMotion(parse_json(json.dumps(doc))).at(0.6)
+    assert np.allclose(later.velocities[0], [[1.0, 0, 0], [1.0, 0, 0]]) and later.velocity_known.tolist() == [True, False]
+
+
 def test_a_recorded_motion_holds_each_frame_and_is_silent_in_a_dropout():
     motion = RecordedMotion(parse_json(json.dumps(DOC)))
     assert motion.duration == pytest.approx(0.7) and motion.people() == ["alice", "bob"]
     first = motion.at(0.2)
     assert first.count == 3 and np.allclose(first.segments[0], [TORSO_A, TORSO_B])
-    assert not first.velocity_known.any()              # a recording has no velocities: the tracker measures them
+    assert not first.velocity_known.any()              # the first frame: no velocities yet (ISO speeds apply)
     assert motion.at(0.5) is None and motion.at(0.69) is None       # dropout: nothing is sent
     assert motion.at(0.7).count == 0 and motion.at(99.0).count == 0  # nobody, and held after the end
     assert motion.phase(0.0) == "two people" and motion.phase(0.6) == "tracker dropout"
