@@ -20,7 +20,6 @@ viewer), and the logger connects to it there. Messages are logged as they arrive
 from __future__ import annotations
 
 import subprocess
-import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path

@@ -170,6 +170,11 @@ class RobotModel:
         return place_points(world, self._point_local, self._point_joint).reshape(len(self.capsules), 2, 3)
 
     @property
+    def ancestry(self) -> np.ndarray:
+        """(P, nq): 1 where joint k moves end point p (the compiled Jacobians take it with ``chain``)."""
+        return self._ancestry
+
+    @property
     def chain(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The arrays the compiled kinematics take: joint placements, parents, end points, their joints."""
         return self._joint_placement, self._parent, self._point_local, self._point_joint

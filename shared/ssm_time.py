@@ -122,7 +122,7 @@ class SsmTimeCost:
         what a time law adds: v/(2a) to start from rest (from_rest) and again to come to rest (a trapezoid's
         L/v + v/a), and at each corner the time to change the joint velocities, |dv| / (2 a) for the slowest joint."""
         w = np.asarray(waypoints, dtype=float)
-        vmax, amax = self.limits.velocity, self.limits.acceleration
+        amax = self.limits.acceleration
         q_parts, dq_parts, dt_parts = [], [], []
         velocities = []
         for a, b in zip(w[:-1], w[1:]):
@@ -167,7 +167,7 @@ class SsmTimeCost:
         placement, parent, local, joint = r.chain
         ssm, o = self.ssm, self.options
         total = _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
-                                placement, parent, local, joint, r._ancestry, r.radii, humans.segments,
+                                placement, parent, local, joint, r.ancestry, r.radii, humans.segments,
                                 humans.radii, humans.velocities, humans.velocity_known, ssm.horizon,
                                 ssm.fixed_distance, ssm.human_near_distance, ssm.human_speed_near,
                                 ssm.human_speed_far, ssm.tracking_margin,
