@@ -76,21 +76,15 @@ class Scaler:
 
     def _take_pending(self) -> None:
         msg, self.pending = self.pending, None
-        traj = trajectory_from_msg(msg)
-        layer = self.layer
-        if msg.base_version == -1:
-            if self.joint_q is None or np.abs(traj.positions[0] - self.joint_q).max() > START_TOLERANCE:
-                self.shell.log.warning("trajectory %d not taken: the robot is not at its start", msg.version)
-                return
-            layer.set_trajectory(traj, 0.0)
-            layer.sdot = 0.0
-        elif msg.base_version == self.version and layer.s <= msg.junction + 1e-9:
-            sdot = layer.sdot
-            layer.set_trajectory(traj, layer.s)
-            layer.sdot = sdot
+        fresh = msg.base_version == -1
+        if not fresh and msg.base_version != self.version:
+            why = f"merged into version {msg.base_version}, not the followed {self.version}"
+        elif fresh and self.joint_q is None:
+            why = "the robot's position is not known yet"
         else:
-            self.shell.log.warning("trajectory %d not taken: junction %.3f already passed (s = %.3f)",
-                                   msg.version, msg.junction, layer.s)
+            why = self.layer.take(trajectory_from_msg(msg), fresh, msg.junction, self.joint_q, START_TOLERANCE)
+        if why is not None:
+            self.shell.log.warning("trajectory %d not taken: %s", msg.version, why)
             return
         self.version = msg.version
         self.shell.log.info("following trajectory %d (%s)", msg.version, msg.reason)

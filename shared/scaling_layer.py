@@ -169,6 +169,25 @@ class ScalingLayer:
         self.s = float(min(max(s, 0.0), trajectory.duration))
         self.beta = False
 
+    def take(self, trajectory: Trajectory, from_rest: bool, junction: float, q_here: np.ndarray | None,
+             start_tolerance: float) -> str | None:
+        """The one rule for taking a new trajectory without a jump (the scaler service and the simulation):
+        one planned from rest (a fresh plan) only while the robot is at its start (within start_tolerance,
+        rad), from s = 0 at rest; a merged one only while the follower has not passed its junction, at
+        the same s and path speed (q_here is not needed then). None when taken, else why not."""
+        if from_rest:
+            if q_here is None:
+                return "the robot's position is not known"
+            if np.abs(trajectory.positions[0] - np.asarray(q_here)).max() > start_tolerance:
+                return "the robot is not at its start"
+            self.set_trajectory(trajectory, 0.0)
+            self.sdot = 0.0
+            return None
+        if self.s > junction + 1e-9:
+            return f"junction {junction:.3f} already passed (s = {self.s:.3f})"
+        self.set_trajectory(trajectory, self.s)
+        return None
+
     def hold(self, q: np.ndarray, version: int = -1) -> None:
         """Stand still at q (a one-knot-interval trajectory of zero motion)."""
         q = np.asarray(q, dtype=float)

@@ -39,6 +39,8 @@ from shared.scenarios import ScriptedHuman
 from shared.ssm import pair_ssm
 from shared.trajectory import straight_line_trajectory
 
+START_TOLERANCE = 1e-3   # rad: the simulated robot is exactly on its path (the scaler allows 0.02 for the drives)
+
 
 @dataclass
 class SimRecord:
@@ -187,19 +189,9 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
 
     def take(t: float, res, reason: str, elapsed: float) -> None:
-        if res.from_rest:
-            here = layer.trajectory.sample(layer.s)[0]
-            if np.abs(here - res.trajectory.positions[0]).max() > 1e-3:
-                return                                    # the robot has moved on: not taken
-            layer.set_trajectory(res.trajectory, s=0.0)
-            layer.sdot = 0.0
-        elif layer.s <= res.junction + 1e-9:
-            sdot = layer.sdot
-            layer.set_trajectory(res.trajectory, s=layer.s)
-            layer.sdot = sdot
-        else:
-            return
-        log_replan(ReplanEvent(t, reason, True, elapsed, res.detail))
+        here = layer.trajectory.sample(layer.s)[0]
+        if layer.take(res.trajectory, res.from_rest, res.junction, here, START_TOLERANCE) is None:
+            log_replan(ReplanEvent(t, reason, True, elapsed, res.detail))
 
     for k in range(int(round(duration / period))):
         t = k * period

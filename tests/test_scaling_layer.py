@@ -131,3 +131,24 @@ def test_no_trajectory_commands_nothing():
     lay = ScalingLayer(ROBOT)
     step = lay.step(NOBODY, 0.0, q_measured=Q_START)
     assert step.status is StepStatus.NO_TRAJECTORY and np.allclose(step.q_command, Q_START)
+
+
+def test_one_rule_takes_a_new_trajectory_without_a_jump():
+    from shared.trajectory import straight_line_trajectory
+
+    robot = default_robot()
+    lim = robot.limits
+    a, b = np.zeros(6), np.full(6, 0.5)
+    layer = ScalingLayer(robot, SsmParameters(), ScalingParameters())
+    old = straight_line_trajectory(a, b, lim.velocity, lim.acceleration, version=1)
+    layer.set_trajectory(old)
+    layer.s, layer.sdot = 0.3, 0.8
+    merged = straight_line_trajectory(a, b, lim.velocity, lim.acceleration, version=2)
+    assert layer.take(merged, False, junction=0.5, q_here=None, start_tolerance=0.02) is None
+    assert layer.trajectory is merged and (layer.s, layer.sdot) == (0.3, 0.8)      # same s, same speed
+    assert "already passed" in layer.take(old, False, junction=0.1, q_here=None, start_tolerance=0.02)
+    fresh = straight_line_trajectory(b, a, lim.velocity, lim.acceleration, version=3)
+    assert layer.take(fresh, True, 0.0, q_here=a, start_tolerance=0.02) == "the robot is not at its start"
+    assert layer.trajectory is merged
+    assert layer.take(fresh, True, 0.0, q_here=b + 0.01, start_tolerance=0.02) is None
+    assert layer.trajectory is fresh and (layer.s, layer.sdot) == (0.0, 0.0)      # from rest, at its start
