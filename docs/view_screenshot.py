@@ -1,10 +1,10 @@
 """Takes docs/view.png: a run's recording.rrd in rerun's web viewer, served on loopback, photographed by a
-headless Chromium at the run's last moment (end a demo where the picture should be: `--duration`).
+headless Chromium at a moment of the run (--at: typed into the viewer's time field; default the end).
 Tools beyond the project's own: Debian's chromium and the playwright package (`pip install playwright`;
 it drives the system's Chromium and downloads nothing).
 
-    .venv/bin/hrc demo --duration 15.5 --out /tmp/view-run
-    .venv/bin/python docs/view_screenshot.py /tmp/view-run/recording.rrd docs/view.png
+    .venv/bin/hrc demo --duration 16 --out /tmp/view-run
+    .venv/bin/python docs/view_screenshot.py /tmp/view-run/recording.rrd docs/view.png --at 14.2
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("recording", type=Path)
     parser.add_argument("out", type=Path)
+    parser.add_argument("--at", type=float, default=None, help="seconds into the run to show (default: the end)")
     parser.add_argument("--wait", type=float, default=30.0, help="seconds to let the viewer load (software GL)")
     args = parser.parse_args()
     from playwright.sync_api import sync_playwright
@@ -46,6 +47,12 @@ def main() -> int:
             page = browser.new_page(viewport={"width": 1500, "height": 850})
             page.goto(url)
             time.sleep(args.wait)
+            if args.at is not None:
+                page.mouse.click(1420, 835)                       # the time panel's time field
+                page.keyboard.press("Control+A")
+                page.keyboard.type(f"+{args.at:.3f}s")
+                page.keyboard.press("Enter")
+                time.sleep(8.0)
             page.screenshot(path=str(args.out))
             browser.close()
     finally:
