@@ -230,6 +230,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def _demo_processes(args: argparse.Namespace, human) -> int:
     from services import demo
+    from services.launch import free_port
     from shared.config import load_config
     from shared.robot_model import default_robot
 
@@ -237,7 +238,6 @@ def _demo_processes(args: argparse.Namespace, human) -> int:
         raise UsageError("--no-planner needs --sim (the running cell always has its planner)")
     if args.scene is not None:
         raise UsageError("--scene needs --sim (the planner service reads deploy/scene.yaml)")
-    from services.launch import free_port
     config = load_config(args.config)              # a bad file is refused here, before anything starts
     server = None
     if args.view and args.view_fd is None:         # the viewer is served here, on this side of any namespace
@@ -521,8 +521,14 @@ def cmd_view(args: argparse.Namespace) -> int:
     from services.cell import reenter_argv
     from services.view import ViewServer
 
-    if args.pipe_fd is not None or args.save is not None:
+    if args.pipe_fd is not None:
         return _view_log(args)
+    if args.save is not None:               # logging to a file: here, or inside the cell's namespace
+        inner = None if os.environ.get("HRC_IN_CELL") else reenter_argv(
+            args.prefix, [sys.executable, "-m", "services.cli", *args.argv])
+        if inner is None:
+            return _view_log(args)
+        return subprocess.call(inner, env=dict(os.environ, HRC_IN_CELL="1"))
     _check_port("--web-port", args.web_port)
     _check_port("--grpc-port", args.grpc_port)
     server = ViewServer(args.grpc_port, args.web_port)
