@@ -189,8 +189,8 @@ class Replanner:
     def path(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, waited: float = 0.0,
              from_rest: bool = True) -> np.ndarray:
         """Waypoints (K, 6) of the path the search finds fastest under the SSM, every segment free of the
-        scene and the people (never closer to them than the ends already are); RRT-Connect seeds the search where no simple detour is free (raises
-        PlanningError when nothing is found)."""
+        scene and the people (never closer to them than the ends already are); RRT-Connect seeds a second
+        search where no simple detour is free (raises PlanningError when nothing is found)."""
         q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
         direct = np.vstack([q_from, q_goal])
         inflation = self._capped(0.0, direct, humans)      # < 0 where a person has come closer already
@@ -201,6 +201,7 @@ class Replanner:
         found = self.search.search(q_from, q_goal, humans, rng, stay, (direct,), from_rest, inflation)
         if found is None:
             rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=self.options.rrt_budget)
+            self.searches += 1
             found = self.search.search(q_from, q_goal, humans, rng, stay, (rrt,), from_rest, inflation)
             if found is None:                               # out of time before reaching it: it is free
                 return rrt
