@@ -13,8 +13,10 @@ speed when untracked). An exceedance: n . v_r > max(v_r_max(d, v_h), 0) + tolera
 the robot's point still approaches (n . v_r > tolerance; a person who walks into a robot that has
 stopped, or that is moving away, is not the robot's approach: SSM governs the robot's motion). ``ReactionWindow`` then counts
 a speed exceedance as a violation only when the robot does not react and brake as the formula assumes
-(within T_r, then to a stop within T_s). (Overlapping capsules give no meaningful direction, coal's penetration
-witness points being arbitrary: there any motion of the robot's point counts as approaching.)
+(within T_r, then to a stop within T_s). Where the capsules overlap, coal's witness points lie inside the
+other shape, so the direction between them is flipped back to point from the robot towards the human;
+only where the two points coincide (no direction at all) does any motion of the robot's point count as
+approaching.
 
 ``SafetyMonitor.check_batch`` is the same rule for many states at once, as the monitor service runs it so
 that it never falls behind: pinocchio for each state's link frames and twists, then one vectorised numpy

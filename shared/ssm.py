@@ -227,8 +227,10 @@ def pair_ssm(robot_segments: np.ndarray, robot_radii: np.ndarray, robot_velociti
     robot -> human direction (a rigid segment's point velocities are affine along it, so the ends bound
     every point); the human's is the largest projection of its end-point velocities on the opposite
     direction, never below zero, or the ISO 13855 speed where the tracker has no velocity. Where the two
-    axes touch, no direction exists and full speeds count as approach. Both the scaling layer (velocities
-    along the planned path) and the safety monitor (measured velocities) use this one computation.
+    axes touch, no direction exists and full speeds count as approach. The scaling layer (velocities along
+    the planned path), the planning layer's time cost, the simulation's conservative bound and the 3D
+    view use this one computation; the independent monitor deliberately does not (shared.monitor: coal
+    distances, the actual closest points).
     """
     out = _pair_ssm_kernel(robot_segments, robot_radii, np.ascontiguousarray(robot_velocities), humans.segments,
                            humans.radii, humans.velocities, humans.velocity_known, params.horizon,
