@@ -323,6 +323,17 @@ class Replanner:
         return ReplanResult(traj, s_now, reason, time.perf_counter() - started,
                             self.predicted_time(traj, 0.0, humans, waited), from_rest=True)
 
+    def _baseline(self, old: Trajectory, s_now: float, humans: HumanCapsules | None, waited: float,
+                  at_rest: bool) -> float:
+        """The old trajectory's predicted time from s_now, like the new one's: a robot at rest must first
+        get back to the old nominal speed (v / 2a more than the prediction at that speed), as a new
+        trajectory from rest has to."""
+        baseline = self.predicted_time(old, s_now, humans, waited)
+        if at_rest:
+            v = np.abs(old.sample(float(s_now))[1])
+            baseline += float(np.max(v / (2.0 * self.limits.acceleration)))
+        return baseline
+
     def _decide(self, result: ReplanResult, baseline: float, gain: float, started: float, what: str) -> ReplanResult:
         """Keep the new trajectory when its prediction beats the old one's by `gain`, else ReplanFailed;
         either way the reason carries both predicted times."""
@@ -365,8 +376,9 @@ class Replanner:
         if check.first_infeasible in (None, 0) or self.passing(old, s_now, check, humans):
             return None
         blocked = float(check.s[check.first_infeasible])
-        baseline = self.predicted_time(old, s_now, humans, waited)
-        if speed_now is not None and speed_now < self.options.rest_speed:
+        at_rest = speed_now is not None and speed_now < self.options.rest_speed
+        baseline = self._baseline(old, s_now, humans, waited, at_rest)
+        if at_rest:
             result = self._rest_plan(old, s_now, q_goal, humans, "horizon", waited)
         else:
             s_branch = check.last_feasible_s
@@ -386,8 +398,9 @@ class Replanner:
         is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
         new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time)."""
         started = time.perf_counter()
-        baseline = self.predicted_time(old, s_now, humans, waited)
-        if speed_now is not None and speed_now < self.options.rest_speed:
+        at_rest = speed_now is not None and speed_now < self.options.rest_speed
+        baseline = self._baseline(old, s_now, humans, waited, at_rest)
+        if at_rest:
             result = self._rest_plan(old, s_now, q_goal, humans, "beta", waited)
         else:
             v_now = old.sample(float(s_now))[1]
