@@ -15,6 +15,8 @@ import pytest
 from services.cell import CONF, cell_pid, run_dir
 from tests.util import free_port, require_namespace
 
+pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -14,6 +14,8 @@ from shared.messages import Goal, HumanRaw, JointState, decode, encode
 from shared.zenoh_session import open_session
 from tests.util import free_port
 
+pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
+
 ROOT = Path(__file__).resolve().parents[1]
 KEYS = KeySpace("clitest/cell")
 

@@ -13,6 +13,8 @@ import pytest
 
 from tests.util import require_namespace
 
+pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -24,6 +24,8 @@ from shared.humans import HumanCapsules
 from shared.monitor import SafetyMonitor
 from tests.util import free_port, require_namespace
 
+pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

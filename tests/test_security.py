@@ -23,6 +23,8 @@ from shared.pki import TlsIdentity, make_cell_pki
 from shared.zenoh_session import await_liveliness, check_endpoints, make_config, open_session
 from tests.util import free_port
 
+pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
+
 ROOT = Path(__file__).resolve().parents[1]
 KEYS = KeySpace("hrc/cell1")
 Q = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])

@@ -11,6 +11,8 @@ from shared.errors import ConfigError
 from shared.zenoh_session import check_endpoints, open_session
 from tests.util import free_port
 
+pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
