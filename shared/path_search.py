@@ -77,6 +77,8 @@ class PathSearch:
         return all(col.motion_free(a, b, humans, inflation)[0] for a, b in zip(waypoints[:-1], waypoints[1:]))
 
     def _detours(self, q_from: np.ndarray, q_goal: np.ndarray, rng: np.random.Generator, count: int) -> list[np.ndarray]:
+        """`count` random detours: the straight line with a joint offset (radius cycling through
+        options.radii) at one point, over a stretch (a plateau), or taken at once; within the limits."""
         radii = np.asarray(self.options.radii)
         lower, upper = self.limits.lower, self.limits.upper
         out = []
@@ -135,7 +137,7 @@ class PathSearch:
         labelled += [("escape", w) for w in self._escapes(q_from, q_goal, humans, rng)]
         labelled += [("detour", w) for w in self._detours(q_from, q_goal, rng, self.options.candidates)]
         costs = []
-        for label, w in labelled:
+        for _, w in labelled:
             if costs and out_of_time() and len(costs) > len(seeds):
                 break
             costs.append(cost(w))
@@ -160,7 +162,7 @@ class PathSearch:
             if inner <= 0:
                 break
             trial = waypoints.copy()
-            if k % 4 == 3 and inner > 0:                         # drop a waypoint
+            if k % 4 == 3:                                       # drop a waypoint
                 trial = np.delete(trial, 1 + int(rng.integers(inner)), axis=0)
             else:
                 i = 1 + int(rng.integers(inner))
