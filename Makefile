@@ -19,9 +19,11 @@ demo: $(STAMP)
 	$(BIN)/hrc demo
 
 test: $(STAMP)
+	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 
 check: $(STAMP)
+	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q -m "not cell"
 
 bench: $(STAMP)

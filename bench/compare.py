@@ -2,7 +2,8 @@
 seeded scenarios in the deterministic simulation (shared.sim, shared.strategies; not a test: it prints
 figures). Scenario kinds: the paper's four phases, a person crossing at 1.6 m/s, a person standing in
 the path, two people, random walks near the robot. Per strategy: shuttles per minute (over all scenarios),
-time stopped (shuttles count fractionally: the part of the current shuttle's path done at the end), the smallest margin to the limit (conservative end-point bound, m), and violations counted
+time stopped (shuttles count fractionally: the part of the current shuttle's path done at the end), the
+smallest margin to the limit (conservative end-point bound, m), and violations counted
 by the independent monitor's rule. The full architecture pays its planning time on the simulated clock.
 Prints progress with an estimate of the time left. Writes a plot (compare.png) into --out. The last line
 is one JSON object (overall and per kind: "kinds": {kind: {strategy: shuttles per minute}}).

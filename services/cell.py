@@ -3,7 +3,8 @@
 Where the kernel has no CAN the bus is udp_multicast, which may only run in a private network namespace:
 `up` then starts supervisord under `unshare -n` (root) or `unshare -rn` (only lo, multicast on, a route
 on lo) and writes the namespace's PID to <run>/cell.pid. Every other `hrc` command run outside it
-re-enters that namespace with nsenter (`reenter_argv`), so it reaches the cell's loopback Zenoh. `down` ends supervisord by that
+re-enters that namespace with nsenter (`reenter_argv`), so it reaches the cell's loopback Zenoh. `down` ends
+supervisord by that
 PID, and supervisord stops every service cleanly.
 """
 

@@ -103,7 +103,8 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
         "kill_planner": carry_on, "kill_safety_monitor": carry_on,
         "can_drop": Expectation("any", None, "lost frames: the drive lags or faults; either is safe"),
         "human_jump": Expectation("slow", config.ssm.reaction_time,
-                                  f"the scaler takes the nearer person within T_r = {config.ssm.reaction_time * 1e3:.0f} ms"),
+                                  "the scaler takes the nearer person within T_r = "
+                                  f"{config.ssm.reaction_time * 1e3:.0f} ms"),
         "human_glitch": Expectation("any", None, "a glitch away must not speed the robot up (judged against the "
                                                  f"true person over T_r + T_s = {horizon * 1e3:.0f} ms windows)"),
     }
@@ -386,7 +387,8 @@ def time_left(done: int, total: int, elapsed: float) -> str:
 
 
 def run_campaign(prefix: str, endpoint: str, interface: str, channel: str | None, config: CellConfig,
-                 robot: RobotModel, names: list[str], out: Path | None, say: Callable[[str], None] = print) -> list[FaultVerdict]:
+                 robot: RobotModel, names: list[str], out: Path | None,
+                 say: Callable[[str], None] = print) -> list[FaultVerdict]:
     campaign = Campaign(prefix, endpoint, interface, channel, config, robot, say)
     verdicts = []
     started = time.monotonic()

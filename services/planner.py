@@ -211,7 +211,8 @@ def main(argv: list[str] | None = None) -> int:
     except (PlanningError, TimingError):
         pass
     service = PlannerService(shell, replanner, beta_replans=not args.no_beta)
-    return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, keys {shell.keys.prefix}/",
+    return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, "
+                        f"keys {shell.keys.prefix}/",
                  service.run, on_stop=service.wake.set)
 
 if __name__ == "__main__":

@@ -11,7 +11,8 @@ Motions are checked by *conservative advancement*: along the straight joint-spac
 at most D_i dt with D_i = sum_k |dq_k| reach_ik (reach_ik bounds the lever arm of joint k on link i in
 every configuration), and the links of a self pair move relative to each other only through the joints
 that move exactly one of them; so from a point whose link clearances are c_i (and pair clearances c_p)
-the next min(c_i / D_i, c_p / D_p) of the segment cannot close any gap, and is skipped. Guarantee: a motion reported free keeps
+the next min(c_i / D_i, c_p / D_p) of the segment cannot close any gap, and is skipped. Guarantee: a motion reported
+free keeps
 every clearance above zero at every point of the segment, whatever the size of the obstacle (nothing
 thin can be stepped over); a motion is reported blocked when the clearance falls to the tolerance.
 All kernels are compiled: OMPL calls them thousands of times per plan.

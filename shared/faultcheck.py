@@ -60,7 +60,8 @@ class FaultVerdict:
     needed: the fault is outside the chain that keeps the robot safe, which goes on working, or either a
     stop or going on is safe). stop_s: measured injection -> standstill (None: not observed). detected_s:
     injection -> the first protective reaction seen (a driver stop event, an EMCY, the scaler's alpha at
-    0). back: the service is running again (restarted under the supervisor, or resumed). resumed_s: lift -> the next completed
+    0). back: the service is running again (restarted under the supervisor, or resumed). resumed_s: lift -> the next
+    completed
     shuttle. t_inject: when (s since the campaign began; its logs are stamped). violations: the monitor
     service's reports plus the check against the true human."""
 

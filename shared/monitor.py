@@ -92,7 +92,8 @@ class SafetyMonitor:
         """check() for many measured states (N, 6), each against its own human state, vectorised: states
         that share a human state (the usual case: several joint states per tracker sample) are checked
         together. The same results as check(), to rounding (tested)."""
-        qs, qds = np.asarray(qs, dtype=float).reshape(-1, self.model.nq), np.asarray(qds, dtype=float).reshape(-1, self.model.nq)
+        qs = np.asarray(qs, dtype=float).reshape(-1, self.model.nq)
+        qds = np.asarray(qds, dtype=float).reshape(-1, self.model.nq)
         results: list[MonitorResult | None] = [None] * qs.shape[0]
         groups: dict[int, list[int]] = {}
         for k, h in enumerate(humans):

@@ -42,7 +42,8 @@ CELL_BUDGET = 0.08   # s of wall clock per search in the planner service (the si
 class SearchOptions:
     """candidates: random detours costed per search; refinements: perturbations of the winner;
     radii (rad): the scales of the detours' joint offsets; escape_directions: random joint directions
-    weighed for leaving the people's slowdown first, escape_best of them tried (``_escapes``); time_budget (s): wall-clock bound (None:
+    weighed for leaving the people's slowdown first, escape_best of them tried (``_escapes``); time_budget (s):
+    wall-clock bound (None:
     bounded by the counts only, the same result for the same seed)."""
 
     candidates: int = 120

@@ -11,7 +11,8 @@ Safety rules kept here:
 * the SSM rows are hard; acceleration limits take a slack;
 * beta (replan request) follows the *safe* bound on alpha, not alpha itself, so the acceleration ramp
   after a stop never asks for a replan (the bound includes the check of where the command leads, so a
-  robot held at the start of a path from rest, whose tangent there is zero, asks too); it rises at bound <= alpha_min and falls at bound >= alpha_release
+  robot held at the start of a path from rest, whose tangent there is zero, asks too); it rises at bound <= alpha_min
+  and falls at bound >= alpha_release
   (hysteresis), and is never raised while stopped for missing data (a new plan cannot fix that);
 * a stop is the fastest the drives can make along the path: the path speed falls by at most what the
   drives' deceleration allows in one period (``braking_floor``), so every command is one the drives

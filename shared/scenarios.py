@@ -3,7 +3,8 @@
 A body is a torso, a head and one reaching arm (upper arm + forearm with the hand), placed by the torso's
 floor position (x, y), a reach fraction in [0, 1] that swings the arm from hanging down to pointing at a
 target, and a lean in [0, 1] that bends the upper body towards the target (shoulders up to 0.35 m
-forward and 0.3 m lower), so that a person can put an arm across the robot's path. Keyframes are linearly interpolated in time; end-point velocities are the exact derivative
+forward and 0.3 m lower), so that a person can put an arm across the robot's path. Keyframes are linearly
+interpolated in time; end-point velocities are the exact derivative
 of that motion (central difference over 1 ms), so a scripted human has "tracked" velocities.
 """
 

@@ -12,7 +12,8 @@ braking at the drives' limit, `braking_cycles`) whose conservative end-point bou
 all. The robot is taken to follow its command exactly: the commands are followable by construction
 (the scaling layer slows down no faster than the drives can brake), and the drive model itself comes
 with the CAN emulator. With charge_planning, the planner's compute time (measured, or a fixed time per
-path search, which keeps runs repeatable) passes on the simulated clock before its result is used (the robot keeps executing the old trajectory meanwhile, and a new shuttle,
+path search, which keeps runs repeatable) passes on the simulated clock before its result is used (the robot keeps
+executing the old trajectory meanwhile, and a new shuttle,
 planned in the cycle its predecessor ends, waits for its plan); without it, results are used in the
 cycle that asked for them. The predictions are told how long the scaling layer has been asking for a
 replan (HoldClock), as the planner service tells them.

@@ -26,7 +26,8 @@ def cell():
     session = open_session("peer", listen=[f"tcp/127.0.0.1:{port}"])
     received = {"goal": [], "raw": []}
     subs = [session.declare_subscriber(KEYS.goal, lambda s: received["goal"].append(decode(s.payload.to_bytes(), Goal))),
-            session.declare_subscriber(KEYS.human_raw, lambda s: received["raw"].append(decode(s.payload.to_bytes(), HumanRaw)))]
+            session.declare_subscriber(KEYS.human_raw,
+                                       lambda s: received["raw"].append(decode(s.payload.to_bytes(), HumanRaw)))]
     tokens = [session.liveliness().declare_token(KEYS.alive(name)) for name in ("planner", "tracker_ingest")]
     yield port, received, session
     for t in tokens:

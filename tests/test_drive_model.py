@@ -115,7 +115,6 @@ def test_the_window_and_time_out_decide_when_it_trips():
 
 def test_time_to_trip_is_the_time_out_after_leaving_the_window():
     d = enabled_drive()
-    _, err, codes = [], [], []
     times = []
     for k in range(20):
         d.on_setpoint(to_counts(0.5))

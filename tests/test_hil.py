@@ -18,7 +18,8 @@ from tests.util import require_namespace
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
 
 HARNESS = Path(__file__).parent / "hil" / "harness.py"
-SCENARIOS = ["enable", "follow", "fast_following", "stale_command", "heartbeat_loss", "drive_fault", "frozen_node", "dropped_frames",
+SCENARIOS = ["enable", "follow", "fast_following", "stale_command", "heartbeat_loss", "drive_fault", "frozen_node",
+             "dropped_frames",
              "bad_messages", "emulator_watchdog", "garbage_frames"]
 
 

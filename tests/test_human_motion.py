@@ -42,7 +42,8 @@ def test_both_formats_give_the_same_people_dropouts_and_empty_frames():
 def test_a_recorded_motion_measures_velocities_from_frame_to_frame_like_a_tracker():
     doc = {"schema": "hrc-human-motion/1", "frames": [
         {"t": 0.0, "people": [{"id": "a", "capsules": [{"name": "torso", "a": [0, 0, 0], "b": [0, 0, 1], "radius": 0.2}]}]},
-        {"t": 0.5, "people": [{"id": "a", "capsules": [{"name": "torso", "a": [0.5, 0, 0], "b": [0.5, 0, 1], "radius": 0.2}]},
+        {"t": 0.5, "people": [{"id": "a", "capsules": [{"name": "torso", "a": [0.5, 0, 0], "b": [0.5, 0, 1],
+                                                        "radius": 0.2}]},
                               {"id": "b", "capsules": [{"name": "torso", "a": [2, 0, 0], "b": [2, 0, 1], "radius": 0.2}]}]}]}
     later = RecordedMotion(parse_json(json.dumps(doc))).at(0.6)
     assert np.allclose(later.velocities[0], [[1.0, 0, 0], [1.0, 0, 0]]) and later.velocity_known.tolist() == [True, False]

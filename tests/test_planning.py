@@ -155,7 +155,8 @@ def test_keep_or_replace_compares_both_trajectories_under_the_same_stay():
     with pytest.raises(ReplanFailed, match=r"predicted \d+\.\d\d s, not 10 % faster than the old \d+\.\d\d s"):
         replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, waited=0.0)
     result = replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, waited=2.0)
-    assert result.reason == "beta" and f"predicted {result.predicted:.2f} s instead of {result.baseline:.2f} s" in result.detail
+    assert result.reason == "beta"
+    assert f"predicted {result.predicted:.2f} s instead of {result.baseline:.2f} s" in result.detail
     assert result.predicted == pytest.approx(replanner.predicted_time(result.trajectory, 0.3, STANDING, 2.0))
     assert result.baseline == pytest.approx(replanner.predicted_time(OLD, 0.3, STANDING, 2.0))
     assert result.predicted <= 0.9 * result.baseline

@@ -34,7 +34,8 @@ def test_straight_up_pose_by_hand(robot):
     # At q = 0 the arm stands straight up: the flange is L0 + L1 + L2 + L3 above the base.
     assert robot.frame_position(np.zeros(6), "prbt_flange") == pytest.approx([0, 0, 0.2604 + 0.35 + 0.307 + 0.084])
     # Joint 2 at +90 deg lays the arm along +x at the height of joint 2: reach 0.35 + 0.307 + 0.084.
-    assert robot.frame_position(np.array([0, PI2, 0, 0, 0, 0.0]), "prbt_flange") == pytest.approx([0.741, 0, 0.2604], abs=1e-9)
+    flange = robot.frame_position(np.array([0, PI2, 0, 0, 0, 0.0]), "prbt_flange")
+    assert flange == pytest.approx([0.741, 0, 0.2604], abs=1e-9)
 
 
 def test_capsules_in_base_frame_at_zero_match_the_facts_sheet(robot):

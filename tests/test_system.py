@@ -1,5 +1,6 @@
 """The robot end, the tracker, the scaling layer and the independent monitor as five processes (emulator,
-robot driver, tracker_ingest, scaler, safety_monitor) over Zenoh and CAN, in a private network namespace. Raw human poses go through
+robot driver, tracker_ingest, scaler, safety_monitor) over Zenoh and CAN, in a private network namespace. Raw human
+poses go through
 tracker_ingest at 240 Hz: a trajectory is followed to its goal at the nominal speed when no one is near,
 a silent tracker (its raw stream stops) brings the robot to a standstill, a person standing beside the
 path slows the robot down without stopping it, and the monitor, having checked every measured joint

@@ -595,11 +595,13 @@ def garbage_everywhere(cell: Cell) -> dict:
             "drift_rad": drift, "goal_after_s": reached}
 
 
-SYSTEM_SCENARIOS = {"garbage_everywhere": garbage_everywhere, "system_goal": system_goal, "system_stale_humans": system_stale_humans,
+SYSTEM_SCENARIOS = {"garbage_everywhere": garbage_everywhere, "system_goal": system_goal,
+                    "system_stale_humans": system_stale_humans,
                     "system_replan": system_replan, "system_near_human": system_near_human,
                     "monitor_report": monitor_report}
 
-SCENARIOS = {"enable": enable, "follow": follow, "fast_following": fast_following, "stale_command": stale_command, "heartbeat_loss": heartbeat_loss,
+SCENARIOS = {"enable": enable, "follow": follow, "fast_following": fast_following, "stale_command": stale_command,
+             "heartbeat_loss": heartbeat_loss,
              "drive_fault": drive_fault, "frozen_node": frozen_node, "dropped_frames": dropped_frames,
              "bad_messages": bad_messages, "emulator_watchdog": emulator_watchdog, "garbage_frames": garbage_frames}
 
