@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from services.launch import free_port  # noqa: E402
-from services.view import rerun_binary  # noqa: E402
+from services.view import no_analytics, rerun_binary  # noqa: E402
 
 CHROMIUM_FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update", "--disable-sync",
                   "--no-first-run", "--disable-quic", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
@@ -35,6 +35,7 @@ def main() -> int:
     args = parser.parse_args()
     from playwright.sync_api import sync_playwright
 
+    no_analytics()                        # the viewer started below inherits it
     grpc, web = free_port(), free_port()
     server = subprocess.Popen([rerun_binary(), "--serve-web", "--bind", "127.0.0.1", "--port", str(grpc),
                                "--web-viewer-port", str(web), str(args.recording)],

@@ -559,6 +559,9 @@ def _view_log(args: argparse.Namespace) -> int:
     from shared.robot_model import default_robot
 
     if args.save is not None:
+        from services.view import no_analytics
+
+        no_analytics()
         import rerun as rr
 
         stream = rr.RecordingStream("hrc-view")

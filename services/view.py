@@ -19,8 +19,10 @@ viewer), and the logger connects to it there. Messages are logged as they arrive
 
 from __future__ import annotations
 
+import json
 import subprocess
 import threading
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +34,30 @@ from shared.robot_model import RobotModel
 from shared.ssm import SsmParameters, pair_ssm
 
 ROBOT_COLOR, GHOST_COLOR = (70, 110, 200, 255), (150, 190, 255, 90)
+_PRIVATE_CONFIG: Path | None = None
+
+
+def no_analytics() -> Path:
+    """rerun's SDK and viewer send anonymous usage analytics to the internet unless told not to: this
+    cell sends nothing beyond loopback. A private rerun configuration with analytics disabled (the file
+    `rerun analytics disable` writes) is used by this process (XDG_CONFIG_HOME and XDG_DATA_HOME, before rerun's
+    first use) and by the viewers it starts, leaving the user's own configuration alone. Returns that
+    directory."""
+    global _PRIVATE_CONFIG
+    if _PRIVATE_CONFIG is None:
+        import os
+        import tempfile
+
+        home = Path(tempfile.gettempdir()) / f"hrc-rerun-{os.getuid()}"
+        config = home / "rerun" / "analytics.json"
+        if not config.exists():                     # the file `rerun analytics disable` writes
+            config.parent.mkdir(parents=True, exist_ok=True)
+            config.write_text(json.dumps({"analytics_enabled": False, "analytics_id": uuid.uuid4().hex,
+                                          "metadata": {}, "config_file_path": str(config),
+                                          "data_dir_path": str(home / "data" / "rerun" / "analytics")}))
+        os.environ.update({"XDG_CONFIG_HOME": str(home), "XDG_DATA_HOME": str(home / "data")})
+        _PRIVATE_CONFIG = home
+    return _PRIVATE_CONFIG
 HUMAN_COLOR, LOST_COLOR = (240, 140, 40, 255), (150, 150, 150, 160)
 
 
@@ -84,6 +110,7 @@ class CellLogger:
     """Logs the cell's messages to a rerun RecordingStream, time from t0 (the senders' monotonic stamps)."""
 
     def __init__(self, stream, robot: RobotModel, ssm: SsmParameters, t0: float) -> None:
+        no_analytics()
         import rerun as rr
 
         self.rr, self.stream, self.robot, self.ssm, self.t0 = rr, stream, robot, ssm, t0
@@ -164,6 +191,7 @@ class CellLogger:
 
 def write_recording(path: Path, robot: RobotModel, ssm: SsmParameters, messages, t0: float) -> int:
     """Every message (any order; sorted by stamp here) into an .rrd file; returns how many were logged."""
+    no_analytics()
     import rerun as rr
 
     stream = rr.RecordingStream("hrc", recording_id=f"hrc-{path.parent.name}")
@@ -200,6 +228,7 @@ class ViewServer:
         import os
 
         self.grpc_port, self.web_port = grpc_port, web_port
+        no_analytics()                              # the viewer inherits the private configuration
         read_fd, self.write_fd = os.pipe()
         self.process = subprocess.Popen([rerun_binary(), "--serve-web", "--bind", "127.0.0.1", "--port",
                                          str(grpc_port), "--web-viewer-port", str(web_port), "-"],
@@ -228,6 +257,7 @@ class ViewServer:
 
 def pipe_stream(fd: int, name: str = "hrc-live"):
     """A rerun RecordingStream written into a pipe to a ViewServer (fd inherited or our own)."""
+    no_analytics()
     import rerun as rr
 
     stream = rr.RecordingStream(name)

@@ -78,3 +78,19 @@ def test_a_recording_holds_every_kind_of_message_and_reads_back(tmp_path):
     assert rows["/scaling/alpha"] == 10 and rows["/scaling/beta"] == 10
     assert rows["/world/ssm/closest"] == 10 and rows["/ssm/approach"] == 10 and rows["/ssm/limit"] == 10
     assert rows["/world/planner/current"] == 1                  # the followed trajectory's path, once
+
+
+def test_rerun_is_told_to_send_no_analytics():
+    """rerun's SDK and viewer would send usage analytics to the internet: the project gives them a private
+    configuration with analytics off, which the viewer binary itself reads back."""
+    import json
+    import os
+    import subprocess
+
+    from services.view import no_analytics, rerun_binary
+
+    home = no_analytics()
+    assert json.loads((home / "rerun" / "analytics.json").read_text())["analytics_enabled"] is False
+    assert os.environ["XDG_CONFIG_HOME"] == str(home)
+    shown = subprocess.run([rerun_binary(), "analytics", "config"], capture_output=True, text=True, timeout=30)
+    assert json.loads(shown.stdout)["analytics_enabled"] is False
