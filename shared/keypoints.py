@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from shared.errors import ConfigError
-from shared.replay import CSV_FIELDS, SCHEMA
+from shared.replay import CSV_FIELDS, SCHEMA, csv_rows, finite
 
 KEYPOINTS = ("head", "l_shoulder", "r_shoulder", "l_elbow", "r_elbow", "l_hand", "r_hand", "l_hip", "r_hip")
 DIAMETER = {"torso": 0.434, "head": 0.434, "upper_arm": 0.200, "forearm": 0.132, "hand": 0.206}   # m
@@ -73,36 +73,18 @@ def body_capsules(points: dict[str, np.ndarray]) -> list[tuple[str, np.ndarray, 
     return out
 
 
-def _number(value: str, where: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{where}: expected a number, got {value!r}") from None
-    if not math.isfinite(number):
-        raise ConfigError(f"{where}: expected a finite number, got {value!r}")
-    return number
-
-
 def read_keypoints(text: str, name: str = "keypoints") -> list[tuple[float, dict[str, dict[str, np.ndarray]]]]:
     """Frames (t, {person: {keypoint: xyz in the input's units and frame}}), in order of t."""
-    reader = csv.reader(io.StringIO(text))
-    header = next(reader, None)
-    if header is None or [h.strip() for h in header] != INPUT_FIELDS:
-        raise ConfigError(f"{name}: line 1: expected the header {','.join(INPUT_FIELDS)}")
+    _, rows = csv_rows(text, name, [INPUT_FIELDS])
     frames: list[tuple[float, dict[str, dict[str, np.ndarray]]]] = []
-    for line, row in enumerate(reader, start=2):
-        if not row or all(not cell.strip() for cell in row):
-            continue
-        where = f"{name}: line {line}"
-        if len(row) != len(INPUT_FIELDS):
-            raise ConfigError(f"{where}: expected {len(INPUT_FIELDS)} values, got {len(row)}")
-        t = _number(row[0], f"{where}: t")
+    for where, row in rows:
+        t = finite(row[0], f"{where}: t")
         person, keypoint = row[1].strip(), row[2].strip()
         if not person:
             raise ConfigError(f"{where}: person: expected a name")
         if not keypoint:
             raise ConfigError(f"{where}: keypoint: expected a name")
-        xyz = np.array([_number(v, f"{where}: {axis}") for v, axis in zip(row[3:], "xyz")])
+        xyz = np.array([finite(v, f"{where}: {axis}") for v, axis in zip(row[3:], "xyz")])
         if frames and t < frames[-1][0]:
             raise ConfigError(f"{where}: t = {t} goes back in time (previous frame at {frames[-1][0]})")
         if not frames or t > frames[-1][0]:

@@ -34,6 +34,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,7 +71,8 @@ class ReplayFrame:
         return HumanCapsules.from_arrays(self.segments, self.radii)
 
 
-def _finite(value, where: str) -> float:
+def finite(value, where: str) -> float:
+    """value as a finite float, else ConfigError naming where."""
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -136,23 +138,35 @@ def _finish(frames: list[_Building], name: str) -> list[ReplayFrame]:
     return [f.frame() for f in frames]
 
 
-def parse_csv(text: str, name: str = "replay") -> list[ReplayFrame]:
+def csv_rows(text: str, name: str, headers: list[list[str]]) -> tuple[list[str], Iterator[tuple[str, list[str]]]]:
+    """The header of a CSV text (one of `headers`, the first named in the error otherwise) and its
+    non-blank rows, each with its place ('name: line N') and checked to hold as many values as the header
+    (the motion files here, the keypoint files of shared.keypoints)."""
     reader = csv.reader(io.StringIO(text))
     header = next(reader, None)
     fields = [h.strip() for h in header] if header is not None else None
-    if fields not in (CSV_FIELDS, CSV_FIELDS_V1):
-        raise ConfigError(f"{name}: line 1: expected the header {','.join(CSV_FIELDS)}")
+    if fields not in headers:
+        raise ConfigError(f"{name}: line 1: expected the header {','.join(headers[0])}")
+
+    def rows() -> Iterator[tuple[str, list[str]]]:
+        for line, row in enumerate(reader, start=2):
+            if not row or all(not cell.strip() for cell in row):
+                continue
+            where = f"{name}: line {line}"
+            if len(row) != len(fields):
+                raise ConfigError(f"{where}: expected {len(fields)} values, got {len(row)}")
+            yield where, row
+    return fields, rows()
+
+
+def parse_csv(text: str, name: str = "replay") -> list[ReplayFrame]:
+    fields, rows = csv_rows(text, name, [CSV_FIELDS, CSV_FIELDS_V1])
     v1 = fields == CSV_FIELDS_V1
     frames: list[_Building] = []
-    for line, row in enumerate(reader, start=2):
-        if not row or all(not cell.strip() for cell in row):
-            continue
-        where = f"{name}: line {line}"
-        if len(row) != len(fields):
-            raise ConfigError(f"{where}: expected {len(fields)} values, got {len(row)}")
-        t = _finite(row[0], f"{where}: t")
+    for where, row in rows:
+        t = finite(row[0], f"{where}: t")
         if v1:
-            values = [_finite(v, f"{where}: {field}") for v, field in zip(row[1:], fields[1:])]
+            values = [finite(v, f"{where}: {field}") for v, field in zip(row[1:], fields[1:])]
             frame = _add(frames, where, t, True)
             _capsule(frame, where, values[:6], values[6], "person", f"capsule {len(frame.segs)}")
             continue
@@ -165,7 +179,7 @@ def parse_csv(text: str, name: str = "replay") -> list[ReplayFrame]:
             continue
         person = _text(person, f"{where}: person")
         capsule = _text(capsule, f"{where}: capsule")
-        values = [_finite(v, f"{where}: {field}") for v, field in zip(row[3:], fields[3:])]
+        values = [finite(v, f"{where}: {field}") for v, field in zip(row[3:], fields[3:])]
         _capsule(_add(frames, where, t, True), where, values[:6], values[6], person, capsule)
     return _finish(frames, name)
 
@@ -173,7 +187,7 @@ def parse_csv(text: str, name: str = "replay") -> list[ReplayFrame]:
 def _point(value, where: str) -> list[float]:
     if not isinstance(value, list) or len(value) != 3:
         raise ConfigError(f"{where}: expected three numbers")
-    return [_finite(v, where) for v in value]
+    return [finite(v, where) for v in value]
 
 
 def parse_json(text: str, name: str = "replay") -> list[ReplayFrame]:
@@ -190,7 +204,7 @@ def parse_json(text: str, name: str = "replay") -> list[ReplayFrame]:
         where = f"{name}: frames[{i}]"
         if not isinstance(raw, dict):
             raise ConfigError(f"{where}: expected an object with \"t\"")
-        frame = _add(frames, where, _finite(raw.get("t"), f"{where}.t"), False)
+        frame = _add(frames, where, finite(raw.get("t"), f"{where}.t"), False)
         label = raw.get("label", "")
         if not isinstance(label, str):
             raise ConfigError(f"{where}.label: expected text, got {label!r}")
@@ -219,7 +233,7 @@ def parse_json(text: str, name: str = "replay") -> list[ReplayFrame]:
                     raise ConfigError(f"{w}: expected {{\"name\", \"a\", \"b\", \"radius\"}}")
                 cname = f"capsule {k}" if v1 else _text(cap.get("name"), f"{w}.name")
                 ab = _point(cap.get("a"), f"{w}.a") + _point(cap.get("b"), f"{w}.b")
-                _capsule(frame, w, ab, _finite(cap.get("radius"), f"{w}.radius"), pid, cname)
+                _capsule(frame, w, ab, finite(cap.get("radius"), f"{w}.radius"), pid, cname)
     return _finish(frames, name)
 
 
