@@ -4,11 +4,12 @@ Each node is a canopen LocalNode built from the drive's EDS (``shared/robot/prbt
 NMT slave, heartbeat producer from 0x1017, EMCY producer) around a pure ``hwsim.drive.Drive``. RPDO1
 (controlword, setpoint) is applied on reception; every SYNC completes each drive's interpolation period
 and sends TPDO1 (statusword, mode display), TPDO2 (position demand 0x6062, following error 0x60F4) and
-TPDO3 (position, velocity actual), the values of the SYNC instant; a timer runs the SYNC watchdog between
-SYNCs. The following error window (0x6065, counts) and time-out (0x6066, ms) are read and written over
-SDO. Every fault is announced by an EMCY with the error register (0x1001) set; a frozen node sends the
-EMCYs of faults it entered while frozen when it is unfrozen. Fault injection through SDO writes to 0x2F00
-(any time):
+TPDO3 (position, velocity actual), the values of the SYNC instant, packed with the mapping's layout
+(shared.pdo_layout); an SDO read of a reported value answers the drive's value at that moment; a timer
+runs the SYNC watchdog between SYNCs. The following error window (0x6065, counts) and time-out (0x6066,
+ms) are read and written over SDO. Every fault is announced by an EMCY with the error register (0x1001)
+set; a frozen node sends the EMCYs of faults it entered while frozen when it is unfrozen. Fault injection
+through SDO writes to 0x2F00 (any time):
 :1 drop that many per mille of the node's frames, :2 heartbeat off, :3 freeze the node (no PDO, no
 heartbeat; SDO still answers so it can be unfrozen), :4 raise a drive fault.
 
@@ -31,6 +32,7 @@ import numpy as np
 
 from hwsim.drive import Drive, DriveLimits
 from shared.canbus import BusError, describe, open_bus
+from shared.pdo_layout import PdoLayout, PdoLayoutError
 from shared.prbt_drive import (COUNTS_PER_RAD, EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register,
                                to_counts)
 from shared.robot_model import default_robot
@@ -38,6 +40,7 @@ from shared.scheduling import realtime
 
 log = logging.getLogger("hwsim")
 WATCHDOG_POLL = 0.005        # s: how often the drives look for a missing SYNC between SYNCs
+REPORTED = {0x6041, 0x6061, 0x6064, 0x606C, 0x606B, 0x6062, 0x60F4}   # answered live (_on_sdo_read)
 
 
 class EmulatedNode:
@@ -65,10 +68,12 @@ class EmulatedNode:
         self.node.sdo[0x6065].raw = to_counts(limits.following_window)
         self.node.sdo[0x6066].raw = int(round(limits.following_timeout * 1000))
         self.node.add_write_callback(self._on_sdo_write)
+        self.node.add_read_callback(self._on_sdo_read)
         self.node.rpdo.read(from_od=True)
         self.node.tpdo.read(from_od=True)
+        self.rpdo1 = PdoLayout.of(self.node.rpdo[1])
+        self.tpdos = {n: PdoLayout.of(self.node.tpdo[n]) for n in (1, 2, 3)}
         self.node.rpdo[1].add_callback(self._on_rpdo1)
-        self._publish()
         network.subscribe(0, self._on_nmt)               # after the NMT slave's own handler
         self._boot()
 
@@ -93,7 +98,11 @@ class EmulatedNode:
     def _on_rpdo1(self, pdo_map) -> None:
         if self._lost():
             return
-        values = {(v.index, v.subindex): v.raw for v in pdo_map}
+        try:
+            values = self.rpdo1.unpack(pdo_map.data)
+        except PdoLayoutError as exc:                    # a frame of the wrong length: as a drive, ignore it
+            log.warning("node %d: %s", self.id, exc)
+            return
         with self.lock:
             if (0x6040, 0) in values:
                 self._emcy(self.drive.on_controlword(int(values[(0x6040, 0)])))
@@ -107,7 +116,6 @@ class EmulatedNode:
                 self._emcy(self.drive.on_controlword(int(value)))
             elif index == 0x6060:
                 self.drive.mode = int(value)
-                self._store(0x6061, 0, int(value))
             elif index == 0x60C1 and subindex == 1:
                 self.drive.on_setpoint(int(value))
             elif index == 0x6065:
@@ -156,34 +164,37 @@ class EmulatedNode:
         obj = obj[subindex] if subindex else obj
         self.node.data_store.setdefault(index, {})[subindex] = obj.encode_raw(value)
 
-    def _publish(self) -> dict[tuple[int, int], int]:
-        """The drive's reported values, stored in the object dictionary and returned for the TPDOs."""
+    def _reported(self) -> dict[tuple[int, int], int]:
+        """The drive's reported values (what the TPDOs carry and an SDO read of them answers)."""
         d = self.drive
-        values = {(0x6041, 0): d.statusword(), (0x6061, 0): d.mode, (0x6064, 0): to_counts(d.position),
-                  (0x606C, 0): to_counts(d.velocity_actual), (0x606B, 0): to_counts(d.velocity),
-                  (0x6062, 0): to_counts(d.position_demand), (0x60F4, 0): to_counts(d.following_error)}
-        for (index, subindex), value in values.items():
-            self._store(index, subindex, value)
-        return values
+        return {(0x6041, 0): d.statusword(), (0x6061, 0): d.mode, (0x6064, 0): to_counts(d.position),
+                (0x606C, 0): to_counts(d.velocity_actual), (0x606B, 0): to_counts(d.velocity),
+                (0x6062, 0): to_counts(d.position_demand), (0x60F4, 0): to_counts(d.following_error)}
+
+    def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
+        """An SDO read of a reported value answers the drive's value now (None: the object dictionary's)."""
+        if index in REPORTED and subindex == 0:
+            with self.lock:
+                return self._reported()[(index, subindex)]
+        return None
 
     def on_sync(self, now: float) -> None:
         if self._lost():
             return
         with self.lock:
             self._emcy(self.drive.on_sync(now))
-            values = self._publish()
+            values = self._reported()
         self.syncs += 1
         if self.node.nmt.state != "OPERATIONAL":
             return
-        for n in (1, 2, 3):
+        for n, layout in self.tpdos.items():
             if 1 <= self.every[n] <= 240 and self.syncs % self.every[n]:
                 continue
-            tpdo = self.node.tpdo[n]
-            for var in tpdo:
-                key = (var.index, var.subindex)
-                var.raw = values[key] if key in values else self.node.sdo[var.index][var.subindex].raw
+            for key in layout.keys:          # an object mapped that the drive does not report: as stored
+                if key not in values:
+                    values[key] = self.node.sdo[key[0]][key[1]].raw
             if not self._lost():
-                tpdo.transmit()
+                self.node.network.send_message(layout.cob_id, layout.pack(values))
 
     def watchdog(self, now: float) -> None:
         if self.frozen:

@@ -48,6 +48,7 @@ from shared.canbus import BusError, describe, open_bus
 from shared.config import load_config
 from shared.errors import HrcError
 from shared.latency import DriveLagMeter, LatencyMeter
+from shared.pdo_layout import PdoLayout, PdoLayoutError
 from shared.messages import (DriveLagReport, DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent,
                              encode)
 from shared.prbt_drive import (EDS_PATH, FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, NODE_IDS, PERIOD, to_counts,
@@ -83,9 +84,10 @@ class CanMaster:
         self.lock = threading.Lock()
         self.send_lock = threading.Lock()          # the cycle and early commands both write RPDO1
         self.identity: list[dict] = []
-        self._setpoint_vars = []
+        self._rpdo1: list[PdoLayout] = []                 # per node, its RPDO1 layout
+        self._rpdo1_values: list[dict] = []               # per node, the values its next RPDO1 carries
         self._fresh: set[int] = set()
-        self._since_sync: dict[int, tuple[int, int]] = {}    # node -> (controlword, setpoint) sent since SYNC
+        self._since_sync: dict[int, bytes] = {}       # node -> the RPDO1 data sent to it since the last SYNC
         self.on_complete = None            # called (from the CAN thread) once every drive answered a SYNC
         self.completed = False             # set with each complete answer; the cycle clears it
 
@@ -108,11 +110,12 @@ class CanMaster:
             node.tpdo.save()
             node.rpdo.save()
             for n in (1, 2, 3):
-                node.tpdo[n].add_callback(lambda m, k=k: self._on_tpdo(k, m))
+                layout = PdoLayout.of(node.tpdo[n])
+                node.tpdo[n].add_callback(lambda m, k=k, layout=layout: self._on_tpdo(k, layout, m))
             node.nmt.add_heartbeat_callback(lambda state, k=k: self._on_heartbeat(k))
             node.emcy.add_callback(lambda entry, k=k: self._on_emcy(k, entry))
-            rpdo = node.rpdo[1]
-            self._setpoint_vars.append(({(v.index, v.subindex): v for v in rpdo}, rpdo))
+            self._rpdo1.append(PdoLayout.of(node.rpdo[1]))
+            self._rpdo1_values.append({key: 0 for key in self._rpdo1[-1].keys})
             node.nmt.state = "OPERATIONAL"
             log.info("node %d up: %s", node.id, ident)
         for node in self.nodes:
@@ -135,20 +138,25 @@ class CanMaster:
         finally:
             self.network.unsubscribe(0x700 + node.id, on_frame)
 
-    def _on_tpdo(self, k: int, pdo_map) -> None:
+    def _on_tpdo(self, k: int, layout: PdoLayout, pdo_map) -> None:
+        try:
+            values = layout.unpack(pdo_map.data)
+        except PdoLayoutError as exc:                  # a frame of the wrong length: no feedback from it
+            log.warning("node %d: %s", self.nodes[k].id, exc)
+            return
         complete = False
         with self.lock:
             fb = self.feedback_raw[k]
-            for v in pdo_map:
-                if v.index == 0x6041:
-                    fb.statusword = int(v.raw)
-                elif v.index == 0x6064:
-                    fb.position = to_rad(int(v.raw))
+            for (index, _), value in values.items():
+                if index == 0x6041:
+                    fb.statusword = int(value)
+                elif index == 0x6064:
+                    fb.position = to_rad(int(value))
                     self._fresh.add(k)
-                elif v.index == 0x606C:
-                    fb.velocity = to_rad(int(v.raw))
-                elif v.index == 0x60F4:
-                    fb.following_error = to_rad(int(v.raw))
+                elif index == 0x606C:
+                    fb.velocity = to_rad(int(value))
+                elif index == 0x60F4:
+                    fb.following_error = to_rad(int(value))
             if len(self._fresh) == len(self.nodes):
                 self._fresh.clear()
                 complete = self.completed = True
@@ -186,15 +194,15 @@ class CanMaster:
         send has already given exactly this controlword and setpoint since the last SYNC is not sent it
         again: six frames a period fewer for every process on the bus."""
         with self.send_lock:
-            for k, ((variables, rpdo), sp) in enumerate(zip(self._setpoint_vars, setpoints)):
+            for k, (layout, values, sp) in enumerate(zip(self._rpdo1, self._rpdo1_values, setpoints)):
                 if controlwords is not None:
-                    variables[(0x6040, 0)].raw = int(controlwords[k])
+                    values[(0x6040, 0)] = int(controlwords[k])
                 if math.isfinite(sp):
-                    variables[(0x60C1, 1)].raw = to_counts(float(sp))
-                frame = (variables[(0x6040, 0)].raw, variables[(0x60C1, 1)].raw)
+                    values[(0x60C1, 1)] = to_counts(float(sp))
+                frame = layout.pack(values)
                 if self._since_sync.get(k) == frame:
                     continue
-                rpdo.transmit()
+                self.network.send_message(layout.cob_id, frame)
                 self._since_sync[k] = frame
             if sync:
                 self.network.sync.transmit()

@@ -121,23 +121,26 @@ class DriveStateMachine:
         if s in (State.FAULT_REACTION_ACTIVE, State.NOT_READY):
             return s
         cmd = decode_command(controlword)
-        table = {
-            State.SWITCH_ON_DISABLED: {Command.SHUTDOWN: State.READY_TO_SWITCH_ON},
-            State.READY_TO_SWITCH_ON: {Command.SWITCH_ON: State.SWITCHED_ON, Command.ENABLE_OPERATION: State.SWITCHED_ON,
-                                       Command.DISABLE_VOLTAGE: State.SWITCH_ON_DISABLED,
-                                       Command.QUICK_STOP: State.SWITCH_ON_DISABLED},
-            State.SWITCHED_ON: {Command.ENABLE_OPERATION: State.OPERATION_ENABLED,
-                                Command.SHUTDOWN: State.READY_TO_SWITCH_ON,
-                                Command.DISABLE_VOLTAGE: State.SWITCH_ON_DISABLED,
-                                Command.QUICK_STOP: State.SWITCH_ON_DISABLED},
-            State.OPERATION_ENABLED: {Command.SWITCH_ON: State.SWITCHED_ON, Command.SHUTDOWN: State.READY_TO_SWITCH_ON,
-                                      Command.DISABLE_VOLTAGE: State.SWITCH_ON_DISABLED,
-                                      Command.QUICK_STOP: State.QUICK_STOP_ACTIVE},
-            State.QUICK_STOP_ACTIVE: {Command.DISABLE_VOLTAGE: State.SWITCH_ON_DISABLED,
-                                      Command.ENABLE_OPERATION: State.OPERATION_ENABLED},
-        }
-        self.state = table.get(s, {}).get(cmd, s)
+        self.state = _TRANSITIONS.get(s, {}).get(cmd, s)
         return self.state
+
+
+# the state machine's transitions on a command (CiA 402 Fig. 4; a command not listed leaves the state)
+_TRANSITIONS = {
+    State.SWITCH_ON_DISABLED: {Command.SHUTDOWN: State.READY_TO_SWITCH_ON},
+    State.READY_TO_SWITCH_ON: {Command.SWITCH_ON: State.SWITCHED_ON, Command.ENABLE_OPERATION: State.SWITCHED_ON,
+                               Command.DISABLE_VOLTAGE: State.SWITCH_ON_DISABLED,
+                               Command.QUICK_STOP: State.SWITCH_ON_DISABLED},
+    State.SWITCHED_ON: {Command.ENABLE_OPERATION: State.OPERATION_ENABLED,
+                        Command.SHUTDOWN: State.READY_TO_SWITCH_ON,
+                        Command.DISABLE_VOLTAGE: State.SWITCH_ON_DISABLED,
+                        Command.QUICK_STOP: State.SWITCH_ON_DISABLED},
+    State.OPERATION_ENABLED: {Command.SWITCH_ON: State.SWITCHED_ON, Command.SHUTDOWN: State.READY_TO_SWITCH_ON,
+                              Command.DISABLE_VOLTAGE: State.SWITCH_ON_DISABLED,
+                              Command.QUICK_STOP: State.QUICK_STOP_ACTIVE},
+    State.QUICK_STOP_ACTIVE: {Command.DISABLE_VOLTAGE: State.SWITCH_ON_DISABLED,
+                              Command.ENABLE_OPERATION: State.OPERATION_ENABLED},
+}
 
 
 def statusword(state: State, ip_active: bool = False, target_reached: bool = False,
