@@ -31,8 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests" / "hil"))
 
-from shared.prbt_drive import to_counts  # noqa: E402
-from shared.canbus import in_private_namespace  # noqa: E402
+from shared.drives.bus import in_private_namespace  # noqa: E402
+from shared.drives.prbt import to_counts  # noqa: E402
 
 
 def pct(values, p):

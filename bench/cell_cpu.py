@@ -27,13 +27,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from services.demo import choose_bus, reexec_in_namespace  # noqa: E402
-from services.launch import CellProcesses, free_port  # noqa: E402
-from services.operator import HumanFeed, Recorder, Shuttle  # noqa: E402
-from services.report import Recording  # noqa: E402
-from shared.keys import KeySpace  # noqa: E402
-from shared.scenarios import make_scenario  # noqa: E402
-from shared.zenoh_session import open_session  # noqa: E402
+from evidence.scenarios import make_scenario  # noqa: E402
+from shared.transport.zenoh_session import open_session  # noqa: E402
+from shared.wire.keys import KeySpace  # noqa: E402
+from tools.actors import HumanFeed, Recorder, Shuttle  # noqa: E402
+from tools.demo import choose_bus, reexec_in_namespace  # noqa: E402
+from tools.launch import CellProcesses, free_port  # noqa: E402
+from tools.report import Recording  # noqa: E402
 
 SAFETY_CHAIN = ("robot_driver", "scaler", "tracker_ingest", "safety_monitor")
 

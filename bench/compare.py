@@ -1,5 +1,5 @@
 """Side by side: zone-based SSM (as deployed today), scaling only, and the full architecture, on the same
-seeded scenarios in the deterministic simulation (shared.sim, shared.strategies; not a test: it prints
+seeded scenarios in the deterministic simulation (evidence.sim, evidence.strategies; not a test: it prints
 figures). Scenario kinds: the paper's four phases, a person crossing at 1.6 m/s, a person standing in
 the path, two people, random walks near the robot. Per strategy: shuttles per minute (over all scenarios),
 time stopped (shuttles count fractionally: the part of the current shuttle's path done at the end), the
@@ -26,15 +26,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from shared.scenarios import SCENARIO_KINDS  # noqa: E402
-from shared.strategies import STRATEGIES, Strategies  # noqa: E402
+from evidence.scenarios import SCENARIO_KINDS  # noqa: E402
+from evidence.strategies import STRATEGIES, Strategies  # noqa: E402
 
 _WORKER: Strategies | None = None
 
 
 def _init() -> None:
     global _WORKER
-    from shared.scene import load_scene
+    from shared.planning.scene import load_scene
     _WORKER = Strategies(scene=load_scene(ROOT / "deploy" / "scene.yaml"))
 
 
@@ -116,7 +116,7 @@ def main() -> int:
                 spent = time.perf_counter() - started
                 print(f"{k + 1}/{len(tasks)} scenarios, {spent:.0f} s, about "
                       f"{spent / (k + 1) * (len(tasks) - k - 1):.0f} s left", flush=True)
-    from shared.ssm import SsmParameters
+    from shared.safety.ssm import SsmParameters
     horizon = SsmParameters().horizon
     strategies = aggregate(rows, horizon)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -27,9 +27,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from services import demo  # noqa: E402
 from shared.config import load_config  # noqa: E402
-from shared.robot_model import default_robot  # noqa: E402
+from shared.robot.model import default_robot  # noqa: E402
+from tools import demo  # noqa: E402
 
 
 def main() -> int:

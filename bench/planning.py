@@ -4,7 +4,7 @@ Seeded random humans around the paper's experiment: a person stands 0.75 to 1.2 
 side the shuttle sweeps, leans in and reaches a forearm across the flange's arc at a random point and height.
 For each placement:
 * a new goal, side by side: RRT-Connect + simplification + toppra (a collision-free path, clearance only)
-  against the planning layer's search (the path fastest under the SSM, shared.path_search), each
+  against the planning layer's search (the path fastest under the SSM, shared.planning.path_search), each
   predicted by the SSM-aware time cost with the person staying --stay seconds, and the straight line;
 * replan + merge: the robot runs the straight shuttle; at the moment the horizon check (1 s ahead) first
   sees the person, Alg. 1 + 2 and the keep-or-replace decision (taken, old kept, failed).
@@ -21,16 +21,16 @@ import time
 
 import numpy as np
 
-from shared.collision import CollisionModel
-from shared.humans import HumanCapsules
-from shared.planner import JointPlanner, PlannerOptions, PlanningError
-from shared.replanning import HorizonOptions, ReplanFailed, ReplanOptions, Replanner, horizon_check
-from shared.robot_model import default_robot
-from shared.scenarios import Q_GOAL, Q_START, body_segments
-from shared.scene import load_scene
-from shared.ssm import SsmParameters
-from shared.timing import TimingError, parameterize
-from shared.trajectory import straight_line_trajectory
+from evidence.scenarios import Q_GOAL, Q_START, body_segments
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.planning.collision import CollisionModel
+from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
+from shared.planning.replanner import HorizonOptions, ReplanFailed, Replanner, ReplanOptions, horizon_check
+from shared.planning.scene import load_scene
+from shared.planning.timing import TimingError, parameterize
+from shared.robot.model import default_robot
+from shared.safety.ssm import SsmParameters
 
 
 def placement(rng: np.random.Generator) -> HumanCapsules:

@@ -17,12 +17,12 @@ import time
 
 import numpy as np
 
-from shared.humans import HumanCapsules
-from shared.robot_model import default_robot
-from shared.scaling_layer import ScalingLayer, ScalingParameters
-from shared.scenarios import Q_GOAL, Q_START
-from shared.ssm import SsmParameters
-from shared.trajectory import straight_line_trajectory
+from evidence.scenarios import Q_GOAL, Q_START
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.robot.model import default_robot
+from shared.safety.ssm import SsmParameters
+from shared.scaling.layer import ScalingLayer, ScalingParameters
 
 
 def random_humans(rng: np.random.Generator, m: int) -> HumanCapsules:

@@ -18,8 +18,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from services.launch import free_port  # noqa: E402
-from services.view import no_analytics, rerun_binary  # noqa: E402
+from tools.launch import free_port  # noqa: E402
+from tools.view import no_analytics, rerun_binary  # noqa: E402
 
 CHROMIUM_FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update", "--disable-sync",
                   "--no-first-run", "--disable-quic", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",

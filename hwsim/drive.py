@@ -10,7 +10,7 @@ Interpolated position mode (7), as CiA 402 describes it: in operation enabled wi
 each SYNC takes the latest setpoint (0x60C1:1, 0.001 degree per count) and moves to it over the
 interpolation period (0x60C2), with the velocity that consecutive setpoints imply as feed-forward and a
 braking-aware correction of any following error left over. The position demand (0x6062) is the setpoint
-being interpolated to. While the setpoints are followable (``shared.prbt_drive``) the joint reaches each
+being interpolated to. While the setpoints are followable (``shared.drives.prbt``) the joint reaches each
 one at the next SYNC: one period behind them, following error (0x60F4 = demand - actual) zero. Beyond the
 velocity or acceleration limit the drive saturates (statusword bit 11, internal limit) and the following
 error grows; beyond the window 0x6065 for longer than 0x6066 that is a fault. With no new setpoint the
@@ -28,9 +28,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from shared.cia402 import CW_ENABLE_IP, DriveStateMachine, State, statusword
-from shared.prbt_drive import (COUNTS_PER_RAD, EMCY_FOLLOWING, EMCY_LIMIT, EMCY_RESET, EMCY_RPDO_TIMEOUT,
-                               EMCY_SYNC_TIMEOUT, FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, PERIOD, to_rad)
+from shared.drives.cia402 import CW_ENABLE_IP, DriveStateMachine, State, statusword
+from shared.drives.prbt import (
+    COUNTS_PER_RAD,
+    EMCY_FOLLOWING,
+    EMCY_LIMIT,
+    EMCY_RESET,
+    EMCY_RPDO_TIMEOUT,
+    EMCY_SYNC_TIMEOUT,
+    FOLLOWING_TIMEOUT,
+    FOLLOWING_WINDOW,
+    MODE_IP,
+    PERIOD,
+    to_rad,
+)
 
 
 @dataclass

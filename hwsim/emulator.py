@@ -1,11 +1,11 @@
 """The PRBT emulator process: six CiA 402 drives (node ids 3 to 8) on a CAN bus.
 
-Each node is a canopen LocalNode built from the drive's EDS (``shared/robot/prbt_drive.eds``: SDO server,
+Each node is a canopen LocalNode built from the drive's EDS (``shared/drives/prbt_drive.eds``: SDO server,
 NMT slave, heartbeat producer from 0x1017, EMCY producer) around a pure ``hwsim.drive.Drive``. RPDO1
 (controlword, setpoint) is applied on reception; every SYNC completes each drive's interpolation period
 and sends TPDO1 (statusword, mode display), TPDO2 (position demand 0x6062, following error 0x60F4) and
 TPDO3 (position, velocity actual), the values of the SYNC instant, packed with the mapping's layout
-(shared.pdo_layout); an SDO read of a reported value answers the drive's value at that moment; a timer
+(shared.drives.pdo_layout); an SDO read of a reported value answers the drive's value at that moment; a timer
 runs the SYNC watchdog between SYNCs. The following error window (0x6065, counts) and time-out (0x6066,
 ms) are read and written over SDO. Every fault is announced by an EMCY with the error register (0x1001)
 set; a frozen node sends the EMCYs of faults it entered while frozen when it is unfrozen. Fault injection
@@ -31,11 +31,10 @@ import canopen
 import numpy as np
 
 from hwsim.drive import Drive, DriveLimits
-from shared.canbus import BusError, describe, open_bus
-from shared.pdo_layout import PdoLayout, PdoLayoutError
-from shared.prbt_drive import (COUNTS_PER_RAD, EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register,
-                               to_counts)
-from shared.robot_model import default_robot
+from shared.drives.bus import BusError, describe, open_bus
+from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
+from shared.drives.prbt import COUNTS_PER_RAD, EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register, to_counts
+from shared.robot.model import default_robot
 from shared.scheduling import realtime
 
 log = logging.getLogger("hwsim")

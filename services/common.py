@@ -14,12 +14,12 @@ import threading
 import time
 from pathlib import Path
 
-from shared.errors import MessageError
-from shared.keys import KeySpace
-from shared.messages import Message, decode
-from shared.pki import TlsIdentity
+from shared.core.errors import MessageError
 from shared.scheduling import realtime
-from shared.zenoh_session import open_session
+from shared.transport.pki import TlsIdentity
+from shared.transport.zenoh_session import open_session
+from shared.wire.keys import KeySpace
+from shared.wire.messages import Message, decode
 
 LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s %(message)s"
 
@@ -144,7 +144,7 @@ def open_service(name: str, args: argparse.Namespace):
     Zenoh's included, has it: a safety-chain thread waiting for the GIL must not wait behind a thread of
     its own process that a busy machine has preempted."""
     from shared.config import load_config
-    from shared.errors import HrcError
+    from shared.core.errors import HrcError
 
     realtime(name)
     try:

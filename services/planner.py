@@ -1,4 +1,4 @@
-"""planner: the planning layer as a service (a thin shell around shared.replanning).
+"""planner: the planning layer as a service (a thin shell around shared.planning.replanner).
 
 Inputs (the latest of each is kept): goals, human states, joint states, scaler status. A worker thread
 (OMPL holds the GIL: planning never runs in a latency-critical process) then, in this order:
@@ -26,18 +26,18 @@ from pathlib import Path
 import numpy as np
 
 from services.common import ServiceShell, open_service, serve, service_parser, setup_logging
-from shared.collision import CollisionModel
-from shared.convert import humans_from_msg, trajectory_to_msg
-from shared.errors import HrcError
-from shared.humans import HumanCapsules
-from shared.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
-from shared.path_search import CELL_BUDGET, SearchOptions
-from shared.planner import JointPlanner, PlannerOptions, PlanningError
-from shared.replanning import HoldClock, ReplanFailed, ReplanOptions, Replanner, ReplanResult
-from shared.robot_model import default_robot
-from shared.scene import Scene, load_scene
-from shared.timing import TimingError
-from shared.trajectory import Trajectory
+from shared.core.errors import HrcError
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import Trajectory
+from shared.planning.collision import CollisionModel
+from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
+from shared.planning.path_search import CELL_BUDGET, SearchOptions
+from shared.planning.replanner import HoldClock, ReplanFailed, Replanner, ReplanOptions, ReplanResult
+from shared.planning.scene import Scene, load_scene
+from shared.planning.timing import TimingError
+from shared.robot.model import default_robot
+from shared.wire.convert import humans_from_msg, trajectory_to_msg
+from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
 

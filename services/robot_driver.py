@@ -1,10 +1,10 @@
 """robot_driver: the PRBT's six CiA 402 drives on CAN, commanded from Zenoh.
 
-Thin shell around ``services.driver_core.DriverCore``:
+Thin shell around ``shared.drives.driver_core.DriverCore``:
 * bring-up (canopen, blocking, before the loop): per node NMT reset communication and boot-up, heartbeat
   producer 100 ms (0x1017), identity (0x1018) and firmware (0x100A) over SDO, mode 7 (0x6060, checked on
   0x6061), interpolation period (0x60C2:1), following error window and time-out (0x6065, 0x6066, from
-  shared.prbt_drive), the PDO layout written with canopen's PDO configuration
+  shared.drives.prbt), the PDO layout written with canopen's PDO configuration
   (invalidate, map, transmission type, validate), NMT start;
 * a cycle thread at the SYNC period (default 10 ms; deadline sleeping, not asyncio's millisecond
   timers): the core's controlwords and setpoints go out as RPDO1 on every node, then SYNC; the drives'
@@ -14,7 +14,7 @@ Thin shell around ``services.driver_core.DriverCore``:
   the latest setpoint at the next SYNC), clamped and rate-limited exactly as the cycle will, so a command
   waits for the SYNC inside the drive instead of in this process;
 * every first command computed from a new human sample closes a latency chain (sample into
-  tracker_ingest -> target frame on the bus, see shared.latency), and every SYNC answer measures how far
+  tracker_ingest -> target frame on the bus, see shared.safety.latency), and every SYNC answer measures how far
   the joints run behind the setpoints sent (the drive lag) and reads the drives' following error
   (0x60F4, TPDO2): once a second the chains go out as a LatencyReport on <prefix>/diag/latency and the
   drive figures as a DriveLagReport on <prefix>/diag/drive_lag, with a warning event when the whole
@@ -43,18 +43,16 @@ import canopen
 import numpy as np
 
 from services.common import ServiceShell, run_paced, service_parser, setup_logging
-from services.driver_core import COMMAND_TIMEOUT, DriverCore, Feedback
-from shared.canbus import BusError, describe, open_bus
 from shared.config import load_config
-from shared.errors import HrcError
-from shared.latency import DriveLagMeter, LatencyMeter
-from shared.pdo_layout import PdoLayout, PdoLayoutError
-from shared.messages import (DriveLagReport, DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent,
-                             encode)
-from shared.prbt_drive import (EDS_PATH, FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, NODE_IDS, PERIOD, to_counts,
-                               to_rad)
-from shared.robot_model import default_robot
+from shared.core.errors import HrcError
+from shared.drives.bus import BusError, describe, open_bus
+from shared.drives.driver_core import COMMAND_TIMEOUT, DriverCore, Feedback
+from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
+from shared.drives.prbt import EDS_PATH, FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, NODE_IDS, PERIOD, to_counts, to_rad
+from shared.robot.model import default_robot
+from shared.safety.latency import DriveLagMeter, LatencyMeter
 from shared.scheduling import realtime
+from shared.wire.messages import DriveLagReport, DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent, encode
 
 log = logging.getLogger("robot_driver")
 

@@ -5,8 +5,8 @@ optional (the services mesh as peers). Multicast scouting is off; endpoints are 
 --allow-remote (then the cell network's address).
 
 Secured (deploy/zenoh/secure-router.json5 is the same as a file): --tls-dir makes every link mutual TLS
-with the cell's certificates (shared.pki; the router's own identity is 'router'), and --acl turns on the
-access control of shared.acl for --prefix: a publication is taken only from the identity allowed to
+with the cell's certificates (shared.transport.pki; the router's own identity is 'router'), and --acl turns on the
+access control of shared.transport.acl for --prefix: a publication is taken only from the identity allowed to
 publish on that key (only the scaler commands the robot, only tracker_ingest publishes human states).
 
     python -m services.router --listen tcp/127.0.0.1:7447
@@ -22,11 +22,11 @@ import threading
 from pathlib import Path
 
 from services.common import setup_logging
-from shared.acl import access_control
-from shared.errors import HrcError
-from shared.keys import KeySpace
-from shared.pki import TlsIdentity
-from shared.zenoh_session import open_session
+from shared.core.errors import HrcError
+from shared.transport.acl import access_control
+from shared.transport.pki import TlsIdentity
+from shared.transport.zenoh_session import open_session
+from shared.wire.keys import KeySpace
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,15 +1,15 @@
 """safety_monitor: an independent process that checks every measured joint state against the human state
-of the moment it was measured (shared.monitor.HumanHistory.pair: the newest sample taken at or before it;
-shared.monitor.SafetyMonitor.check_batch: pinocchio Jacobians and a closest-point computation of its own,
+of the moment it was measured (shared.safety.monitor.HumanHistory.pair: the newest sample taken at or before it;
+shared.safety.monitor.SafetyMonitor.check_batch: pinocchio Jacobians and a closest-point computation of its own,
 the standard's closest-point check) and counts violations of the ISO/TS 15066 speed limit (an exceedance
 the robot does not answer as the formula assumes: react within T_r, then brake to a stop within T_s;
-shared.monitor.ReactionWindow) and of d_min (at once).
+shared.safety.monitor.ReactionWindow) and of d_min (at once).
 
 It keeps up and never guesses. Joint states are queued as they arrive and checked in batches, vectorised,
 every 10 ms (a check costs about 0.1 ms a state, where one coal query per pair cost 3.5 ms with ten human
 capsules, and a monitor at 100 Hz fell seconds behind). A state that cannot be paired with the person of
 its own moment, or that is reached more than 0.5 s after it was measured, is *unchecked*: counted and
-reported, never a violation and never a pass (shared.monitor.Backlog). A warning event 'monitor_behind'
+reported, never a violation and never a pass (shared.safety.monitor.Backlog). A warning event 'monitor_behind'
 says so when the checks run more than 0.1 s behind or states go unchecked for lateness, once per episode.
 
 Out: each violation as a SafetyEvent (event 'ssm_violation', severity stop; at most ten a second); once a
@@ -30,10 +30,10 @@ from collections import Counter, deque
 import numpy as np
 
 from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
-from shared.convert import humans_from_msg
-from shared.messages import HumanState, JointState, MonitorReport, SafetyEvent, encode
-from shared.monitor import Backlog, HumanHistory, ReactionWindow, SafetyMonitor
-from shared.robot_model import default_robot
+from shared.robot.model import default_robot
+from shared.safety.monitor import Backlog, HumanHistory, ReactionWindow, SafetyMonitor
+from shared.wire.convert import humans_from_msg
+from shared.wire.messages import HumanState, JointState, MonitorReport, SafetyEvent, encode
 
 PASS_PERIOD = 0.01          # s between checking passes
 BEHIND = 0.1                # s: checks further behind than this raise 'monitor_behind'

@@ -1,4 +1,4 @@
-"""scaler: the trajectory scaling layer as a service (a thin shell around shared.scaling_layer).
+"""scaler: the trajectory scaling layer as a service (a thin shell around shared.scaling.layer).
 
 Each tick it takes the last trajectory, the last human state and the last joint state received, runs
 ScalingLayer.step, and publishes the joint command and its status. It ticks on every joint state (the
@@ -28,10 +28,10 @@ import time
 import numpy as np
 
 from services.common import ServiceShell, open_service, run_synced, serve, service_parser, setup_logging
-from shared.convert import humans_from_msg, trajectory_from_msg
-from shared.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, encode
-from shared.robot_model import default_robot
-from shared.scaling_layer import ScalingLayer
+from shared.robot.model import default_robot
+from shared.scaling.layer import ScalingLayer
+from shared.wire.convert import humans_from_msg, trajectory_from_msg
+from shared.wire.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, encode
 
 START_TOLERANCE = 0.02     # rad: how close the robot must be to a fresh plan's start to take it
 

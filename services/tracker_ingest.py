@@ -1,4 +1,4 @@
-"""tracker_ingest: raw human poses in, the human state out (a thin shell around shared.tracking).
+"""tracker_ingest: raw human poses in, the human state out (a thin shell around shared.tracking.tracker).
 
 Every raw sample (<prefix>/human/raw, HumanRaw: capsules from motion capture, the CLI or a replay, up to
 240 Hz) is filtered and published at once as HumanState on <prefix>/human/state, stamped with its arrival
@@ -14,12 +14,11 @@ import sys
 import threading
 import time
 
-
 from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
-from shared.convert import humans_to_msg
-from shared.humans import HumanCapsules
-from shared.messages import HumanRaw, HumanState, SafetyEvent, encode
-from shared.tracking import HumanTracker, TrackerParameters
+from shared.core.humans import HumanCapsules
+from shared.tracking.tracker import HumanTracker, TrackerParameters
+from shared.wire.convert import humans_to_msg
+from shared.wire.messages import HumanRaw, HumanState, SafetyEvent, encode
 
 
 class TrackerIngest:

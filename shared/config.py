@@ -1,8 +1,8 @@
 """The cell configuration: one YAML file, validated section by section.
 
     cell:    {prefix: hrc/cell1}
-    ssm:     ISO/TS 15066 parameters (shared.ssm.SsmParameters)
-    scaling: control loop parameters (shared.scaling_layer.ScalingParameters)
+    ssm:     ISO/TS 15066 parameters (shared.safety.ssm.SsmParameters)
+    scaling: control loop parameters (shared.scaling.layer.ScalingParameters)
 
 A missing file section takes the defaults; an unknown section or key, a wrong type, a negative time or a
 NaN raises ConfigError naming the field. ``deploy/cell.yaml`` is the shipped configuration.
@@ -15,10 +15,10 @@ from pathlib import Path
 
 import yaml
 
-from shared.errors import ConfigError, KeyError_
-from shared.keys import KeySpace
-from shared.scaling_layer import ScalingParameters
-from shared.ssm import SsmParameters
+from shared.core.errors import ConfigError, KeyError_
+from shared.safety.ssm import SsmParameters
+from shared.scaling.layer import ScalingParameters
+from shared.wire.keys import KeySpace
 
 SECTIONS = ("cell", "ssm", "scaling")
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 
-from shared.robot_model import default_robot
+from shared.robot.model import default_robot
 
 settings.register_profile("project", deadline=None, suppress_health_check=[HealthCheck.too_slow],
                           derandomize=True)

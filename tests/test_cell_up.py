@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from services.cell import CONF, cell_pid, run_dir
 from tests.util import free_port, require_namespace
+from tools.cell import CONF, cell_pid, run_dir
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
 
@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def hrc(*args, timeout=60):
-    return subprocess.run([sys.executable, "-m", "services.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "tools.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout, env=dict(os.environ, PYTHONPATH=str(ROOT)))
 
 
@@ -59,7 +59,7 @@ def test_a_user_session(cell):
     prefix = cell
     wait_status(prefix, r"tracker_ingest up.*planner up.*scaler up.*robot_driver up.*safety_monitor up.*running",
                 timeout=60)
-    person = subprocess.Popen([sys.executable, "-m", "services.cli", "human", "inject", "-2.5", "0", "0.9", "-2.5", "0",
+    person = subprocess.Popen([sys.executable, "-m", "tools.cli", "human", "inject", "-2.5", "0", "0.9", "-2.5", "0",
                                "1.45", "--radius", "0.17", "--velocity", "0", "0", "0", "--duration", "25",
                                "--prefix", prefix], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

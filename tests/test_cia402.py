@@ -2,8 +2,16 @@
 
 import pytest
 
-from shared.cia402 import (CW_FAULT_RESET, Command, DriveStateMachine, State, decode_command, next_controlword,
-                           state_from_statusword, statusword)
+from shared.drives.cia402 import (
+    CW_FAULT_RESET,
+    Command,
+    DriveStateMachine,
+    State,
+    decode_command,
+    next_controlword,
+    state_from_statusword,
+    statusword,
+)
 
 
 @pytest.mark.parametrize("cw, cmd", [(0x0006, Command.SHUTDOWN), (0x000E, Command.SHUTDOWN), (0x0106, Command.SHUTDOWN),

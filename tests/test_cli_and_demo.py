@@ -7,14 +7,14 @@ import sys
 
 import pytest
 
+from evidence.scenarios import Q_GOAL, Q_START, paper_phases
+from evidence.sim import run_shuttle
 from shared.config import CellConfig
-from shared.robot_model import default_robot
-from shared.scenarios import Q_GOAL, Q_START, paper_phases
-from shared.sim import run_shuttle
+from shared.robot.model import default_robot
 
 
 def hrc(*args):
-    return subprocess.run([sys.executable, "-m", "services.cli", *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run([sys.executable, "-m", "tools.cli", *args], capture_output=True, text=True, timeout=300)
 
 
 def test_demo_runs_and_prints_a_json_summary(tmp_path):
@@ -58,10 +58,10 @@ def test_the_paper_phases_in_simulation():
 
 
 def test_the_paper_phases_with_both_layers():
-    from shared.collision import CollisionModel
-    from shared.planner import JointPlanner, PlannerOptions
-    from shared.replanning import ReplanOptions, Replanner
-    from shared.scene import load_scene
+    from shared.planning.collision import CollisionModel
+    from shared.planning.ompl_planner import JointPlanner, PlannerOptions
+    from shared.planning.replanner import Replanner, ReplanOptions
+    from shared.planning.scene import load_scene
 
     robot, config = default_robot(), CellConfig()
     collision = CollisionModel(robot, load_scene("deploy/scene.yaml"), config.ssm.min_separation)

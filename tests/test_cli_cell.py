@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shared.keys import KeySpace
-from shared.messages import Goal, HumanRaw, JointState, decode, encode
-from shared.zenoh_session import open_session
+from shared.transport.zenoh_session import open_session
+from shared.wire.keys import KeySpace
+from shared.wire.messages import Goal, HumanRaw, JointState, decode, encode
 from tests.util import free_port
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
@@ -38,7 +38,7 @@ def cell():
 
 
 def hrc(port, *args):
-    return subprocess.run([sys.executable, "-m", "services.cli", *args, "--connect", f"tcp/127.0.0.1:{port}",
+    return subprocess.run([sys.executable, "-m", "tools.cli", *args, "--connect", f"tcp/127.0.0.1:{port}",
                            "--prefix", KEYS.prefix, "--timeout", "3"], cwd=ROOT, capture_output=True, text=True,
                           timeout=60)
 
@@ -91,7 +91,7 @@ def test_human_inject_once_and_moving(cell):
 def test_status_reports_what_the_cell_publishes(cell):
     port, _, session = cell
     pub = session.declare_publisher(KEYS.joint_state)
-    proc = subprocess.Popen([sys.executable, "-m", "services.cli", "status", "--connect", f"tcp/127.0.0.1:{port}",
+    proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "status", "--connect", f"tcp/127.0.0.1:{port}",
                              "--prefix", KEYS.prefix, "--timeout", "2"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     end = time.monotonic() + 2.5
@@ -121,7 +121,7 @@ def test_human_replay(cell, tmp_path):
 
 def _publish_cell_state(session, stop):
     """The robot and one person, as the cell would publish them, every 20 ms until stop is set."""
-    from shared.messages import HumanState
+    from shared.wire.messages import HumanState
     pub_js, pub_h = session.declare_publisher(KEYS.joint_state), session.declare_publisher(KEYS.human_state)
     q = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
     while not stop.is_set():
@@ -136,6 +136,7 @@ def _publish_cell_state(session, stop):
 
 def test_view_saves_what_the_cell_publishes(cell, tmp_path):
     import threading
+
     from rerun.chunk import RrdReader
 
     port, _, session = cell
@@ -171,7 +172,7 @@ def test_view_serves_the_viewer_on_loopback_only(cell):
 
     port, _, _ = cell
     web, grpc = free_port(), free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "services.cli", "view", "--connect", f"tcp/127.0.0.1:{port}",
+    proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "view", "--connect", f"tcp/127.0.0.1:{port}",
                              "--prefix", KEYS.prefix, "--duration", "6", "--web-port", str(web), "--grpc-port", str(grpc)],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

@@ -2,17 +2,16 @@
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from shared.collision import CollisionMargins, CollisionModel, _segment_box
-from shared.errors import ConfigError
-from shared.humans import HumanCapsules
-import yaml
-
-from shared.robot_model import CAPSULES_PATH, RobotModel, default_robot
-from shared.scene import Scene, load_scene, scene_from_mapping
-from shared.scenarios import Q_GOAL, Q_START
+from evidence.scenarios import Q_GOAL, Q_START
+from shared.core.errors import ConfigError
+from shared.core.humans import HumanCapsules
+from shared.planning.collision import CollisionMargins, CollisionModel, _segment_box
+from shared.planning.scene import Scene, load_scene, scene_from_mapping
+from shared.robot.model import CAPSULES_PATH, RobotModel, default_robot
 
 ROBOT = default_robot()
 UP = np.zeros(6)                       # straight up: flange sphere (r 0.033) centred at z = 1.0004

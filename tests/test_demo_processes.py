@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def report(tmp_path_factory):
     require_namespace("the same experiment runs in-process in tests/test_cli_and_demo.py")
     out = tmp_path_factory.mktemp("demo")
-    run = subprocess.run([sys.executable, "-m", "services.cli", "demo", "--out", str(out)], cwd=ROOT,
+    run = subprocess.run([sys.executable, "-m", "tools.cli", "demo", "--out", str(out)], cwd=ROOT,
                          capture_output=True, text=True, timeout=300,
                          env=dict(os.environ, PYTHONPATH=str(ROOT)))
     print(run.stdout[-3000:], run.stderr[-3000:])

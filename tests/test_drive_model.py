@@ -7,9 +7,19 @@ import numpy as np
 import pytest
 
 from hwsim.drive import Drive, DriveLimits
-from shared.cia402 import State
-from shared.prbt_drive import (COUNTS_PER_RAD, EMCY_FOLLOWING, EMCY_LIMIT, EMCY_RESET, EMCY_RPDO_TIMEOUT, EMCY_SYNC_TIMEOUT,
-                               FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, to_counts, to_rad)
+from shared.drives.cia402 import State
+from shared.drives.prbt import (
+    COUNTS_PER_RAD,
+    EMCY_FOLLOWING,
+    EMCY_LIMIT,
+    EMCY_RESET,
+    EMCY_RPDO_TIMEOUT,
+    EMCY_SYNC_TIMEOUT,
+    FOLLOWING_TIMEOUT,
+    FOLLOWING_WINDOW,
+    to_counts,
+    to_rad,
+)
 
 T = 0.01
 

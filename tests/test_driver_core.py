@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from hwsim.drive import Drive, DriveLimits
-from shared.prbt_drive import to_counts, to_rad
-from services.driver_core import DriverCore, Feedback, Mode
-from shared.robot_model import default_robot
+from shared.drives.driver_core import DriverCore, Feedback, Mode
+from shared.drives.prbt import to_counts, to_rad
+from shared.robot.model import default_robot
 
 LIM = default_robot().limits
 T = 0.01
@@ -206,8 +206,8 @@ def test_a_scaler_on_its_own_clock_is_followed_without_clamping():
     """The scaler ticks every 10 ms on its own clock, at a phase of its own and late now and then (a busy
     machine): some SYNCs find no new command (the last one is taken twice), the next finds two (one is
     never taken). The setpoints follow the motion the commands describe: no clamping, no drive behind."""
-    from shared.scenarios import Q_GOAL
-    from shared.trajectory import straight_line_trajectory
+    from evidence.scenarios import Q_GOAL
+    from shared.core.trajectory import straight_line_trajectory
     rng = np.random.default_rng(3)
     cell = Cell()
     enable(cell)

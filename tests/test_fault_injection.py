@@ -3,7 +3,7 @@
 import canopen
 import pytest
 
-from services.faults import CanProbe, InjectionError
+from tools.faults import CanProbe, InjectionError
 
 
 class FlakyEntry:
@@ -40,7 +40,7 @@ def test_a_request_never_answered_is_a_clear_error():
 
 
 def test_the_campaign_estimates_the_time_left_from_the_faults_done():
-    from services.faults import time_left
+    from tools.faults import time_left
     assert time_left(0, 12, 0.0) == ""
     assert time_left(3, 12, 60.0) == " (60 s so far, about 180 s left)"
     assert time_left(12, 12, 240.0).endswith("about 0 s left)")

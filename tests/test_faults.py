@@ -4,7 +4,7 @@ kill -9 of every service, SIGSTOP of the scaler and of the driver, lost CAN fram
 silent tracker, NaN poses, a person who jumps, glitches. For each: the robot stops within its stated bound
 (or, for faults outside the stopping chain, goes on safely), neither the monitor nor the re-check against
 the true person finds a violation, the service is back under the supervisor, and the next shuttle completes.
-The judging itself (shared.faultcheck) is tested directly below, without processes."""
+The judging itself (tools.faultcheck) is tested directly below, without processes."""
 
 import json
 import os
@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from services.cell import cell_pid, run_dir
-from services.faults import FAULT_NAMES
 from shared.config import load_config
-from shared.faultcheck import FaultVerdict, moving_at, standstill_after, truth_violations
-from shared.humans import HumanCapsules
-from shared.monitor import SafetyMonitor
+from shared.core.humans import HumanCapsules
+from shared.safety.monitor import SafetyMonitor
 from tests.util import free_port, require_namespace
+from tools.cell import cell_pid, run_dir
+from tools.faultcheck import FaultVerdict, moving_at, standstill_after, truth_violations
+from tools.faults import FAULT_NAMES
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
 
@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def hrc(*args, timeout=60):
-    return subprocess.run([sys.executable, "-m", "services.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "tools.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout, env=dict(os.environ, PYTHONPATH=str(ROOT)))
 
 

@@ -15,9 +15,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from shared.config import load_config
-from shared.errors import ConfigError
-from shared.replay import load_replay, parse_csv, parse_json
-from shared.scene import load_scene
+from shared.core.errors import ConfigError
+from shared.planning.scene import load_scene
+from shared.tracking.motion import load_replay, parse_csv, parse_json
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -89,7 +89,7 @@ def test_every_loader_takes_raw_bytes(payload, loader_suffix):
 
 
 def hrc(*args):
-    return subprocess.run([sys.executable, "-m", "services.cli", *args], capture_output=True, text=True, timeout=60,
+    return subprocess.run([sys.executable, "-m", "tools.cli", *args], capture_output=True, text=True, timeout=60,
                           cwd=ROOT)
 
 

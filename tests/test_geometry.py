@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from shared.geometry import capsule_pair_distances, segment_closest_params
+from shared.core.geometry import capsule_pair_distances, segment_closest_params
 
 
 def pair(a0, a1, ra, b0, b1, rb):

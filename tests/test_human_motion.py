@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from services.cli import main
-from shared.errors import ConfigError
-from shared.keypoints import DIAMETER, KEYPOINTS, FrameTransform, convert, read_keypoints, to_motion
-from shared.replay import RecordedMotion, parse_csv, parse_json
+from shared.core.errors import ConfigError
+from shared.tracking.keypoints import DIAMETER, KEYPOINTS, FrameTransform, convert, read_keypoints, to_motion
+from shared.tracking.motion import RecordedMotion, parse_csv, parse_json
+from tools.cli import main
 
 TORSO_A, TORSO_B = [-1.2, 0.0, 0.9], [-1.2, 0.0, 1.45]
 DOC = {"schema": "hrc-human-motion/1", "frames": [

@@ -5,8 +5,8 @@ from pathlib import Path
 import pytest
 
 from shared.config import CellConfig, load_config
-from shared.errors import ConfigError, KeyError_
-from shared.keys import KeySpace
+from shared.core.errors import ConfigError, KeyError_
+from shared.wire.keys import KeySpace
 
 ROOT = Path(__file__).resolve().parents[1]
 

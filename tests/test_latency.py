@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from shared.latency import LatencyMeter
+from shared.safety.latency import LatencyMeter
 
 
 def test_reports_what_was_added_since_the_last_drain():
@@ -51,7 +51,7 @@ def test_reaction_time_must_be_positive():
 
 
 def test_the_whole_chain_counts_the_drive_lag():
-    from shared.latency import LatencyMeter
+    from shared.safety.latency import LatencyMeter
     meter = LatencyMeter(0.1, min_samples=10)
     for _ in range(20):
         meter.add(0.085, 0.002)
@@ -63,7 +63,7 @@ def test_the_whole_chain_counts_the_drive_lag():
 def test_drive_lag_meter_measures_the_lag_of_moving_joints_only():
     import numpy as np
 
-    from shared.latency import DriveLagMeter
+    from shared.safety.latency import DriveLagMeter
     meter = DriveLagMeter(0.012, min_samples=5)
     v = np.array([1.5, 0.05, -1.0, 0.0, 0.0, 0.0])
     for k in range(10):

@@ -8,9 +8,20 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from shared.errors import MessageError
-from shared.messages import (MESSAGE_TYPES, SCHEMA_VERSION, DriverRequest, Goal, HumanState, JointCommand, SafetyEvent,
-                             TrajectoryMsg, decode, encode, message_fields)
+from shared.core.errors import MessageError
+from shared.wire.messages import (
+    MESSAGE_TYPES,
+    SCHEMA_VERSION,
+    DriverRequest,
+    Goal,
+    HumanState,
+    JointCommand,
+    SafetyEvent,
+    TrajectoryMsg,
+    decode,
+    encode,
+    message_fields,
+)
 
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
 

@@ -5,13 +5,13 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from evidence.scenarios import Q_GOAL, Q_START, paper_phases
+from evidence.sim import run_shuttle
 from shared.config import CellConfig
-from shared.humans import HumanCapsules
-from shared.monitor import SafetyMonitor
-from shared.robot_model import default_robot
-from shared.scenarios import Q_GOAL, Q_START, paper_phases
-from shared.sim import run_shuttle
-from shared.ssm import SsmParameters, pair_ssm
+from shared.core.humans import HumanCapsules
+from shared.robot.model import default_robot
+from shared.safety.monitor import SafetyMonitor
+from shared.safety.ssm import SsmParameters, pair_ssm
 
 ROBOT = default_robot()
 SSM = SsmParameters()
@@ -105,7 +105,7 @@ def test_every_command_of_the_paper_phases_passes_the_independent_monitor():
 
 
 def test_speed_exceedances_count_only_when_the_robot_does_not_react_and_brake():
-    from shared.monitor import MonitorResult, ReactionWindow, Violation
+    from shared.safety.monitor import MonitorResult, ReactionWindow, Violation
 
     def speeding(v):
         return MonitorResult(violations=[Violation("prbt_link_4", 0, "speed", 0.5, v, 0.1)])
@@ -126,7 +126,7 @@ def test_speed_exceedances_count_only_when_the_robot_does_not_react_and_brake():
 
 
 def test_a_lagging_monitor_pairs_each_joint_state_with_the_person_of_its_moment():
-    from shared.monitor import HumanHistory
+    from shared.safety.monitor import HumanHistory
 
     q = Q_START
     points, jac = ROBOT.capsule_kinematics(q)
@@ -184,7 +184,7 @@ def test_the_batched_check_is_the_coal_check():
 
 
 def test_a_state_is_checked_against_the_person_of_its_moment_or_counted_unchecked():
-    from shared.monitor import Backlog, HumanHistory
+    from shared.safety.monitor import Backlog, HumanHistory
     person = _random_person(np.random.default_rng(2), 2)
     history = HumanHistory()
     backlog = Backlog(pair_wait=0.1, pair_age=0.1, deadline=0.5)

@@ -7,8 +7,8 @@ import random
 import canopen
 import pytest
 
-from shared.pdo_layout import PdoLayout, PdoLayoutError
-from shared.prbt_drive import EDS_PATH
+from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
+from shared.drives.prbt import EDS_PATH
 
 
 def _node() -> canopen.LocalNode:

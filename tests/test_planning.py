@@ -4,19 +4,26 @@ parameterisation, horizon check, continuous merge, beta replans, and the traject
 import numpy as np
 import pytest
 
-from shared.collision import CollisionModel
-from shared.convert import trajectory_from_msg, trajectory_to_msg
-from shared.scaling import ssm_alpha_bound
-from shared.humans import HumanCapsules
-from shared.messages import TrajectoryMsg, decode, encode
-from shared.planner import GoalInCollision, JointPlanner, NoPathFound, OutOfLimits, PlannerOptions, StartInCollision
-from shared.replanning import HoldClock, HorizonOptions, ReplanFailed, ReplanOptions, Replanner, horizon_check
-from shared.robot_model import default_robot
-from shared.scenarios import Q_GOAL, Q_START, body_segments
-from shared.scene import load_scene
-from shared.ssm import SsmParameters
-from shared.timing import TimingError, parameterize
-from shared.trajectory import straight_line_trajectory
+from evidence.scenarios import Q_GOAL, Q_START, body_segments
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.planning.collision import CollisionModel
+from shared.planning.ompl_planner import (
+    GoalInCollision,
+    JointPlanner,
+    NoPathFound,
+    OutOfLimits,
+    PlannerOptions,
+    StartInCollision,
+)
+from shared.planning.replanner import HoldClock, HorizonOptions, ReplanFailed, Replanner, ReplanOptions, horizon_check
+from shared.planning.scene import load_scene
+from shared.planning.timing import TimingError, parameterize
+from shared.robot.model import default_robot
+from shared.safety.ssm import SsmParameters
+from shared.scaling.problem import ssm_alpha_bound
+from shared.wire.convert import trajectory_from_msg, trajectory_to_msg
+from shared.wire.messages import TrajectoryMsg, decode, encode
 
 ROBOT = default_robot()
 LIM = ROBOT.limits
@@ -52,8 +59,8 @@ def test_the_straight_shuttle_is_blocked_and_the_plan_goes_around_the_arm():
     assert_trajectory_feasible(traj, ARM_ACROSS)
     s = np.linspace(0, traj.duration, 4000)
     _, dq, ddq = traj.sample(s)
-    assert np.all(np.abs(dq) <= LIM.velocity * 1.01)             # toppra's grid; see shared/timing.py
-    assert np.all(np.abs(ddq) <= LIM.acceleration * 1.10)       # toppra's grid; see shared/timing.py
+    assert np.all(np.abs(dq) <= LIM.velocity * 1.01)             # toppra's grid; see shared/planning/timing.py
+    assert np.all(np.abs(ddq) <= LIM.acceleration * 1.10)       # toppra's grid; see shared/planning/timing.py
 
 
 def test_a_free_straight_motion_needs_no_search():
@@ -79,7 +86,7 @@ def test_toppra_laws_never_leave_the_acceleration_tolerance():
     """toppra bounds acceleration at its grid points only; between them a sharp detour once reached 1.42
     x the limit. Whatever path RRT-Connect returns, the law parameterize gives stays within the tolerance
     (re-timed with more headroom), or it is refused."""
-    from shared.timing import ACCELERATION_TOLERANCE
+    from shared.planning.timing import ACCELERATION_TOLERANCE
     for _ in range(30):
         try:
             traj = parameterize(PLANNER.plan(Q_START, Q_GOAL, ARM_ACROSS), LIM, collision=CM, humans=ARM_ACROSS)

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from shared.errors import ConfigError
-from shared.replay import load_replay, parse_csv, parse_json
+from shared.core.errors import ConfigError
+from shared.tracking.motion import load_replay, parse_csv, parse_json
 
 CSV = """t,ax,ay,az,bx,by,bz,radius
 0.00,-1.2,0.0,0.90,-1.2,0.0,1.45,0.17

@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 import yaml
 
-from shared.errors import ConfigError
-from shared.robot_model import CAPSULES_PATH, RobotModel, load_capsules
+from shared.core.errors import ConfigError
+from shared.robot.model import CAPSULES_PATH, RobotModel, load_capsules
 
 PI2 = math.pi / 2
 # (q, flange position, flange quaternion xyzw) from ../shared/prbt/FACTS.md section 1.4

@@ -6,11 +6,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from shared.humans import HumanCapsules
-from shared.robot_model import default_robot
-from shared.scaling import PiqpScalingSolver, build_rows, solve, solve_closed_form
-from shared.ssm import SsmParameters
-from shared.trajectory import straight_line_trajectory
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.robot.model import default_robot
+from shared.safety.ssm import SsmParameters
+from shared.scaling.problem import PiqpScalingSolver, build_rows, solve, solve_closed_form
 
 ROBOT = default_robot()
 SSM = SsmParameters()

@@ -8,12 +8,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from shared.humans import HumanCapsules
-from shared.robot_model import default_robot
-from shared.scaling_layer import ScalingLayer, ScalingParameters, StepStatus
-from shared.scenarios import Q_GOAL, Q_START, body_segments
-from shared.ssm import SsmParameters, pair_ssm
-from shared.trajectory import straight_line_trajectory
+from evidence.scenarios import Q_GOAL, Q_START, body_segments
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.robot.model import default_robot
+from shared.safety.ssm import SsmParameters, pair_ssm
+from shared.scaling.layer import ScalingLayer, ScalingParameters, StepStatus
 
 ROBOT = default_robot()
 NOBODY = HumanCapsules.empty()
@@ -134,7 +134,7 @@ def test_no_trajectory_commands_nothing():
 
 
 def test_one_rule_takes_a_new_trajectory_without_a_jump():
-    from shared.trajectory import straight_line_trajectory
+    from shared.core.trajectory import straight_line_trajectory
 
     robot = default_robot()
     lim = robot.limits

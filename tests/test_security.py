@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 import zenoh
 
-from shared.acl import IDENTITIES, PUBLISHERS, access_control
-from shared.errors import ConfigError
-from shared.keys import KeySpace
-from shared.messages import HumanState, JointCommand, JointState, decode, encode
-from shared.pki import TlsIdentity, make_cell_pki
-from shared.zenoh_session import await_liveliness, check_endpoints, make_config, open_session
+from shared.core.errors import ConfigError
+from shared.transport.acl import IDENTITIES, PUBLISHERS, access_control
+from shared.transport.pki import TlsIdentity, make_cell_pki
+from shared.transport.zenoh_session import await_liveliness, check_endpoints, make_config, open_session
+from shared.wire.keys import KeySpace
+from shared.wire.messages import HumanState, JointCommand, JointState, decode, encode
 from tests.util import free_port
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`

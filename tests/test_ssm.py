@@ -9,10 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from shared.errors import ConfigError
-from shared.humans import HumanCapsules
-from shared.ssm import (SsmParameters, default_human_speed, pair_ssm, protective_separation_distance,
-                        velocity_limit)
+from shared.core.errors import ConfigError
+from shared.core.humans import HumanCapsules
+from shared.safety.ssm import SsmParameters, default_human_speed, pair_ssm, protective_separation_distance, velocity_limit
 
 P = SsmParameters()
 

@@ -1,18 +1,18 @@
-"""The SSM-aware time cost (shared.ssm_time) and the search that minimises it (shared.path_search)."""
+"""The SSM-aware time cost (shared.planning.time_cost) and the search that minimises it (shared.planning.path_search)."""
 
 import numpy as np
 import pytest
 
-from shared.collision import CollisionModel
-from shared.humans import HumanCapsules
-from shared.path_search import PathSearch, SearchOptions
-from shared.robot_model import default_robot
-from shared.scaling import ssm_alpha_bound
-from shared.scenarios import Q_GOAL, Q_START, body_segments
-from shared.scene import load_scene
-from shared.ssm import SsmParameters
-from shared.ssm_time import SsmTimeCost, TimeCostOptions
-from shared.trajectory import polyline_trajectory, straight_line_trajectory
+from evidence.scenarios import Q_GOAL, Q_START, body_segments
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import polyline_trajectory, straight_line_trajectory
+from shared.planning.collision import CollisionModel
+from shared.planning.path_search import PathSearch, SearchOptions
+from shared.planning.scene import load_scene
+from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
+from shared.robot.model import default_robot
+from shared.safety.ssm import SsmParameters
+from shared.scaling.problem import ssm_alpha_bound
 
 ROBOT = default_robot()
 LIM = ROBOT.limits

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from shared.tracking import HumanTracker, TrackerParameters
+from shared.tracking.tracker import HumanTracker, TrackerParameters
 
 DT = 1 / 240
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from shared.trajectory import Trajectory, straight_line_trajectory, trapezoid_profile
+from shared.core.trajectory import Trajectory, straight_line_trajectory, trapezoid_profile
 
 QS = np.array([1.57, -0.4, 1.17, 0, 1.57, 0])
 QG = np.array([-1.57, -0.4, 1.17, 0, 1.57, 0])

@@ -4,15 +4,15 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from services.view import closest_pair, write_recording
-from shared.convert import trajectory_to_msg
-from shared.geometry import capsule_frames
-from shared.messages import HumanState, JointCommand, JointState, ScalerStatus
-from shared.robot_model import default_robot
-from shared.scenarios import Q_GOAL, Q_START
-from shared.ssm import SsmParameters, pair_ssm
-from shared.humans import HumanCapsules
-from shared.trajectory import straight_line_trajectory
+from evidence.scenarios import Q_GOAL, Q_START
+from shared.core.geometry import capsule_frames
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.robot.model import default_robot
+from shared.safety.ssm import SsmParameters, pair_ssm
+from shared.wire.convert import trajectory_to_msg
+from shared.wire.messages import HumanState, JointCommand, JointState, ScalerStatus
+from tools.view import closest_pair, write_recording
 
 ROBOT = default_robot()
 SSM = SsmParameters()
@@ -87,7 +87,7 @@ def test_rerun_is_told_to_send_no_analytics():
     import os
     import subprocess
 
-    from services.view import no_analytics, rerun_binary
+    from tools.view import no_analytics, rerun_binary
 
     home = no_analytics()
     assert json.loads((home / "rerun" / "analytics.json").read_text())["analytics_enabled"] is False

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from shared.errors import ConfigError
-from shared.zenoh_session import check_endpoints, open_session
+from shared.core.errors import ConfigError
+from shared.transport.zenoh_session import check_endpoints, open_session
 from tests.util import free_port
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`

@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
+from evidence.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario
+from evidence.strategies import Strategies
+from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
 from shared.config import CellConfig
-from shared.humans import HumanCapsules
-from shared.robot_model import default_robot
-from shared.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario
-from shared.ssm import SsmParameters
-from shared.strategies import Strategies
-from shared.trajectory import straight_line_trajectory
-from shared.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.robot.model import default_robot
+from shared.safety.ssm import SsmParameters
 
 ROBOT = default_robot()
 
@@ -90,7 +90,7 @@ def test_all_three_strategies_stay_safe_and_direction_awareness_pays(strategies)
 
 
 def test_leg_progress_is_geometric_so_a_new_plan_keeps_the_way_made():
-    from shared.sim import leg_fraction
+    from evidence.sim import leg_fraction
     a, b = np.zeros(6), np.ones(6)
     assert leg_fraction(a, a, b) == 0.0 and leg_fraction(b, a, b) == 1.0
     assert leg_fraction(0.25 * b, a, b) == pytest.approx(0.25)

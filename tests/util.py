@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from services.cell import namespace_reason
-from services.launch import free_port
+from tools.cell import namespace_reason
+from tools.launch import free_port
 
 __all__ = ["free_port", "namespace_reason", "require_namespace"]
 

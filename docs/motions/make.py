@@ -1,5 +1,5 @@
 """Makes the example motions in this folder: keypoints of people of our own making (20 Hz, in mm, as a
-capture system writes them), turned into motion files by the project's own converter (shared.keypoints,
+capture system writes them), turned into motion files by the project's own converter (shared.tracking.keypoints,
 the same as `hrc human from-keypoints`). Run from the project root:
 
     .venv/bin/python docs/motions/make.py
@@ -21,7 +21,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from shared.keypoints import FrameTransform, convert  # noqa: E402
+from shared.tracking.keypoints import FrameTransform, convert  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 RATE = 20.0                      # Hz

@@ -28,14 +28,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from shared.prbt_drive import EDS_PATH, NODE_IDS  # noqa: E402
-from shared.canbus import open_bus  # noqa: E402
-from shared.keys import KeySpace  # noqa: E402
-from shared.messages import (DriveLagReport, DriverRequest, JointCommand, JointState, SafetyEvent, decode,  # noqa: E402
-                             encode)
-from shared.zenoh_session import await_liveliness, open_session  # noqa: E402
-from services.launch import die_with_parent  # noqa: E402
+from shared.drives.bus import open_bus  # noqa: E402
+from shared.drives.prbt import EDS_PATH, NODE_IDS  # noqa: E402
+from shared.transport.zenoh_session import await_liveliness, open_session  # noqa: E402
+from shared.wire.keys import KeySpace  # noqa: E402
+from shared.wire.messages import DriveLagReport, DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode  # noqa: E402
 from tests.util import free_port  # noqa: E402
+from tools.launch import die_with_parent  # noqa: E402
 
 Q0 = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
 PERIOD = 0.01
@@ -422,8 +421,8 @@ class HumanFeed:
     """Publishes a human state at 50 Hz (an empty, valid one unless told otherwise) until stopped."""
 
     def __init__(self, cell: Cell) -> None:
-        from shared.convert import humans_to_msg
-        from shared.humans import HumanCapsules
+        from shared.core.humans import HumanCapsules
+        from shared.wire.convert import humans_to_msg
         self.cell, self.humans, self.running = cell, HumanCapsules.empty(), True
         self.raw = cell.with_tracker           # with the tracker service: raw poses at 240 Hz, through it
         self.pub = cell.session.declare_publisher(cell.keys.human_raw if self.raw else cell.keys.human_state)
@@ -431,7 +430,7 @@ class HumanFeed:
         threading.Thread(target=self._run, daemon=True).start()
 
     def _run(self) -> None:
-        from shared.messages import HumanRaw
+        from shared.wire.messages import HumanRaw
         seq = 0
         while self.running:
             seq += 1
@@ -445,9 +444,9 @@ class HumanFeed:
 
 
 def _publish_trajectory(cell: Cell, goal: np.ndarray, version: int):
-    from shared.convert import trajectory_to_msg
-    from shared.robot_model import default_robot
-    from shared.trajectory import straight_line_trajectory
+    from shared.core.trajectory import straight_line_trajectory
+    from shared.robot.model import default_robot
+    from shared.wire.convert import trajectory_to_msg
     lim = default_robot().limits
     traj = straight_line_trajectory(cell.latest().q, goal, lim.velocity, lim.acceleration, version=version)
     cell.session.put(cell.keys.trajectory, encode(trajectory_to_msg(traj, goal_id=version, reason="goal")))
@@ -486,8 +485,8 @@ def system_stale_humans(cell: Cell) -> dict:
 def system_near_human(cell: Cell) -> dict:
     """A person stands beside the shuttle's path, tracked: the robot slows near them, still reaches the
     goal, and the independent monitor (measured states) counts no violation."""
-    from shared.humans import HumanCapsules
-    from shared.scenarios import body_segments
+    from evidence.scenarios import body_segments
+    from shared.core.humans import HumanCapsules
     feed = HumanFeed(cell)
     _wait(lambda: cell.latest().enabled, 5.0)
     seg, radii = body_segments(-1.3, 0.0, 0.6, np.array([-0.45, 0.0, 0.6]), lean=0.3)
@@ -537,10 +536,10 @@ def _wait(condition, timeout: float) -> float | None:
 def system_replan(cell: Cell) -> dict:
     """Goal through the planner; an arm appears across the path while the robot moves: the planner
     replans (horizon check) and the goal is still reached, never closer to the arm than d_min."""
-    from shared.geometry import capsule_pair_distances
-    from shared.humans import HumanCapsules
-    from shared.messages import Goal
-    from shared.robot_model import default_robot
+    from shared.core.geometry import capsule_pair_distances
+    from shared.core.humans import HumanCapsules
+    from shared.robot.model import default_robot
+    from shared.wire.messages import Goal
     robot = default_robot()
     feed = HumanFeed(cell)
     _wait(lambda: cell.latest().enabled, 5.0)

@@ -1,0 +1,201 @@
+"""Scripted humans: a simple body of capsules moved through keyframes.
+
+A body is a torso, a head and one reaching arm (upper arm + forearm with the hand), placed by the torso's
+floor position (x, y), a reach fraction in [0, 1] that swings the arm from hanging down to pointing at a
+target, and a lean in [0, 1] that bends the upper body towards the target (shoulders up to 0.35 m
+forward and 0.3 m lower), so that a person can put an arm across the robot's path. Keyframes are linearly
+interpolated in time; end-point velocities are the exact derivative
+of that motion (central difference over 1 ms), so a scripted human has "tracked" velocities.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+
+TORSO_RADIUS, HEAD_RADIUS, UPPER_ARM_RADIUS, FOREARM_RADIUS = 0.17, 0.12, 0.06, 0.05
+UPPER_ARM, FOREARM = 0.30, 0.35
+
+
+@dataclass(frozen=True)
+class Keyframe:
+    """At time t (s): torso floor position (m), reach fraction, reach target (m, base frame), label."""
+
+    t: float
+    x: float
+    y: float
+    reach: float = 0.0
+    target: tuple[float, float, float] = (0.0, 0.0, 0.5)
+    phase: str = ""
+    lean: float = 0.0
+
+
+def body_segments(x: float, y: float, reach: float, target: np.ndarray, lean: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Capsule end points (4, 2, 3) and radii (4,) of a standing human with one arm reaching."""
+    hip = np.array([x, y, 0.9])
+    toward = np.asarray(target, dtype=float)[:2] - hip[:2]
+    toward = toward / max(np.linalg.norm(toward), 1e-9)
+    neck = np.array([x + 0.35 * lean * toward[0], y + 0.35 * lean * toward[1], 1.45 - 0.3 * lean])
+    shoulder = neck + np.array([0.0, -0.2, 0.0])
+    down = np.array([0.0, 0.0, -1.0])
+    to_target = np.asarray(target, dtype=float) - shoulder
+    norm = np.linalg.norm(to_target)
+    aim = to_target / norm if norm > 1e-9 else down
+    direction = (1.0 - reach) * down + reach * aim
+    direction /= max(np.linalg.norm(direction), 1e-9)
+    elbow = shoulder + UPPER_ARM * direction
+    hand = elbow + FOREARM * direction
+    head = neck + np.array([0.0, 0.0, 0.27])
+    segments = np.array([
+        [hip, neck],                                 # torso
+        [head, head],                                # head (a sphere)
+        [shoulder, elbow],                           # upper arm
+        [elbow, hand],                               # forearm and hand
+    ])
+    return segments, np.array([TORSO_RADIUS, HEAD_RADIUS, UPPER_ARM_RADIUS, FOREARM_RADIUS])
+
+
+class ScriptedHuman:
+    """A human following keyframes; ``at(t)`` gives the capsules and their velocities at time t."""
+
+    def __init__(self, keyframes: list[Keyframe]) -> None:
+        if not keyframes or any(b.t <= a.t for a, b in zip(keyframes, keyframes[1:])):
+            raise ValueError("keyframes need strictly increasing times")
+        self.keyframes = keyframes
+
+    def _pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        ks = self.keyframes
+        t = min(max(t, ks[0].t), ks[-1].t)
+        i = max(0, min(len(ks) - 2, int(np.searchsorted([k.t for k in ks], t, side="right")) - 1)) if len(ks) > 1 else 0
+        a = ks[i]
+        b = ks[i + 1] if len(ks) > 1 else a
+        w = 0.0 if b.t == a.t else (t - a.t) / (b.t - a.t)
+        mix = lambda u, v: (1 - w) * u + w * v
+        target = mix(np.asarray(a.target), np.asarray(b.target))
+        return body_segments(mix(a.x, b.x), mix(a.y, b.y), mix(a.reach, b.reach), target, mix(a.lean, b.lean))
+
+    def phase(self, t: float) -> str:
+        """The label of the last keyframe at or before t."""
+        label = self.keyframes[0].phase
+        for k in self.keyframes:
+            if k.t <= t:
+                label = k.phase or label
+        return label
+
+    def at(self, t: float) -> HumanCapsules:
+        seg, radii = self._pose(t)
+        dt = 1e-3
+        vel = (self._pose(t + dt)[0] - self._pose(t - dt)[0]) / (2 * dt)
+        return HumanCapsules(seg, radii, vel, np.ones(radii.size, dtype=bool))
+
+
+# The paper's experiment, seen from the robot: the shuttle sweeps the flange over the -x side of the base.
+Q_START = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+Q_GOAL = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+IN_PATH = (-0.45, 0.0, 0.55)
+
+
+def paper_phases(period: float = 6.0) -> ScriptedHuman:
+    """The four phases of the paper's experiment, each `period` seconds long.
+
+    1 far away (full speed); 2 walking up to the cell and back (scaling down, then up again);
+    3 leaning in with the forearm across the robot's path (the planner replans around it);
+    4 very close, reaching into the path (alpha falls below alpha_min: beta, a replan); then leaving.
+    """
+    p = period
+    return ScriptedHuman([
+        Keyframe(0.0, -2.8, 0.0, 0.0, IN_PATH, "1 far away"),
+        Keyframe(p, -2.8, 0.0, 0.0, IN_PATH, "2 approaching"),
+        Keyframe(p + 0.45 * p, -1.05, 0.0, 0.0, IN_PATH, "2 approaching"),
+        Keyframe(p + 0.55 * p, -1.05, 0.0, 0.0, IN_PATH, "2 moving away"),
+        Keyframe(2 * p, -2.0, 0.0, 0.0, IN_PATH, "3 arm in the path"),
+        Keyframe(2 * p + 0.3 * p, -1.05, 0.15, 1.0, IN_PATH, "3 arm in the path", lean=0.8),
+        Keyframe(3 * p, -1.05, 0.15, 1.0, IN_PATH, "4 very close", lean=0.8),
+        Keyframe(3 * p + 0.2 * p, -0.9, 0.1, 1.0, IN_PATH, "4 very close", lean=1.0),
+        Keyframe(3.8 * p, -0.9, 0.1, 1.0, IN_PATH, "leaving", lean=1.0),
+        Keyframe(4 * p, -2.8, 0.0, 0.0, IN_PATH, "leaving"),
+    ])
+
+
+# ------------------------------------------------------------------------------- seeded random scenarios
+class Crowd:
+    """Several scripted humans at once: their capsules together; the phase is the first one's."""
+
+    def __init__(self, humans: list[ScriptedHuman]) -> None:
+        self.humans = humans
+
+    def at(self, t: float) -> HumanCapsules:
+        parts = [h.at(t) for h in self.humans]
+        return HumanCapsules(np.concatenate([p.segments for p in parts]), np.concatenate([p.radii for p in parts]),
+                             np.concatenate([p.velocities for p in parts]),
+                             np.concatenate([p.velocity_known for p in parts]))
+
+    def phase(self, t: float) -> str:
+        return self.humans[0].phase(t)
+
+
+WALK_SPEED = 1.6             # m/s, ISO 13855's walking speed: no scripted walk is faster
+
+
+def _walk(points: list[tuple[float, float, float, float]], label: str, speed: float = WALK_SPEED,
+          pause: float = 0.0) -> ScriptedHuman:
+    """Keyframes through (x, y, reach, lean) points at `speed`, pausing `pause` s at each."""
+    frames, t = [], 0.0
+    for k, (x, y, reach, lean) in enumerate(points):
+        if k:
+            px, py = points[k - 1][:2]
+            t += max(np.hypot(x - px, y - py) / speed, 0.3)
+        frames.append(Keyframe(t, x, y, reach, IN_PATH, label, lean))
+        if pause > 0:
+            t += pause
+            frames.append(Keyframe(t, x, y, reach, IN_PATH, label, lean))
+    return ScriptedHuman(frames)
+
+
+def crossing(rng: np.random.Generator, duration: float) -> ScriptedHuman:
+    """A person crossing the workspace at 1.6 m/s, back and forth, 0.9 to 1.6 m from the robot's axis."""
+    x = -float(rng.uniform(0.9, 1.6))
+    side = float(rng.choice([-1.0, 1.0]))
+    points = [(x, side * 2.5 * (-1) ** k, 0.0, 0.0) for k in range(int(duration / 3.0) + 2)]
+    return _walk(points, "crossing at 1.6 m/s")
+
+
+def standing_in_path(rng: np.random.Generator, duration: float) -> ScriptedHuman:
+    """A person walking up and standing next to the path, reaching into it, the whole time."""
+    x, y = -float(rng.uniform(0.95, 1.3)), float(rng.uniform(-0.5, 0.5))
+    reach, lean = float(rng.uniform(0.4, 1.0)), float(rng.uniform(0.2, 0.8))
+    arrive = float(np.hypot(x + 2.6, 0.0)) / 1.2
+    label = "standing in the path"
+    return ScriptedHuman([Keyframe(0.0, -2.6, y, 0.0, IN_PATH, label), Keyframe(arrive, x, y, reach, IN_PATH, label, lean),
+                          Keyframe(arrive + duration, x, y, reach, IN_PATH, label, lean)])
+
+
+def random_walk(rng: np.random.Generator, duration: float) -> ScriptedHuman:
+    """A person wandering around the robot's working side: random stops 0.8 to 2.5 m from its axis, at
+    most 1.6 m/s, sometimes reaching towards the path."""
+    points = []
+    for _ in range(int(duration / 1.5) + 2):
+        r, angle = float(rng.uniform(0.8, 2.5)), float(rng.uniform(0.55 * np.pi, 1.45 * np.pi))
+        reach = float(rng.uniform(0.0, 1.0)) if r < 1.4 else 0.0
+        points.append((r * np.cos(angle), r * np.sin(angle), reach, 0.5 * reach))
+    return _walk(points, "random walk", speed=float(rng.uniform(0.6, WALK_SPEED)), pause=float(rng.uniform(0, 1)))
+
+
+def two_humans(rng: np.random.Generator, duration: float) -> Crowd:
+    """One crossing, one wandering."""
+    return Crowd([crossing(rng, duration), random_walk(rng, duration)])
+
+
+SCENARIO_KINDS = {"paper": lambda rng, d: paper_phases(d / 4.0), "crossing": crossing,
+                  "standing": standing_in_path, "two_humans": two_humans, "random_walk": random_walk}
+
+
+def make_scenario(kind: str, seed: int, duration: float):
+    """The scripted human(s) of one seeded scenario: the same (kind, seed, duration) gives the same motion."""
+    if kind not in SCENARIO_KINDS:
+        raise ValueError(f"unknown scenario kind {kind!r}; known: {sorted(SCENARIO_KINDS)}")
+    return SCENARIO_KINDS[kind](np.random.default_rng(seed), duration)

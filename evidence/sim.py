@@ -1,0 +1,257 @@
+"""In-process simulation of both layers on a simulated clock: deterministic, no I/O.
+
+The robot shuttles between two configurations; a scripted human (or a recorded motion, whose dropout
+frames, None, stop the robot as missing data does in the cell) moves through the cell. Every control
+period the scaling layer runs exactly as in the scaler service. The planning layer, when given, runs the
+horizon check on every human sample (Alg. 1), replans and merges when the path ahead is blocked (Alg. 2)
+and when the scaling layer raises beta, and plans each new shuttle around the humans. Every command is
+judged at the state it commands by the independent monitor's rule (shared.safety.monitor: coal distances,
+the ISO limit at the closest points, the react-within-T_r-then-brake allowance), counting violations;
+`command_exceedances` counts, stricter, every command the scaling layer chose (not one where it was
+braking at the drives' limit, `braking_cycles`) whose conservative end-point bound exceeds the limit at
+all. The robot is taken to follow its command exactly: the commands are followable by construction
+(the scaling layer slows down no faster than the drives can brake), and the drive model itself comes
+with the CAN emulator. With charge_planning, the planner's compute time (measured, or a fixed time per
+path search, which keeps runs repeatable) passes on the simulated clock before its result is used (the robot keeps
+executing the old trajectory meanwhile, and a new shuttle,
+planned in the cycle its predecessor ends, waits for its plan); without it, results are used in the
+cycle that asked for them. The predictions are told how long the scaling layer has been asking for a
+replan (HoldClock), as the planner service tells them.
+
+The speed policy is a parameter: the scaling layer (default), or any ScalingLayer subclass such as the
+zone-based baseline (evidence.zones). Same core code as the services: ScalingLayer, Replanner.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from evidence.scenarios import ScriptedHuman
+from shared.config import CellConfig
+from shared.core.trajectory import straight_line_trajectory
+from shared.planning.ompl_planner import PlanningError
+from shared.planning.replanner import HoldClock, ReplanFailed, Replanner
+from shared.planning.timing import TimingError
+from shared.robot.model import RobotModel
+from shared.safety.monitor import MonitorResult, ReactionWindow, SafetyMonitor
+from shared.safety.ssm import pair_ssm
+from shared.scaling.layer import ScalingLayer, ScalingStep, StepStatus
+
+START_TOLERANCE = 1e-3   # rad: the simulated robot is exactly on its path (the scaler allows 0.02 for the drives)
+
+
+@dataclass
+class SimRecord:
+    """One control cycle as it happened."""
+
+    t: float
+    phase: str
+    step: ScalingStep
+    shuttles: int
+    approach_margin: float       # min over pairs of max(limit, 0) - approach speed at the commanded motion (m/s)
+
+
+@dataclass
+class ReplanEvent:
+    t: float
+    reason: str                  # 'horizon', 'beta' or 'goal'
+    ok: bool
+    compute_ms: float
+    detail: str = ""
+
+
+@dataclass
+class SimResult:
+    records: list[SimRecord] = field(default_factory=list)
+    replans: list[ReplanEvent] = field(default_factory=list)
+    shuttles: int = 0
+    violations: int = 0
+    command_exceedances: int = 0
+    braking_cycles: int = 0
+    beta_requests: int = 0
+    progress: float = 0.0        # shuttles completed plus the fraction of the current leg covered
+
+    def summary(self) -> dict:
+        steps = [r.step for r in self.records]
+        compute = np.array([s.compute_us for s in steps]) if steps else np.zeros(1)
+        alpha = np.array([s.alpha for s in steps]) if steps else np.zeros(1)
+        margins = [r.approach_margin for r in self.records if np.isfinite(r.approach_margin)]
+        seps = [s.min_separation for s in steps if np.isfinite(s.min_separation)]
+        duration = self.records[-1].t if self.records else 0.0
+        done = [e for e in self.replans if e.ok]
+        return {
+            "duration_s": round(duration, 3),
+            "cycles": len(steps),
+            "shuttles_completed": self.shuttles,
+            "shuttles_per_min": round(60.0 * self.shuttles / duration, 2) if duration else 0.0,
+            "shuttle_progress": round(self.progress, 4),
+            "mean_alpha": round(float(alpha.mean()), 4),
+            "stopped_fraction": round(float(np.mean(alpha < 1e-6)), 4),
+            "beta_requests": self.beta_requests,
+            "replans": [{"t": round(e.t, 2), "reason": e.reason, "compute_ms": round(e.compute_ms, 1),
+                         "detail": e.detail} for e in done],
+            "replans_failed": len(self.replans) - len(done),
+            "min_separation_m": round(min(seps), 4) if seps else None,
+            "min_margin_m_s": round(min(margins), 4) if margins else None,
+            "violations": self.violations,
+            "command_exceedances": self.command_exceedances,
+            "braking_cycles": self.braking_cycles,
+            "compute_us": {"p50": round(float(np.percentile(compute, 50)), 1),
+                           "p99": round(float(np.percentile(compute, 99)), 1)},
+        }
+
+
+def leg_fraction(q: np.ndarray, start: np.ndarray, goal: np.ndarray) -> float:
+    """How much of a leg the robot has covered, by where it is: 1 - |q - goal| / |start - goal| (joint
+    space, Euclidean), in [0, 1]. Geometric, so a replanned trajectory that starts anew from where the
+    robot stands is credited with the way already made (a path parameter would restart at 0)."""
+    span = float(np.linalg.norm(goal - start))
+    return 0.0 if span <= 0.0 else float(np.clip(1.0 - np.linalg.norm(q - goal) / span, 0.0, 1.0))
+
+
+def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a: np.ndarray, q_b: np.ndarray,
+                duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
+                beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
+                charge_planning: bool | float = False, monitor: SafetyMonitor | None = None) -> SimResult:
+    """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
+
+    replanner: the planning layer (None: scaling only, straight shuttles). beta_replans: answer the
+    scaling layer's replan requests (the paper's ablation switches this off). on_record / on_replan: called
+    with each SimRecord / ReplanEvent as it happens. layer: the speed policy (default: a new ScalingLayer).
+    charge_planning: planning takes time on the simulated clock: True its measured wall time, a number
+    that many seconds per path search (repeatable whatever the machine's load). monitor: the judge (default:
+    a SafetyMonitor of this robot; pass one to reuse it across runs)."""
+    layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
+    monitor = monitor or SafetyMonitor(robot, config.ssm)
+    window = ReactionWindow(config.ssm.reaction_time, config.ssm.stopping_time)
+    period = config.scaling.period
+    lim = robot.limits
+    ends = [np.asarray(q_a, dtype=float), np.asarray(q_b, dtype=float)]
+    result = SimResult()
+    leg = 0
+    layer.set_trajectory(straight_line_trajectory(ends[0], ends[1], lim.velocity, lim.acceleration))
+    beta_before = False
+    held = HoldClock()                # how long the scaling layer has been asking for a replan
+    next_beta_try = next_horizon_try = 0.0
+    pending_leg = False
+    busy_until = -1.0                 # charge_planning: the planner is computing until then
+    speed_now = 0.0                   # the robot's commanded joint speed after the last step (rad/s)
+    waiting: tuple | None = None      # (ready at, ReplanResult or Trajectory, reason, compute ms)
+
+    def log_replan(event: ReplanEvent) -> None:
+        result.replans.append(event)
+        if on_replan is not None:
+            on_replan(event)
+
+    def charged(started: float, searches: int) -> float:
+        """Simulated seconds a planning call takes (see charge_planning)."""
+        if charge_planning is True:
+            return time.perf_counter() - started
+        return (replanner.searches - searches) * float(charge_planning)
+
+    def replan(t: float, reason: str, action, *args) -> None:
+        nonlocal busy_until, waiting
+        started, searches = time.perf_counter(), replanner.searches
+        try:
+            res = action(*args)
+        except ReplanFailed as exc:
+            elapsed = (time.perf_counter() - started) * 1e3
+            busy_until = t + charged(started, searches) if charge_planning else busy_until
+            log_replan(ReplanEvent(t, reason, False, elapsed, str(exc)))
+            return
+        elapsed = (time.perf_counter() - started) * 1e3
+        if res is None:
+            return
+        if charge_planning:
+            busy_until = t + charged(started, searches)
+            waiting = (busy_until, res, reason, elapsed)
+            return
+        take(t, res, reason, elapsed)
+
+    def plan_leg(t: float, goal: np.ndarray, humans) -> None:
+        """The next shuttle, planned around the humans from where the last one ended."""
+        nonlocal busy_until, waiting, pending_leg
+        started, searches = time.perf_counter(), replanner.searches
+        try:
+            traj = replanner.plan_goal(layer.trajectory.positions[-1], goal, humans, layer.trajectory.version + 1,
+                                       held.waited(t))
+            if charge_planning:
+                busy_until = t + charged(started, searches)
+                waiting = (busy_until, traj, "goal", 0.0)
+            else:
+                layer.set_trajectory(traj)
+                pending_leg = False
+        except (PlanningError, TimingError) as exc:       # goal blocked for now: hold and try again
+            if charge_planning:
+                busy_until = t + charged(started, searches)
+            log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
+
+    def take(t: float, res, reason: str, elapsed: float) -> None:
+        here = layer.trajectory.sample(layer.s)[0]
+        if layer.take(res.trajectory, res.from_rest, res.junction, here, START_TOLERANCE) is None:
+            log_replan(ReplanEvent(t, reason, True, elapsed, res.detail))
+
+    for k in range(int(round(duration / period))):
+        t = k * period
+        humans = human.at(t)
+        goal = ends[(leg + 1) % 2]
+        if waiting is not None and t >= waiting[0]:         # a charged result is ready now
+            ready, res, reason, elapsed = waiting
+            waiting = None
+            if reason == "goal":
+                layer.set_trajectory(res)
+                pending_leg = False
+            else:
+                take(t, res, reason, elapsed)
+        if t < busy_until:
+            pass                                            # the planner is still computing
+        elif pending_leg and replanner is not None:        # a new shuttle: tried again
+            plan_leg(t, goal, humans)
+        elif replanner is not None and layer.s < layer.trajectory.duration and t >= next_horizon_try:
+            failures = len(result.replans)
+            replan(t, "horizon", replanner.on_horizon, layer.trajectory, layer.s, goal, humans, speed_now,
+                   held.waited(t))
+            if len(result.replans) > failures and not result.replans[-1].ok:
+                next_horizon_try = t + beta_cooldown / 2     # do not hammer a blocked horizon every cycle
+        step = layer.step(humans, 0.0)
+        speed_now = float(np.abs(step.qd_command).max())
+        if step.beta and not beta_before:
+            result.beta_requests += 1
+        beta_before = step.beta
+        held.update(t, step.beta)
+        if step.beta and beta_replans and replanner is not None and t >= next_beta_try and t >= busy_until:
+            next_beta_try = t + beta_cooldown
+            replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed_now, held.waited(t))
+        # the commanded motion against the limit: the conservative end-point bound first (fast); where it
+        # comes near, the independent monitor judges (its ReactionWindow sees every cycle)
+        margin = float("inf")          # a tracker dropout in a recorded motion: nobody to judge against
+        if humans is not None:
+            points, jac = robot.capsule_kinematics(step.q_command)
+            check = pair_ssm(points, robot.radii, jac @ step.qd_command, humans, config.ssm)
+            margin = float(check.margin.min()) if check.margin.size else margin
+        braking = step.method.endswith("+braking")
+        result.braking_cycles += braking
+        if margin < -1e-9 and not braking:
+            result.command_exceedances += 1
+        judged = monitor.check(step.q_command, step.qd_command, humans) if margin < 0.02 else MonitorResult()
+        result.violations += len(window.update(t, judged))
+        if step.status is StepStatus.FINISHED and not pending_leg:
+            result.shuttles += 1
+            leg += 1
+            start, goal = ends[leg % 2], ends[(leg + 1) % 2]
+            if replanner is None:
+                layer.set_trajectory(straight_line_trajectory(start, goal, lim.velocity, lim.acceleration,
+                                                              version=layer.trajectory.version + 1))
+            else:
+                pending_leg = True
+                if t >= busy_until:                         # planned at once, as the planner service does
+                    plan_leg(t, goal, humans)               # on the goal that follows an arrival
+        result.progress = result.shuttles + leg_fraction(step.q_command, ends[leg % 2], ends[(leg + 1) % 2])
+        record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
+        result.records.append(record)
+        if on_record is not None:
+            on_record(record)
+    return result

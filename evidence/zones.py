@@ -1,0 +1,101 @@
+"""Zone-based speed and separation monitoring as deployed in cells today (the baseline, pure).
+
+A safety laser scanner or camera gives the separation between the robot and the nearest person; the
+robot runs at full speed, at a reduced speed, or stops, by which zone that separation is in. No
+direction or velocity awareness: the zones are sized once with the ISO/TS 15066 formula for the worst
+case, a person approaching at the ISO 13855 speed (2.0 m/s) while the robot approaches at its speed in
+that zone:
+
+    S_stop = S_p(v_reduced, 2.0 m/s)        below it: protective stop (within T_s)
+    S_full = S_p(v_robot_max, 2.0 m/s)      beyond it: full speed; between: reduced speed
+
+The reduced speed caps every point of every link at v_reduced (ISO 10218's 250 mm/s by default). The
+stop is a category 2 stop: the path speed ramps down to zero within T_s, as S_p assumes; speeding up
+again ramps over T_s too. It follows the same path as the scaling layer, so the comparison isolates the
+speed policy.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.core.geometry import capsule_pair_distances
+from shared.core.humans import HumanCapsules
+from shared.robot.model import RobotModel
+from shared.safety.ssm import SsmParameters, protective_separation_distance
+from shared.scaling.layer import ScalingLayer, ScalingParameters, ScalingStep, StepStatus
+
+ISO_13855_SPEED = 2.0        # m/s, the approach speed the zones are sized for
+REDUCED_SPEED = 0.25         # m/s, ISO 10218-1 reduced speed
+
+
+@dataclass(frozen=True)
+class SpeedZones:
+    """Zone boundaries (m) and the speed caps (m/s) they were sized with."""
+
+    stop: float
+    full: float
+    reduced_speed: float
+
+    @classmethod
+    def sized(cls, ssm: SsmParameters, robot_speed: float, reduced_speed: float = REDUCED_SPEED,
+              human_speed: float = ISO_13855_SPEED) -> "SpeedZones":
+        """Zones from the ISO/TS 15066 formula for robot_speed (the fastest point of the robot, m/s)."""
+        return cls(float(protective_separation_distance(reduced_speed, human_speed, ssm)),
+                   float(protective_separation_distance(robot_speed, human_speed, ssm)), reduced_speed)
+
+
+def fastest_point_speed(robot: RobotModel, q: np.ndarray, qd: np.ndarray) -> float:
+    """The speed (m/s) of the fastest capsule end point of the robot moving at qd."""
+    _, jac = robot.capsule_kinematics(q)
+    return float(np.linalg.norm(jac @ qd, axis=-1).max())
+
+
+class ZoneScalingLayer(ScalingLayer):
+    """Follows a trajectory like ScalingLayer, with the path speed chosen by separation zones."""
+
+    def __init__(self, robot: RobotModel, zones: SpeedZones, ssm: SsmParameters | None = None,
+                 params: ScalingParameters | None = None) -> None:
+        super().__init__(robot, ssm, params)
+        self.zones = zones
+
+    def target_alpha(self, separation: float, q: np.ndarray, dq: np.ndarray) -> float:
+        """The path speed the zone of `separation` allows at this point of the path (dq: nominal q')."""
+        if separation >= self.zones.full:
+            return 1.0
+        if separation < self.zones.stop:
+            return 0.0
+        fastest = fastest_point_speed(self.robot, q, dq)
+        return 1.0 if fastest <= self.zones.reduced_speed else self.zones.reduced_speed / fastest
+
+    def step(self, humans: HumanCapsules | None, human_age: float,
+             q_measured: np.ndarray | None = None) -> ScalingStep:
+        start = time.perf_counter()
+        traj = self.trajectory
+        if traj is None:
+            return super().step(humans, human_age, q_measured)
+        q_nom, dq, _ = traj.sample(self.s)
+        running = self.s < traj.duration
+        separation, target = math.inf, 0.0
+        status = self.input_status(humans, human_age, running)
+        if status is StepStatus.RUNNING:
+            if humans.count:
+                pairs = capsule_pair_distances(self.robot.capsule_segments(q_nom), self.robot.radii,
+                                               humans.segments, humans.radii)
+                separation = float(pairs.distance.min())
+            target = self.target_alpha(separation, q_nom, dq)
+        ramp = self.params.period / self.ssm.stopping_time          # full speed <-> stop within T_s
+        alpha = min(max(target, self.sdot - ramp), self.sdot + ramp) if running else 0.0
+        if status in (StepStatus.NO_HUMAN_DATA, StepStatus.STALE_HUMAN_DATA):
+            alpha = 0.0                                          # no data: stop at once, as the scaler does
+        alpha = min(max(alpha, 0.0), 1.0)
+        alpha = 0.0 if alpha < 1e-9 else alpha                   # the ramp's rounding is not motion
+        self.sdot = alpha
+        self.s = min(self.s + alpha * self.params.period, traj.duration)
+        q_c, dq_c, _ = traj.sample(self.s)
+        return ScalingStep(alpha, target, False, self.s, alpha, q_c, dq_c * alpha, status, "zones", traj.version,
+                           separation, math.inf, (time.perf_counter() - start) * 1e6)

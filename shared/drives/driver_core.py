@@ -1,0 +1,236 @@
+"""The robot driver's decisions, as a pure core: no bus, no clock (the service passes `now`).
+
+Every cycle (one SYNC period) ``DriverCore.cycle`` takes what the drives reported (statusword, position,
+velocity, heartbeat age, EMCY) and returns the controlword and the position setpoint for each drive,
+plus safety events. States:
+
+* ENABLING: walk every drive to operation enabled (CiA 402, fault reset edges where needed), holding the
+  setpoints at the actual positions; then RUNNING once a fresh command starts where the robot is.
+* RUNNING: setpoint = the latest command, passed through ``follow_step``: clamped to the joint limits
+  and to what the drive follows, its velocity and acceleration limits (``shared.drives.prbt``), so no
+  command, however abrupt, gives the drive a setpoint it cannot follow (each clamp is a 'warning' safety
+  event, reported once per episode); a stop the scaler commands becomes the fastest stop the drive can make.
+* STOPPED: quick stop on every drive, setpoints held at the actual positions. Entered on a command older
+  than command_timeout, a drive in fault, an EMCY, a heartbeat older than heartbeat_timeout, or a
+  drive leaving operation enabled; each with a 'stop' safety event. Left only on request() of
+  'recover', and only when no drive is in fault, all heartbeats are fresh and no EMCY is pending.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from shared.drives.cia402 import State, next_controlword, state_from_statusword
+from shared.drives.prbt import PERIOD
+from shared.robot.model import JointLimits
+
+
+class Mode(enum.Enum):
+    ENABLING = "enabling"
+    RUNNING = "running"
+    STOPPED = "stopped"
+
+
+@dataclass
+class Feedback:
+    """What one drive last reported. statusword None: nothing received yet. heartbeat_age (s)."""
+
+    statusword: int | None = None
+    position: float = math.nan
+    velocity: float = 0.0
+    heartbeat_age: float = math.inf
+    emcy: int | None = None            # the last non-zero EMCY code not yet handled
+
+
+@dataclass
+class Event:
+    event: str
+    severity: str                      # info | warning | stop
+    text: str
+
+
+@dataclass
+class CycleOutput:
+    controlwords: list[int]
+    setpoints: np.ndarray              # rad
+    setpoint_velocity: np.ndarray      # rad/s: the velocity the setpoints move at (0 unless running)
+    events: list[Event] = field(default_factory=list)
+    mode: Mode = Mode.ENABLING
+    drive_states: list[State] = field(default_factory=list)
+
+
+COMMAND_TIMEOUT = 0.05         # s: a command older than this stops the drives
+HEARTBEAT_TIMEOUT = 0.3        # s: a drive's heartbeat older than this stops the drives
+
+
+EXACT = 1e-9                  # rad: a setpoint this close to the command is the command
+# rad: a setpoint further than this from the command is a clamp worth a warning. Below it the limiter
+# absorbs timing (the scaler's ticks and the SYNC on two clocks: a late command costs one period's
+# extrapolation, an early one a catch-up a few mrad long), which is not a command beyond the drives.
+CLAMP_TOLERANCE = 0.02
+
+
+def follow_step(command: np.ndarray, command_velocity: np.ndarray, setpoint: np.ndarray, velocity: np.ndarray,
+                limits: JointLimits, period: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The next setpoint (rad) and its velocity (rad/s) towards `command`, and whether it had to differ.
+
+    The setpoint moves with the command's own velocity (feed-forward) plus a braking-aware correction of
+    what is left between them (at most the rest in one period, never faster than a stop at the drive's
+    acceleration allows, so it lands on a command that stopped instead of overshooting it), then the
+    velocity is limited to the joint's velocity limit and its change to the drive's acceleration
+    (``limits.monitor_acceleration``) and to what still stops before a position limit. A command that is
+    itself followable is reproduced exactly: setpoint == command. `clamped`: the setpoint is further than
+    CLAMP_TOLERANCE from the command (or the command is beyond a position limit). Vectorised; pure.
+    """
+    lower, upper = limits.lower, limits.upper
+    v_max, a = limits.velocity, limits.monitor_acceleration
+    target = np.clip(command, lower, upper)
+    w = np.clip(np.nan_to_num(command_velocity), -v_max, v_max)
+    rest = target - setpoint - w * period
+    correction = np.sign(rest) * np.minimum(np.abs(rest) / period, np.sqrt(2.0 * a * np.abs(rest)))
+    wanted = w + correction
+    new_v = np.clip(wanted, velocity - a * period, velocity + a * period)
+    # still able to stop inside the position limits (this wins over the acceleration limit)
+    room_up = np.sqrt(2.0 * a * np.maximum(upper - setpoint, 0.0))
+    room_down = np.sqrt(2.0 * a * np.maximum(setpoint - lower, 0.0))
+    new_v = np.clip(new_v, -np.minimum(v_max, room_down), np.minimum(v_max, room_up))
+    new_s = np.clip(setpoint + new_v * period, lower, upper)
+    new_v = (new_s - setpoint) / period
+    clamped = bool(np.any(np.abs(new_s - command) > CLAMP_TOLERANCE) or np.any(target != command))
+    exact = np.abs(new_s - target) <= EXACT
+    return np.where(exact, target, new_s), new_v, clamped
+
+
+class DriverCore:
+    def __init__(self, limits: JointLimits, period: float = PERIOD, command_timeout: float = COMMAND_TIMEOUT,
+                 heartbeat_timeout: float = HEARTBEAT_TIMEOUT, start_tolerance: float = 0.02) -> None:
+        self.limits = limits
+        self.period = period
+        self.command_timeout = command_timeout
+        self.heartbeat_timeout = heartbeat_timeout
+        self.start_tolerance = start_tolerance
+        self.mode = Mode.ENABLING
+        self._command: np.ndarray | None = None
+        self._command_velocity: np.ndarray | None = None
+        self._command_used = False          # a SYNC has already taken the latest command
+        self._command_time = -math.inf
+        self._setpoint: np.ndarray | None = None
+        self._setpoint_velocity = np.zeros(limits.lower.size)
+        self._reset_phase = False
+        self._clamping = False
+        self._recover = False
+        self.stop_reason = ""
+
+    # ------------------------------------------------------------------------------------------ inputs
+    def command(self, q: np.ndarray, now: float, qd: np.ndarray | None = None) -> np.ndarray | None:
+        """Take a new command: position q (rad) and velocity qd (rad/s; None: estimated from the last
+        command). While running, returns the setpoint it gives right away (``follow_step`` from the last
+        SYNC's setpoint, exactly as the next cycle will), so the service can put it on the bus before the
+        SYNC; None otherwise."""
+        q = np.asarray(q, dtype=float).copy()
+        if qd is None:
+            elapsed = now - self._command_time
+            qd = (q - self._command) / elapsed if self._command is not None and 0.0 < elapsed <= 2 * self.period \
+                else np.zeros_like(q)
+        self._command, self._command_velocity = q, np.asarray(qd, dtype=float).copy()
+        self._command_time, self._command_used = now, False
+        if self.mode is not Mode.RUNNING or self._setpoint is None:
+            return None
+        return self._next()[0]
+
+    def request(self, action: str) -> None:
+        if action == "recover":
+            self._recover = True
+        elif action == "stop":
+            self._stop("requested", "stop requested")
+
+    # ------------------------------------------------------------------------------------------ cycle
+    def _stop(self, event: str, text: str) -> list[Event]:
+        if self.mode is Mode.STOPPED:
+            return []
+        self.mode, self.stop_reason, self._recover = Mode.STOPPED, text, False
+        return [Event(event, "stop", text)]
+
+    def _faults(self, feedback: list[Feedback], states: list[State]) -> tuple[str, str] | None:
+        for k, (fb, st) in enumerate(zip(feedback, states)):
+            if fb.heartbeat_age > self.heartbeat_timeout:
+                return "heartbeat_lost", f"joint {k + 1}: no heartbeat for {fb.heartbeat_age * 1000:.0f} ms"
+            if fb.emcy:
+                return "emcy", f"joint {k + 1}: EMCY 0x{fb.emcy:04X}"
+            if st in (State.FAULT, State.FAULT_REACTION_ACTIVE):
+                return "drive_fault", f"joint {k + 1}: drive in {st.value}"
+        return None
+
+    def cycle(self, now: float, feedback: list[Feedback]) -> CycleOutput:
+        states = [state_from_statusword(fb.statusword) if fb.statusword is not None else State.NOT_READY
+                  for fb in feedback]
+        actual = np.array([fb.position for fb in feedback])
+        events: list[Event] = []
+        if self._setpoint is None or not np.all(np.isfinite(self._setpoint)):
+            self._setpoint = actual.copy()
+        fault = self._faults(feedback, states)
+        # while enabling, a drive still in fault is expected (it is being reset); a lost heartbeat or a new
+        # EMCY is not
+        if fault is not None and (self.mode is Mode.RUNNING or fault[0] in ("heartbeat_lost", "emcy")):
+            events += self._stop(*fault)
+        if self.mode is Mode.RUNNING:
+            if now - self._command_time > self.command_timeout:
+                events += self._stop("stale_command", f"no command for {(now - self._command_time) * 1000:.0f} ms")
+            elif any(st is not State.OPERATION_ENABLED for st in states):
+                events += self._stop("drive_disabled", "a drive left operation enabled")
+        if self.mode is Mode.STOPPED:
+            if self._recover:
+                if fault is None or fault[0] in ("drive_fault", "emcy"):
+                    self.mode, self._recover = Mode.ENABLING, False
+                    events.append(Event("recovering", "info", "recovery requested: resetting and enabling"))
+                else:
+                    events.append(Event("recover_refused", "warning", f"recovery refused: {fault[1]}"))
+                    self._recover = False
+        if self.mode is not Mode.RUNNING:
+            self._setpoint_velocity = np.zeros_like(self._setpoint_velocity)
+        if self.mode is Mode.ENABLING:
+            if all(st is State.OPERATION_ENABLED for st in states) and self._fresh(now):
+                if np.abs(self._command - actual).max() <= self.start_tolerance:
+                    self.mode, self._setpoint = Mode.RUNNING, actual.copy()
+                    events.append(Event("running", "info", "all drives enabled, following commands"))
+        if self.mode is Mode.RUNNING:
+            events += self._follow()
+            controlwords = [next_controlword(st, State.OPERATION_ENABLED) for st in states]
+        elif self.mode is Mode.ENABLING:
+            self._setpoint = np.where(np.isfinite(actual), actual, self._setpoint)
+            self._reset_phase = not self._reset_phase
+            controlwords = [next_controlword(st, State.OPERATION_ENABLED, ip_running=True,
+                                             reset_phase=self._reset_phase) for st in states]
+        else:
+            self._setpoint = np.where(np.isfinite(actual), actual, self._setpoint)
+            controlwords = [next_controlword(st, State.QUICK_STOP_ACTIVE) if st is State.OPERATION_ENABLED
+                            else next_controlword(st, State.SWITCH_ON_DISABLED) for st in states]
+        return CycleOutput(controlwords, self._setpoint.copy(), self._setpoint_velocity.copy(), events, self.mode,
+                           states)
+
+    def _fresh(self, now: float) -> bool:
+        return self._command is not None and now - self._command_time <= self.command_timeout
+
+    def _next(self) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The setpoint the latest command gives from the last SYNC's setpoint (see follow_step). The scaler
+        ticks on its own clock: now and then a SYNC comes before its next command. A command a SYNC has
+        already taken then goes on one period along its own velocity (the motion it describes, inside the
+        reaction time T_r the SSM allows for), and no further: a second miss brakes."""
+        command = self._command + self._command_velocity * self.period if self._command_used else self._command
+        return follow_step(command, self._command_velocity, self._setpoint, self._setpoint_velocity,
+                           self.limits, self.period)
+
+    def _follow(self) -> list[Event]:
+        self._setpoint, self._setpoint_velocity, clamped = self._next()
+        self._command_used = True
+        events = []
+        if clamped and not self._clamping:
+            events.append(Event("command_clamped", "warning",
+                                "a command beyond the joint limits or faster or more abrupt than the drives "
+                                "follow was limited to what they follow"))
+        self._clamping = clamped
+        return events

@@ -1,0 +1,179 @@
+"""The path that is fastest under the SSM: a seeded, bounded search on the SSM-aware time cost.
+
+RRT-Connect (shared.planning.ompl_planner) finds a collision-free path; it does not care whether that path runs
+through a person's slowdown, where the scaling layer makes the robot crawl. ``PathSearch`` looks for
+the path that *takes the least time* under the scaling layer's bound (``shared.planning.time_cost``):
+
+1. candidates: the seeds it is given (the direct line, an RRT-Connect path); escapes, which first
+   move in the joint directions the SSM lets the robot take fastest from where it is (away from every
+   person close by), then go on; and random detours, each a few waypoints: the straight line bent by a
+   joint offset at one point of it, held over a stretch of it (a plateau: lift, go across, lower), or
+   taken at once (move away first, then go). Offsets are drawn with growing radii, so small detours are
+   as likely as large ones;
+2. every candidate is costed (microseconds per sample, compiled); only candidates that beat the best so
+   far are checked for collisions (the collision model's guaranteed motion check against the static
+   scene and the people), in order of cost: the cheapest collision-free one wins;
+3. the winner is refined: its interior waypoints are perturbed with shrinking steps, and waypoints
+   whose removal does not cost time are dropped (shortening by the same cost, not by length).
+
+The result keeps out of a person's slowdown when going round is quicker than crawling past, and goes
+close when the way round is longer. The search is bounded by iteration counts (repeatable for a seed:
+the simulation's evidence) and, optionally, by a wall-clock budget (the planner service): when time is
+up, the best path found so far is returned. Pure apart from the clock.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+from shared.planning.collision import CollisionModel
+from shared.planning.time_cost import SsmTimeCost
+from shared.scaling.problem import ssm_alpha_bound
+
+CELL_BUDGET = 0.08   # s of wall clock per search in the planner service (the simulation charges it per search)
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """candidates: random detours costed per search; refinements: perturbations of the winner;
+    radii (rad): the scales of the detours' joint offsets; escape_directions: random joint directions
+    weighed for leaving the people's slowdown first, escape_best of them tried (``_escapes``); time_budget (s):
+    wall-clock bound (None:
+    bounded by the counts only, the same result for the same seed)."""
+
+    candidates: int = 120
+    refinements: int = 60
+    radii: tuple[float, ...] = (0.25, 0.5, 1.0, 1.5)
+    escape_directions: int = 64
+    escape_best: int = 4
+    time_budget: float | None = None
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    waypoints: np.ndarray        # (K, 6), q_from first, q_goal last, every segment collision-free
+    predicted: float             # its SSM-aware time (s), as SsmTimeCost.path_time
+    origin: str                  # which candidate it grew from: 'seed k', 'escape' or 'detour'
+    costed: int                  # candidates and refinements costed
+    checked: int                 # of them, checked for collisions
+
+
+class PathSearch:
+    """Seeded search for the fastest collision-free path under the SSM (see the module docstring)."""
+
+    def __init__(self, collision: CollisionModel, cost: SsmTimeCost, options: SearchOptions = SearchOptions()) -> None:
+        self.collision = collision
+        self.cost = cost
+        self.options = options
+        self.limits = collision.robot.limits
+
+    def free(self, waypoints: np.ndarray, humans: HumanCapsules | None, inflation: float = 0.0) -> bool:
+        """Every segment collision-free (static scene and the people, the planner's margin + inflation)."""
+        col = self.collision
+        return all(col.motion_free(a, b, humans, inflation)[0] for a, b in zip(waypoints[:-1], waypoints[1:]))
+
+    def _detours(self, q_from: np.ndarray, q_goal: np.ndarray, rng: np.random.Generator, count: int) -> list[np.ndarray]:
+        """`count` random detours: the straight line with a joint offset (radius cycling through
+        options.radii) at one point, over a stretch (a plateau), or taken at once; within the limits."""
+        radii = np.asarray(self.options.radii)
+        lower, upper = self.limits.lower, self.limits.upper
+        out = []
+        for k in range(count):
+            offset = rng.normal(0.0, 1.0, q_from.size) * radii[k % radii.size] / np.sqrt(q_from.size)
+            shape = k % 3
+            if shape == 0:                                       # bent at one point
+                f = rng.uniform(0.15, 0.85)
+                via = [q_from + f * (q_goal - q_from) + offset]
+            elif shape == 1:                                     # a plateau over a stretch
+                f1, f2 = np.sort(rng.uniform(0.05, 0.95, 2))
+                via = [q_from + f * (q_goal - q_from) + offset for f in (f1, f2)]
+            else:                                                # away first, then on
+                f = rng.uniform(0.0, 0.3)
+                via = [q_from + f * (q_goal - q_from) + offset]
+            out.append(np.vstack([q_from, np.clip(via, lower, upper), q_goal]))
+        return out
+
+    def _escapes(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
+                 rng: np.random.Generator) -> list[np.ndarray]:
+        """Detours that first leave the people's slowdown: of `escape_directions` random joint directions,
+        the ones the SSM lets the robot take fastest from q_from (moving away from every person close
+        by), each followed for a few step lengths, then on to the goal directly or over a plateau."""
+        if humans is None or humans.count == 0 or self.options.escape_directions == 0:
+            return []
+        directions = rng.normal(0.0, 1.0, (self.options.escape_directions, q_from.size))
+        directions /= np.abs(directions).max(axis=1, keepdims=True)
+        alpha = np.array([ssm_alpha_bound(self.collision.robot, q_from, d * self.limits.velocity, humans,
+                                          self.cost.ssm) for d in directions])
+        out = []
+        lower, upper = self.limits.lower, self.limits.upper
+        for d in directions[np.argsort(-alpha, kind="stable")[:self.options.escape_best]]:
+            for step in (0.2, 0.5, 1.0):
+                away = np.clip(q_from + step * d, lower, upper)
+                out.append(np.vstack([q_from, away, q_goal]))
+                out.append(np.vstack([q_from, away, np.clip(q_goal + step * d, lower, upper), q_goal]))
+        return out
+
+    def search(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, rng: np.random.Generator,
+               stay: float = np.inf, seeds: tuple[np.ndarray, ...] = (), from_rest: bool = True,
+               inflation: float = 0.0) -> SearchResult | None:
+        """The fastest collision-free path found from q_from to q_goal, or None when no candidate is free.
+        Seeds are candidates like the others (checked for collisions too). inflation (m, may be negative):
+        added to the people's margin (negative for a robot a person has already come closer to)."""
+        q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
+        started = time.perf_counter()
+        budget = self.options.time_budget
+
+        def out_of_time() -> bool:
+            return budget is not None and time.perf_counter() - started > budget
+
+        def cost(w: np.ndarray) -> float:
+            return self.cost.path_time(w, humans, stay, from_rest=from_rest)
+
+        labelled = [(f"seed {k}", np.asarray(w, dtype=float)) for k, w in enumerate(seeds)]
+        labelled += [("escape", w) for w in self._escapes(q_from, q_goal, humans, rng)]
+        labelled += [("detour", w) for w in self._detours(q_from, q_goal, rng, self.options.candidates)]
+        costs = []
+        for _, w in labelled:
+            if costs and out_of_time() and len(costs) > len(seeds):
+                break
+            costs.append(cost(w))
+        checked = 0
+        best = None
+        for k in np.argsort(costs, kind="stable"):
+            checked += 1
+            if self.free(labelled[k][1], humans, inflation):
+                best = (labelled[k][1], costs[k], labelled[k][0])
+                break
+            if out_of_time() and checked > 4:
+                break
+        if best is None:
+            return None
+        waypoints, predicted, origin = best
+        costed = len(costs)
+        step = max(self.options.radii) / 4
+        for k in range(self.options.refinements):
+            if out_of_time():
+                break
+            inner = waypoints.shape[0] - 2
+            if inner <= 0:
+                break
+            trial = waypoints.copy()
+            if k % 4 == 3:                                       # drop a waypoint
+                trial = np.delete(trial, 1 + int(rng.integers(inner)), axis=0)
+            else:
+                i = 1 + int(rng.integers(inner))
+                trial[i] = np.clip(trial[i] + rng.normal(0.0, step, q_from.size), self.limits.lower,
+                                   self.limits.upper)
+            value = cost(trial)
+            costed += 1
+            if value < predicted:
+                checked += 1
+                if self.free(trial, humans, inflation):
+                    waypoints, predicted = trial, value
+                    continue
+            step = max(step * 0.93, 0.02)
+        return SearchResult(waypoints, predicted, origin, costed, checked)

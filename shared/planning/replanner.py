@@ -1,0 +1,410 @@
+"""The planning layer's online part: horizon check (Alg. 1), replan and merge (Alg. 2), beta replans,
+all planning for time under the SSM.
+
+* ``horizon_check``: the next n configurations of the trajectory from the current path parameter (n and
+  spacing configurable), all checked at once against the latest human capsules; returns the first
+  infeasible one.
+* Every new path is the one a seeded search finds fastest under the SSM (``shared.planning.path_search`` on the
+  time cost of ``shared.planning.time_cost``): a person near the direct line gets a small detour that keeps the
+  robot out of their slowdown, or none when crawling past is quicker. RRT-Connect (``shared.planning.ompl_planner``)
+  seeds the search only where no simple detour is free (a cluttered static scene).
+* Keep or replace: the old trajectory and the new one are both predicted by the same cost, from the
+  same moment, with the same people assumed to stay for ``patience`` plus the time the robot has already
+  been held (``HoldClock``; ski rental: once waiting has cost what the way round costs extra, go round).
+  A person who passes (tracked velocity) clears the old path in the prediction and is waited for; one
+  who stays makes it slow and is gone round. The reason, with both predicted times, is the result's
+  detail (the planner's event).
+* ``Replanner.plan_goal``: a new goal: the direct line (the exact trapezoid) unless the searched path is
+  predicted faster.
+* ``Replanner.replan``: keeps the old trajectory unchanged up to a junction s_j, and from there follows
+  the old path geometry to a branch point, then the searched path to the goal. The new part is
+  time-parameterised starting with the old nominal velocity at s_j, so position and velocity are
+  continuous at the junction; following the old geometry for a while gives toppra room to slow down
+  before any turn. Junctions further back are tried when a turn is too sharp, then stop-and-go. The
+  result gets the next version number; a follower anywhere before s_j continues at the same s. A robot
+  at rest gets a trajectory from rest where it stands instead (free to leave in any direction).
+* ``Replanner.on_horizon`` (the path ahead is blocked) and ``Replanner.on_beta`` (the scaling layer
+  asks: alpha too low) build such a trajectory and keep it only when predicted faster than the old one
+  (a beta replan by at least ``min_gain``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.core.errors import HrcError
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import Trajectory, polyline_trajectory, straight_line_trajectory
+from shared.planning.collision import CollisionModel
+from shared.planning.ompl_planner import JointPlanner, PlanningError
+from shared.planning.path_search import PathSearch, SearchOptions
+from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
+from shared.planning.timing import TimingError, parameterize
+from shared.safety.ssm import SsmParameters
+
+
+@dataclass(frozen=True)
+class HorizonOptions:
+    """samples: how many configurations ahead; spacing: nominal seconds between them."""
+
+    samples: int = 25
+    spacing: float = 0.04
+
+
+@dataclass(frozen=True)
+class HorizonResult:
+    s: np.ndarray                  # path parameters checked (nominal s)
+    clearance: np.ndarray          # clearance of each (m)
+    first_infeasible: int | None   # index into s, or None when all are feasible
+
+    @property
+    def last_feasible_s(self) -> float | None:
+        """s of the last feasible sample before the first infeasible one (None if the first is infeasible)."""
+        if self.first_infeasible is None:
+            return float(self.s[-1])
+        return None if self.first_infeasible == 0 else float(self.s[self.first_infeasible - 1])
+
+
+def horizon_check(trajectory: Trajectory, s: float, collision: CollisionModel, humans: HumanCapsules | None,
+                  options: HorizonOptions = HorizonOptions()) -> HorizonResult:
+    """Alg. 1: the first infeasible configuration among the next samples of the trajectory (one batch)."""
+    samples = np.minimum(s + options.spacing * np.arange(options.samples + 1), trajectory.duration)
+    samples = np.unique(samples)
+    q, _, _ = trajectory.sample(samples)
+    clearance = collision.clearances(q, humans)
+    bad = np.flatnonzero(clearance <= collision.margins.tolerance)
+    return HorizonResult(samples, clearance, int(bad[0]) if bad.size else None)
+
+
+def merge(old: Trajectory, s_junction: float, new_part: Trajectory, version: int) -> Trajectory:
+    """The old trajectory's knots up to s_junction (exactly, plus the junction itself), then new_part
+    shifted to start at s_junction. Continuity is the caller's: new_part must start at q(s_j), q'(s_j)."""
+    keep = old.times < s_junction - 1e-3    # a knot closer than 1 ms would make a needle-thin interval; the
+    # interval that replaces it, from exact values and tangents at both ends, is the same cubic
+    q_j, dq_j, _ = old.sample(float(s_junction))
+    times = np.concatenate([old.times[keep], [s_junction], s_junction + new_part.times[1:]])
+    positions = np.vstack([old.positions[keep], q_j, new_part.positions[1:]])
+    velocities = np.vstack([old.velocities[keep], dq_j, new_part.velocities[1:]])
+    return Trajectory(times, positions, velocities, version)
+
+
+@dataclass(frozen=True)
+class ReplanResult:
+    trajectory: Trajectory
+    junction: float       # s where the new trajectory starts to differ from the old one
+    reason: str           # 'horizon', 'beta' or 'goal'
+    plan_s: float         # wall time spent (s)
+    predicted: float = float("nan")   # its predicted time to the goal under the SSM (s)
+    baseline: float = float("nan")    # the old trajectory's, predicted the same way (s)
+    detail: str = ""
+    from_rest: bool = False   # True: a new trajectory from the robot's configuration at rest (junction =
+    # the s it was planned at); take it only while the robot is still there, with path speed 0
+
+
+class ReplanFailed(HrcError):
+    """No acceptable new trajectory; the old one stays (and the scaling layer keeps the robot safe)."""
+
+
+class HoldClock:
+    """How long the scaling layer has been asking for a replan (beta raised without a break), in s: the
+    `waited` of a prediction (Replanner.predicted_time). Pure; fed the beta flag of each status."""
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+
+    def update(self, now: float, beta: bool) -> None:
+        if not beta:
+            self.since = None
+        elif self.since is None:
+            self.since = now
+
+    def waited(self, now: float) -> float:
+        return 0.0 if self.since is None else max(0.0, now - self.since)
+
+
+@dataclass(frozen=True)
+class ReplanOptions:
+    """lookback: nominal seconds of old path kept ahead of the branch point as room to slow down (and
+    tried further back when a turn is too sharp); lead: nominal seconds ahead of the current s that the
+    junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
+    beta replan must save (a blocked horizon needs only to be faster); rest_speed (rad/s): below it the
+    robot counts as at rest for a replan; patience (s): how long people in the way are expected to stay
+    before the robot has waited at all; a prediction assumes they stay patience + the time already held
+    (0 is pure ski rental: never worse than twice the better choice, however long the person stays; a
+    cell where people are known to stay at a station may set more); rrt_budget (s): RRT-Connect's time
+    when it has to seed the search; worth_searching (s): a new goal's direct line is taken without a
+    search unless the people are predicted to slow it by more than this (the search itself takes up to
+    its budget while the robot waits for its plan); seed: the search's seed (each query gets its own stream, derived
+    from the seed and the query, so the same query gives the same path in any order); search, cost:
+    the search's bounds and the time cost's sampling."""
+
+    lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
+    lead: float = 0.1
+    min_gain: float = 0.10
+    rest_speed: float = 0.02
+    patience: float = 1.5
+    rrt_budget: float = 0.2
+    worth_searching: float = 0.25
+    seed: int = 0
+    search: SearchOptions = SearchOptions()
+    cost: TimeCostOptions = TimeCostOptions()
+
+
+class Replanner:
+    """Builds merged trajectories that are fastest under the SSM; pure apart from the clock (the search's
+    optional wall-clock budget) and OMPL's sampling where RRT-Connect seeds it."""
+
+    def __init__(self, collision: CollisionModel, planner: JointPlanner, ssm: SsmParameters,
+                 horizon: HorizonOptions = HorizonOptions(), options: ReplanOptions = ReplanOptions()) -> None:
+        self.collision = collision
+        self.planner = planner
+        self.ssm = ssm
+        self.horizon = horizon
+        self.options = options
+        self.limits = collision.robot.limits
+        self.cost = SsmTimeCost(collision.robot, ssm, options.cost)
+        self.search = PathSearch(collision, self.cost, options.search)
+        self.searches = 0          # path searches run (the simulation charges planning time by them)
+
+    # ------------------------------------------------------------------------------------ predictions
+    def stay(self, waited: float) -> float:
+        """How long (s) a prediction assumes the people present stay: patience + the time already held."""
+        return self.options.patience + max(0.0, waited)
+
+    def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None,
+                       waited: float = 0.0) -> float:
+        """Time (s) from s_from to the end of the trajectory under the SSM (shared.planning.time_cost), the people
+        staying patience + waited seconds: the one prediction both sides of every decision get."""
+        return self.cost.trajectory_time(trajectory, s_from, humans, self.stay(waited))
+
+    def _rng(self, q_from: np.ndarray, q_goal: np.ndarray) -> np.random.Generator:
+        """The search's random stream for this query: the seed and the query's ends (to 1 mrad)."""
+        ends = np.round(np.concatenate([q_from, q_goal]) * 1000.0).astype(np.int64) + 100_000
+        return np.random.default_rng([self.options.seed, *ends.tolist()])
+
+    # ----------------------------------------------------------------------------------------- paths
+    def path(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, waited: float = 0.0,
+             from_rest: bool = True) -> np.ndarray:
+        """Waypoints (K, 6) of the path the search finds fastest under the SSM, every segment free of the
+        scene and the people (never closer to them than the ends already are); RRT-Connect seeds a second
+        search where no simple detour is free (raises PlanningError when nothing is found)."""
+        q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
+        direct = np.vstack([q_from, q_goal])
+        inflation = self._capped(0.0, direct, humans)      # < 0 where a person has come closer already
+        self.planner.check_ends(q_from, q_goal, humans, inflation)
+        rng = self._rng(q_from, q_goal)
+        stay = self.stay(waited)
+        self.searches += 1
+        found = self.search.search(q_from, q_goal, humans, rng, stay, (direct,), from_rest, inflation)
+        if found is None:
+            rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=self.options.rrt_budget)
+            self.searches += 1
+            found = self.search.search(q_from, q_goal, humans, rng, stay, (rrt,), from_rest, inflation)
+            if found is None:                               # out of time before reaching it: it is free
+                return rrt
+        return found.waypoints
+
+    def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
+                   waited: float = 0.0) -> Trajectory:
+        """A rest-to-rest trajectory to a new goal on the searched path (raises PlanningError or TimingError)."""
+        return self._from_rest(self.path(q_start, q_goal, humans, waited), humans, version)
+
+    def plan_goal(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
+                  waited: float = 0.0) -> Trajectory:
+        """A new goal from rest: the direct line (the exact trapezoid) when the static scene allows it, even
+        if a person is in its way now (the scaling layer holds the robot back), unless the searched path is
+        predicted faster; else the searched path (raises PlanningError or TimingError)."""
+        q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
+        if not self.collision.motion_free(q_start, q_goal)[0]:
+            return self.plan_fresh(q_start, q_goal, humans, version, waited)
+        direct = straight_line_trajectory(q_start, q_goal, self.limits.velocity, self.limits.acceleration,
+                                          version=version)
+        if humans is None or humans.count == 0:
+            return direct
+        direct_time = self.predicted_time(direct, 0.0, humans, waited)
+        if direct_time <= direct.duration + self.options.worth_searching:
+            return direct                   # the people hardly slow it: a search would cost more than it saves
+        try:
+            searched = self.plan_fresh(q_start, q_goal, humans, version, waited)
+        except (PlanningError, TimingError):
+            return direct
+        return searched if self.predicted_time(searched, 0.0, humans, waited) < direct_time else direct
+
+    def _from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, version: int) -> Trajectory:
+        """Rest to rest through waypoints. A direct connection gets the exact trapezoid, which is
+        time-optimal for a straight line and needs none of the acceleration headroom toppra's grid calls
+        for where a path bends (2 % faster on the paper's shuttle); a bent path gets toppra, its smoothed
+        path checked never to come closer to the people than its ends are, or, where the smoothing cuts a
+        corner too close, the exact polyline with a stop at each corner (its segments are checked free)."""
+        if len(waypoints) == 2:
+            return straight_line_trajectory(waypoints[0], waypoints[1], self.limits.velocity,
+                                            self.limits.acceleration, version=version)
+        try:
+            return parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
+                                inflation=self._capped(0.0, waypoints[[0, -1]], humans), version=version)
+        except TimingError:          # the smoothed path cuts a corner into a person: stop at the corners
+            return polyline_trajectory(waypoints, self.limits.velocity, self.limits.acceleration, version=version)
+
+    def _capped(self, inflation: float, configs: np.ndarray, humans: HumanCapsules | None) -> float:
+        """The inflation, lowered to the clearance that the configurations a plan must start or end in
+        already have (so it may turn negative: a robot a person has walked up to is not refused a way
+        out). The smoothed trajectory is then checked never to come closer to a human than that."""
+        if humans is None or humans.count == 0:
+            return max(0.0, inflation)
+        have = float(self.collision.clearances(configs, humans, inflation=0.0).min()) - 2 * self.collision.margins.tolerance
+        return min(inflation, have)
+
+    def _branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
+                humans: HumanCapsules | None, version: int, waited: float) -> tuple[Trajectory, float]:
+        """Merge at a junction s_j before s_branch: from s_j the old geometry to the branch point, then the
+        searched path to the goal. First continuously through the branch point (junctions further back give
+        more room to slow down before turning); else stop-and-go: decelerate along the old path to rest at
+        the branch point, then the new path from rest. Returns (merged, s_j)."""
+        s_first = min(s_now + self.options.lead, s_branch)     # never before the planning lead
+        junctions = sorted({max(s_first, s_branch - lb) for lb in self.options.lookback}, reverse=True)
+        q_branch = old.sample(float(s_branch))[0]
+        tail = self.path(q_branch, q_goal, humans, waited, from_rest=False)
+        # the lead-in is the old, already accepted path: the smoothed whole is verified at what it has
+        check = min(0.0, self._capped(0.0, old.sample(np.linspace(s_first, s_branch, 8))[0], humans))
+        errors = []
+
+        def lead_in(s_j: float) -> np.ndarray:
+            return old.sample(np.linspace(s_j, s_branch, max(2, int(np.ceil((s_branch - s_j) / 0.05)) + 1)))[0]
+
+        for s_j in junctions:                       # continuous through the branch point
+            try:
+                part = parameterize(np.vstack([lead_in(s_j), tail[1:]]), self.limits,
+                                    start_velocity=old.sample(float(s_j))[1], collision=self.collision,
+                                    humans=humans, inflation=min(check, self._capped(check, lead_in(s_j), humans)))
+                return merge(old, s_j, part, version), s_j
+            except TimingError as exc:
+                errors.append(f"through at s={s_j:.2f}: {exc}")
+        s_j = junctions[-1]                          # stop-and-go, with the most room to stop
+        try:
+            stop = parameterize(lead_in(s_j), self.limits, start_velocity=old.sample(float(s_j))[1],
+                                collision=self.collision, humans=humans,
+                                inflation=min(check, self._capped(check, lead_in(s_j), humans)))
+            go = self._from_rest(tail, humans, version)
+        except TimingError as exc:
+            raise ReplanFailed("no junction allows a continuous merge: "
+                               + "; ".join(errors + [f"stop-and-go: {exc}"])) from None
+        return merge(merge(old, s_j, stop, version), s_j + stop.duration, go, version), s_j
+
+    def replan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+               reason: str, s_branch: float | None = None, waited: float = 0.0) -> ReplanResult:
+        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path."""
+        started = time.perf_counter()
+        s_branch = min(old.duration, s_now + self.options.lead) if s_branch is None else s_branch
+        try:
+            if s_branch >= old.duration - 1e-9:          # at the end, at rest: a fresh plan from there
+                fresh = self.plan_fresh(old.positions[-1], q_goal, humans, 0, waited)
+                merged, s_j = merge(old, old.duration, fresh, old.version + 1), old.duration
+            else:
+                merged, s_j = self._branch(old, s_now, s_branch, q_goal, humans, old.version + 1, waited)
+        except (PlanningError, TimingError) as exc:
+            raise ReplanFailed(f"{type(exc).__name__}: {exc}") from None
+        return ReplanResult(merged, s_j, reason, time.perf_counter() - started,
+                            self.predicted_time(merged, s_now, humans, waited))
+
+    def _rest_plan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                   reason: str, waited: float) -> ReplanResult:
+        """A trajectory from rest where the robot stands (old at s_now) to the goal, on the searched path
+        (raises ReplanFailed)."""
+        started = time.perf_counter()
+        q_now = old.sample(float(s_now))[0]
+        try:
+            waypoints = self.path(q_now, q_goal, humans, waited)
+            traj = self._from_rest(waypoints, humans, old.version + 1)
+        except (PlanningError, TimingError) as exc:
+            raise ReplanFailed(f"from rest: {type(exc).__name__}: {exc}") from None
+        return ReplanResult(traj, s_now, reason, time.perf_counter() - started,
+                            self.predicted_time(traj, 0.0, humans, waited), from_rest=True)
+
+    def _baseline(self, old: Trajectory, s_now: float, humans: HumanCapsules | None, waited: float,
+                  at_rest: bool) -> float:
+        """The old trajectory's predicted time from s_now, like the new one's: a robot at rest must first
+        get back to the old nominal speed (v / 2a more than the prediction at that speed), as a new
+        trajectory from rest has to."""
+        baseline = self.predicted_time(old, s_now, humans, waited)
+        if at_rest:
+            v = np.abs(old.sample(float(s_now))[1])
+            baseline += float(np.max(v / (2.0 * self.limits.acceleration)))
+        return baseline
+
+    def _decide(self, result: ReplanResult, baseline: float, gain: float, started: float, what: str) -> ReplanResult:
+        """Keep the new trajectory when its prediction beats the old one's by `gain`, else ReplanFailed;
+        either way the reason carries both predicted times."""
+        how = "from rest" if result.from_rest else f"merged at s={result.junction:.2f}"
+        if result.predicted <= (1.0 - gain) * baseline:
+            return ReplanResult(result.trajectory, result.junction, result.reason, time.perf_counter() - started,
+                                result.predicted, baseline, f"{what}, {how}: predicted {result.predicted:.2f} s "
+                                f"instead of {baseline:.2f} s", result.from_rest)
+        need = f"{100 * gain:.0f} % faster than" if gain > 0 else "faster than"
+        raise ReplanFailed(f"{what}, kept the old trajectory: the new one ({how}) predicted "
+                           f"{result.predicted:.2f} s, not {need} the old {baseline:.2f} s")
+
+    def passing(self, old: Trajectory, s_now: float, check: HorizonResult, humans: HumanCapsules) -> bool:
+        """The horizon is blocked now, but the people in the way are moving out of it: with their tracked
+        velocities, at the nominal time the robot would reach each blocked sample, none blocks any more
+        (a person crossing the path). Waiting for them (the scaling layer slows the robot as needed) is
+        then quicker than a detour."""
+        if humans is None or not humans.velocity_known.any():
+            return False
+        blocked = check.s[check.first_infeasible:]
+        q = old.sample(blocked)[0]
+        for qk, sk in zip(q, blocked):
+            later = humans.extrapolated(float(sk - s_now))
+            if self.collision.clearances(qk[None, :], later)[0] <= self.collision.margins.tolerance:
+                return False
+        return True
+
+    def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                   speed_now: float | None = None, waited: float = 0.0) -> ReplanResult | None:
+        """Alg. 1 + 2: None when the horizon is clear, or when the people in the way are passing
+        (``passing``); else a new trajectory branching at the last feasible horizon configuration, kept
+        only when predicted to reach the goal sooner than the old one (ReplanFailed saying why, with both
+        predicted times). speed_now: the robot's joint speed (rad/s); at rest, the new trajectory starts
+        from rest where the robot stands (a merge in nominal time would have to leave at the old nominal
+        speed, which a stopped robot cannot). waited: as in predicted_time."""
+        started = time.perf_counter()
+        check = horizon_check(old, s_now, self.collision, humans, self.horizon)
+        # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
+        # a beta replan plans the way out, and only when it is predicted to pay)
+        if check.first_infeasible in (None, 0) or self.passing(old, s_now, check, humans):
+            return None
+        blocked = float(check.s[check.first_infeasible])
+        at_rest = speed_now is not None and speed_now < self.options.rest_speed
+        baseline = self._baseline(old, s_now, humans, waited, at_rest)
+        if at_rest:
+            result = self._rest_plan(old, s_now, q_goal, humans, "horizon", waited)
+        else:
+            s_branch = check.last_feasible_s
+            if s_branch is None or s_branch < s_now + self.options.lead:
+                s_branch = min(old.duration, s_now + self.options.lead)
+            result = self.replan(old, s_now, q_goal, humans, "horizon", s_branch, waited)
+        return self._decide(result, baseline, 0.0, started, f"path blocked at s={blocked:.2f}")
+
+    def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                speed_now: float | None = None, waited: float = 0.0) -> ReplanResult:
+        """A replan that is worth it (min_gain), or ReplanFailed saying why the old trajectory stays.
+
+        speed_now: the robot's actual joint speed (rad/s, max over joints; None: moving at the nominal
+        speed). At rest (below rest_speed) the new trajectory starts at rest from where the robot is:
+        continuous in the actual velocity, and free to leave in any direction. Moving, the merge must be
+        continuous in nominal time, so the new part starts with the old nominal velocity: the branch point
+        is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
+        new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time)."""
+        started = time.perf_counter()
+        at_rest = speed_now is not None and speed_now < self.options.rest_speed
+        baseline = self._baseline(old, s_now, humans, waited, at_rest)
+        if at_rest:
+            result = self._rest_plan(old, s_now, q_goal, humans, "beta", waited)
+        else:
+            v_now = old.sample(float(s_now))[1]
+            stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
+            s_branch = min(old.duration, s_now + self.options.lead + stopping)
+            result = self.replan(old, s_now, q_goal, humans, "beta", s_branch, waited)
+        return self._decide(result, baseline, self.options.min_gain, started, "replan request")

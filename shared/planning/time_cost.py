@@ -1,0 +1,185 @@
+"""The SSM-aware time cost: how long a path takes when the scaling layer holds it to the ISO/TS 15066 limit.
+
+One cost for the whole planning layer: planning and shortening a path, choosing between keeping the old
+trajectory and taking a new one, and the simulation's planner all call ``SsmTimeCost``.
+
+A path is walked sample by sample at its nominal joint velocity (the velocity the time law asks for at
+full speed). At every sample the scaling layer's own SSM bound gives the largest alpha the people allow
+(``shared.scaling.problem.ssm_alpha_bound``: every robot link against every human capsule, the limit of ISO/TS
+15066 less the tracking margin), and the sample takes dt / alpha. This is the cost of Tonola et al. 2025
+(an edge's length divided by the scaling factor expected along it), here as time, with the people moving:
+
+* people with a tracked velocity are moved on along it for as long as the robot has been predicted to
+  travel, up to ``extrapolation`` seconds, then stay there; people without one stay where they are and
+  approach at the ISO 13855 speed inside the limit (``shared.safety.ssm``), as the standard treats them;
+* people are assumed to stay in the cell for ``stay`` seconds of the prediction and to be gone after it.
+  Both candidates of a keep-or-replace decision get the same ``stay``: a person who stays long makes the
+  blocked old path slow and is gone round; a person who passes (tracked velocity) clears the old path in
+  the prediction and is waited for;
+* alpha is floored at ``alpha_floor``: a path through a person's slowdown is very slow, not infinitely.
+
+The kernel runs compiled over all samples of a path (kinematics, the pairwise SSM and the bound in one
+loop; a few microseconds per sample). Pure: no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import Trajectory
+from shared.robot.model import RobotModel, _chain_points_and_jacobians
+from shared.safety.ssm import SsmParameters, _pair_ssm_kernel
+from shared.scaling.problem import _NO_ROWS, _upper_bound
+
+
+@dataclass(frozen=True)
+class TimeCostOptions:
+    """spacing (rad): the largest joint step between the samples along a path's straight segments;
+    trajectory_step (s): nominal time between the samples of a trajectory; alpha_floor: the least alpha a
+    sample is charged with; extrapolation (s): how far people are moved on along their tracked velocities."""
+
+    spacing: float = 0.05
+    trajectory_step: float = 0.05
+    alpha_floor: float = 0.02
+    extrapolation: float = 1.0
+
+
+@numba.njit(cache=True)
+def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
+                    human_vel, human_known, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
+                    floor):
+    """Sum of dts[k] / alpha_k along the samples, the people moved on by the time already predicted; from
+    `stay` on (within a sample too) at full speed."""
+    n_links = radii.shape[0]
+    n_h = human_seg.shape[0]
+    moved = np.empty_like(human_seg)
+    total = 0.0
+    for k in range(qs.shape[0]):
+        if n_h == 0 or total >= stay:
+            total += dts[k]
+            continue
+        shift = min(total, extrapolation)
+        for j in range(n_h):
+            for e in range(2):
+                for c in range(3):
+                    moved[j, e, c] = human_seg[j, e, c] + (shift * human_vel[j, e, c] if human_known[j] else 0.0)
+        points, jac = _chain_points_and_jacobians(qs[k], placement, parent, local, joint, ancestry)
+        vel = np.zeros((points.shape[0], 3))
+        for p in range(points.shape[0]):
+            for r in range(3):
+                acc = 0.0
+                for j in range(dqs.shape[1]):
+                    acc += jac[p, r, j] * dqs[k, j]
+                vel[p, r] = acc
+        _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii, vel.reshape(n_links, 2, 3),
+                                                    moved, human_rad, human_vel, human_known, horizon, fixed,
+                                                    near_d, v_near, v_far)
+        alpha = max(_upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin), floor)
+        if total + dts[k] / alpha <= stay:
+            total += dts[k] / alpha
+        else:                      # the people leave during this sample: the rest of it at full speed
+            done = (stay - total) * alpha / dts[k]
+            total = stay + (1.0 - done) * dts[k]
+    return total
+
+
+@dataclass(frozen=True)
+class PathSamples:
+    """A path walked at its nominal speed: configurations (N, 6), joint velocities (N, 6) and the nominal
+    time each sample stands for (N,); plus the time the time law adds to it (rests and corners, s)."""
+
+    q: np.ndarray
+    dq: np.ndarray
+    dt: np.ndarray
+    overhead: float = 0.0
+
+    @property
+    def nominal(self) -> float:
+        return float(self.dt.sum()) + self.overhead
+
+
+class SsmTimeCost:
+    """Expected traversal times of paths and trajectories under the SSM (see the module docstring)."""
+
+    def __init__(self, robot: RobotModel, ssm: SsmParameters, options: TimeCostOptions = TimeCostOptions()) -> None:
+        self.robot = robot
+        self.ssm = ssm
+        self.options = options
+        self.limits = robot.limits
+        self.evaluations = 0
+
+    # ------------------------------------------------------------------------------------ sampling
+    def segment_time(self, q0: np.ndarray, q1: np.ndarray) -> float:
+        """Nominal time (s) of the straight joint motion q0 -> q1 at full joint speed."""
+        return float(np.max(np.abs(np.asarray(q1) - np.asarray(q0)) / self.limits.velocity))
+
+    def path_samples(self, waypoints: np.ndarray, from_rest: bool = True) -> PathSamples:
+        """Samples of a waypoint path at full joint speed along each straight segment. The overhead counts
+        what a time law adds: v/(2a) to start from rest (from_rest) and again to come to rest (a trapezoid's
+        L/v + v/a), and at each corner the time to change the joint velocities, |dv| / (2 a) for the slowest joint."""
+        w = np.asarray(waypoints, dtype=float)
+        amax = self.limits.acceleration
+        q_parts, dq_parts, dt_parts = [], [], []
+        velocities = []
+        for a, b in zip(w[:-1], w[1:]):
+            duration = self.segment_time(a, b)
+            if duration <= 0.0:
+                continue
+            n = max(1, int(np.ceil(np.max(np.abs(b - a)) / self.options.spacing)))
+            u = (np.arange(n) + 0.5) / n
+            v = (b - a) / duration
+            q_parts.append(a + u[:, None] * (b - a))
+            dq_parts.append(np.repeat(v[None, :], n, axis=0))
+            dt_parts.append(np.full(n, duration / n))
+            velocities.append(v)
+        if not q_parts:
+            return PathSamples(np.zeros((0, w.shape[1])), np.zeros((0, w.shape[1])), np.zeros(0))
+        overhead = float(np.max(np.abs(velocities[-1]) / (2.0 * amax)))
+        if from_rest:
+            overhead += float(np.max(np.abs(velocities[0]) / (2.0 * amax)))
+        for v_in, v_out in zip(velocities[:-1], velocities[1:]):
+            overhead += float(np.max(np.abs(v_out - v_in) / (2.0 * amax)))
+        return PathSamples(np.vstack(q_parts), np.vstack(dq_parts), np.concatenate(dt_parts), overhead)
+
+    def trajectory_samples(self, trajectory: Trajectory, s_from: float) -> PathSamples:
+        """Samples of a timed trajectory from s_from to its end, at its own (nominal) velocities."""
+        step = self.options.trajectory_step
+        s = np.arange(s_from, trajectory.duration, step)
+        if s.size == 0:
+            return PathSamples(np.zeros((0, 6)), np.zeros((0, 6)), np.zeros(0))
+        q, dq, _ = trajectory.sample(s)
+        dt = np.diff(np.append(s, trajectory.duration))
+        return PathSamples(q, dq, dt)
+
+    # ------------------------------------------------------------------------------------ the cost
+    def stretched(self, samples: PathSamples, humans: HumanCapsules | None, stay: float = np.inf,
+                  moving: bool = True) -> float:
+        """Predicted time (s) of the samples under the SSM, people staying `stay` seconds (moving=False:
+        held where they are now, for a cost that does not depend on when the robot gets there)."""
+        self.evaluations += 1
+        if humans is None or humans.count == 0 or samples.q.shape[0] == 0:
+            return samples.nominal
+        r = self.robot
+        placement, parent, local, joint = r.chain
+        ssm, o = self.ssm, self.options
+        total = _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
+                                placement, parent, local, joint, r.ancestry, r.radii, humans.segments,
+                                humans.radii, humans.velocities, humans.velocity_known, ssm.horizon,
+                                ssm.fixed_distance, ssm.human_near_distance, ssm.human_speed_near,
+                                ssm.human_speed_far, ssm.tracking_margin,
+                                o.extrapolation if moving else 0.0, float(stay), o.alpha_floor)
+        return float(total) + samples.overhead
+
+    def path_time(self, waypoints: np.ndarray, humans: HumanCapsules | None, stay: float = np.inf,
+                  moving: bool = True, from_rest: bool = True) -> float:
+        """Predicted time (s) of a waypoint path, rest to rest, under the SSM."""
+        return self.stretched(self.path_samples(waypoints, from_rest), humans, stay, moving)
+
+    def trajectory_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None,
+                        stay: float = np.inf) -> float:
+        """Predicted time (s) from s_from to the end of a timed trajectory under the SSM."""
+        return self.stretched(self.trajectory_samples(trajectory, s_from), humans, stay)

@@ -1,0 +1,277 @@
+"""The trajectory scaling layer as a pure, stateful core: one ``step`` per control cycle.
+
+Each step takes the latest human capsules (and how old they are) and, optionally, the measured joint
+configuration; it solves the cycle's scaling problem (``shared.scaling.problem``), advances the path parameter
+s by alpha * sdot_nominal * T, and returns the joint command q_c = q(s), qd_c = q'(s) sdot, with the
+replan request beta. No I/O and no clock: the caller passes ages; timing of the computation itself is
+reported for benchmarks (Ruckig's pattern: the control call never raises, it returns a status).
+
+Safety rules kept here:
+* no human data yet, or data older than ``human_timeout``: alpha = 0 (stop), whatever the solver says;
+* the SSM rows are hard; acceleration limits take a slack;
+* beta (replan request) follows the *safe* bound on alpha, not alpha itself, so the acceleration ramp
+  after a stop never asks for a replan (the bound includes the check of where the command leads, so a
+  robot held at the start of a path from rest, whose tangent there is zero, asks too); it rises at bound <= alpha_min
+  and falls at bound >= alpha_release
+  (hysteresis), and is never raised while stopped for missing data (a new plan cannot fix that);
+* a stop is the fastest the drives can make along the path: the path speed falls by at most what the
+  drives' deceleration allows in one period (``braking_floor``), so every command is one the drives
+  follow and the robot stays on its path and stops where the commands end. Commanding less would not
+  stop it sooner: the drive (or the driver's setpoint limiter) would brake at that rate anyway, then
+  pull the robot back to where the command had stopped. While braking, a command can exceed the SSM
+  bound; that is the braking the ISO formula allows for (T_s at a_max), and the step says so
+  (method '+braking').
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import time
+from dataclasses import dataclass, fields
+
+import numba
+import numpy as np
+
+from shared.core.errors import ConfigError
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import Trajectory
+from shared.robot.model import RobotModel
+from shared.safety.ssm import SsmParameters
+from shared.scaling.problem import PiqpScalingSolver, build_rows, solve, ssm_alpha_bound
+
+SOLVERS = ("piqp", "closed_form")
+
+
+@dataclass(frozen=True)
+class ScalingParameters:
+    """period (s): control period. alpha_min / alpha_release: beta hysteresis thresholds on the safe bound.
+    human_timeout (s): human data older than this stops the robot (5 periods at 100 Hz).
+    acceleration_weight: price of one unit of acceleration slack (in units of the limit) against alpha.
+    solver: 'piqp' (closed form as fallback) or 'closed_form'."""
+
+    period: float = 0.01
+    alpha_min: float = 0.2
+    alpha_release: float = 0.3
+    human_timeout: float = 0.05
+    acceleration_weight: float = 100.0
+    solver: str = "piqp"
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name == "solver":
+                continue
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"scaling.{f.name}: expected a finite number, got {value!r}")
+        if not 0.0 < self.period <= 1.0:
+            raise ConfigError(f"scaling.period: must be in (0, 1] s, got {self.period}")
+        if not 0.0 <= self.alpha_min < self.alpha_release <= 1.0:
+            raise ConfigError("scaling: need 0 <= alpha_min < alpha_release <= 1, got "
+                              f"{self.alpha_min} and {self.alpha_release}")
+        if self.human_timeout <= 0.0:
+            raise ConfigError(f"scaling.human_timeout: must be positive, got {self.human_timeout}")
+        if self.acceleration_weight <= 0.0:
+            raise ConfigError(f"scaling.acceleration_weight: must be positive, got {self.acceleration_weight}")
+        if self.solver not in SOLVERS:
+            raise ConfigError(f"scaling.solver: expected one of {SOLVERS}, got {self.solver!r}")
+
+    @classmethod
+    def from_mapping(cls, raw: object) -> "ScalingParameters":
+        if raw is None:
+            return cls()
+        if not isinstance(raw, dict):
+            raise ConfigError(f"scaling: expected a mapping, got {type(raw).__name__}")
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(map(str, raw)) - known)
+        if unknown:
+            raise ConfigError(f"scaling: unknown key(s) {unknown}; known: {sorted(known)}")
+        return cls(**raw)
+
+
+@numba.njit(cache=True)
+def _path_deceleration(dq_ds, d2q_ds2, sdot, acceleration):
+    """The largest path deceleration d (1/s^2) at which no joint's acceleration q'_j (-d) + q''_j sdot^2
+    leaves +-a_j: min over the moving joints of (a_j + sign(q'_j) q''_j sdot^2) / |q'_j|, at least 0 (inf
+    when no joint moves). The curvature term counts: where the nominal trajectory itself decelerates, less
+    path deceleration is left to the drives."""
+    best = np.inf
+    for j in range(dq_ds.shape[0]):
+        speed = abs(dq_ds[j])
+        if speed > 1e-9:
+            curvature = d2q_ds2[j] * sdot * sdot
+            best = min(best, (acceleration[j] + (curvature if dq_ds[j] > 0 else -curvature)) / speed)
+    return max(best, 0.0)
+
+
+class StepStatus(str, enum.Enum):
+    """What a step did. Every status but RUNNING and FINISHED means the robot was told to stop."""
+
+    RUNNING = "running"
+    FINISHED = "finished"
+    NO_TRAJECTORY = "no_trajectory"
+    NO_HUMAN_DATA = "no_human_data"
+    STALE_HUMAN_DATA = "stale_human_data"
+
+
+@dataclass(slots=True)
+class ScalingStep:
+    """One cycle's result. alpha: path speed scaling in [0, 1]; safe_alpha: the largest alpha the hard
+    rows allow; beta: replan request; s: path parameter after the step; q_command, qd_command: joint
+    position (rad) and velocity (rad/s) to send; min_separation (m) and min_margin (m/s, limit minus
+    approach speed, over all pairs, at the commanded alpha); compute_us: time spent in the step."""
+
+    alpha: float
+    safe_alpha: float
+    beta: bool
+    s: float
+    sdot: float
+    q_command: np.ndarray
+    qd_command: np.ndarray
+    status: StepStatus
+    method: str
+    trajectory_version: int
+    min_separation: float
+    min_margin: float
+    compute_us: float
+
+
+class ScalingLayer:
+    """Follows one trajectory at the largest safe speed. Not thread-safe; one per control loop."""
+
+    def __init__(self, robot: RobotModel, ssm: SsmParameters | None = None,
+                 params: ScalingParameters | None = None) -> None:
+        self.robot = robot
+        self.ssm = ssm or SsmParameters()
+        self.params = params or ScalingParameters()
+        self._piqp = PiqpScalingSolver(self.params.acceleration_weight, robot.nq) \
+            if self.params.solver == "piqp" else None
+        self.trajectory: Trajectory | None = None
+        self.s = 0.0
+        self.sdot = 0.0
+        self.beta = False
+
+    def warm_up(self) -> None:
+        """Run every compiled path once (kinematics, SSM rows, solvers, verification, sampling), so that a
+        service meets its first deadlines instead of compiling then; the layer is left without a trajectory."""
+        q = (self.robot.limits.lower + self.robot.limits.upper) / 2
+        self.set_trajectory(Trajectory(np.array([0.0, 1.0]), np.vstack([q, q + 0.1]), np.full((2, q.size), 0.1)))
+        seg = self.robot.capsule_segments(q)[-1] + np.array([0.5, 0.0, 0.0])
+        self.step(HumanCapsules(seg[None], np.array([0.05]), np.zeros((1, 2, 3)), np.array([True])), 0.0)
+        self.trajectory, self.s, self.sdot, self.beta = None, 0.0, 0.0, False
+
+    def set_trajectory(self, trajectory: Trajectory, s: float = 0.0) -> None:
+        """Follow a new trajectory from its path parameter s (the junction, for a merged trajectory).
+
+        The path speed sdot is kept, so a merged trajectory that continues the motion is followed without a
+        jump in commanded velocity; beta is cleared (the request has been answered).
+        """
+        self.trajectory = trajectory
+        self.s = float(min(max(s, 0.0), trajectory.duration))
+        self.beta = False
+
+    def take(self, trajectory: Trajectory, from_rest: bool, junction: float, q_here: np.ndarray | None,
+             start_tolerance: float) -> str | None:
+        """The one rule for taking a new trajectory without a jump (the scaler service and the simulation):
+        one planned from rest (a fresh plan) only while the robot is at its start (within start_tolerance,
+        rad), from s = 0 at rest; a merged one only while the follower has not passed its junction, at
+        the same s and path speed (q_here is not needed then). None when taken, else why not."""
+        if from_rest:
+            if q_here is None:
+                return "the robot's position is not known"
+            if np.abs(trajectory.positions[0] - np.asarray(q_here)).max() > start_tolerance:
+                return "the robot is not at its start"
+            self.set_trajectory(trajectory, 0.0)
+            self.sdot = 0.0
+            return None
+        if self.s > junction + 1e-9:
+            return f"junction {junction:.3f} already passed (s = {self.s:.3f})"
+        self.set_trajectory(trajectory, self.s)
+        return None
+
+    def hold(self, q: np.ndarray, version: int = -1) -> None:
+        """Stand still at q (a one-knot-interval trajectory of zero motion)."""
+        q = np.asarray(q, dtype=float)
+        self.set_trajectory(Trajectory(np.array([0.0, self.params.period]), np.vstack([q, q]),
+                                       np.zeros((2, q.size)), version))
+        self.sdot = 0.0
+
+    def _verified(self, traj: Trajectory, alpha: float, humans: HumanCapsules, offset: np.ndarray) -> tuple[float, bool]:
+        """Lower alpha until the command it produces meets every SSM row; True when it had to.
+
+        The rows were written where the robot is; the command puts it at s' = s + alpha T moving at
+        q'(s') alpha, where a link may be closer to the human. That state is checked and alpha lowered to
+        its bound until it holds (3 tries, then alpha = 0, which always holds: at rest, no approach).
+        """
+        lowered = False
+        for _ in range(3):
+            if alpha <= 0.0:
+                return 0.0, lowered
+            q_next, dq_next, _ = traj.sample(self.s + alpha * self.params.period)
+            bound = ssm_alpha_bound(self.robot, q_next + offset, dq_next, humans, self.ssm)
+            if alpha <= bound:
+                return alpha, lowered
+            alpha, lowered = bound * (1.0 - 1e-9), True
+        return 0.0, True
+
+    def braking_floor(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
+        """The least path speed this cycle can have: the current one less what the drives' full deceleration
+        (``monitor_acceleration``, 6 rad/s^2, as the driver's setpoint limiter would brake) takes off in one
+        period along a path of tangent dq_ds (rad per unit s) and curvature d2q_ds2 (rad per unit s^2). 0
+        once the robot can be at rest by the end of the period."""
+        deceleration = _path_deceleration(np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
+                                          self.sdot, self.robot.limits.monitor_acceleration)
+        return max(0.0, self.sdot - deceleration * self.params.period)
+
+    def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool) -> StepStatus:
+        """What this cycle may do with its inputs: stop for missing or stale human data (the age check
+        also catches NaN), finished at the end of the path, else running."""
+        if humans is None:
+            return StepStatus.NO_HUMAN_DATA
+        if not human_age <= self.params.human_timeout:
+            return StepStatus.STALE_HUMAN_DATA
+        return StepStatus.RUNNING if running else StepStatus.FINISHED
+
+    def step(self, humans: HumanCapsules | None, human_age: float,
+             q_measured: np.ndarray | None = None) -> ScalingStep:
+        """One control cycle. humans=None means no human data has ever arrived; human_age in seconds.
+
+        q_measured: where the robot really is (the SSM rows are written there; its offset from the path
+        is carried to the commanded point); None means the robot is where the path says.
+        """
+        start = time.perf_counter()
+        traj = self.trajectory
+        if traj is None:
+            q_hold = np.zeros(self.robot.nq) if q_measured is None else np.asarray(q_measured, dtype=float)
+            return ScalingStep(0.0, 0.0, False, 0.0, 0.0, q_hold, np.zeros(self.robot.nq), StepStatus.NO_TRAJECTORY,
+                               "none", -1, math.inf, math.inf, 0.0)
+        q_nom, dq, ddq = traj.sample(self.s)
+        q_kin = q_nom if q_measured is None else np.asarray(q_measured, dtype=float)
+        running = self.s < traj.duration
+        alpha, safe_alpha, method = 0.0, 0.0, "none"
+        min_sep = min_margin = math.inf
+        status = self.input_status(humans, human_age, running)
+        if status is StepStatus.FINISHED:
+            alpha, safe_alpha = 1.0, 1.0
+        elif status is StepStatus.RUNNING:
+            rows = build_rows(self.robot, q_kin, dq, ddq, 1.0, self.sdot, humans, self.ssm, self.params.period)
+            solution = solve(rows, self.params.acceleration_weight, self._piqp)
+            alpha, safe_alpha, method = solution.alpha, rows.upper, solution.method
+            alpha, lowered = self._verified(traj, alpha, humans, q_kin - q_nom)
+            if lowered:              # the bound where the command leads: what the SSM allows (and beta sees;
+                method += "+verified"  # at the start of a path from rest the rows alone see no motion)
+                safe_alpha = min(safe_alpha, alpha)
+            if rows.ssm is not None:
+                min_sep, min_margin = rows.ssm.closest(alpha)
+        floor = self.braking_floor(dq, ddq) if running else 0.0
+        if floor > alpha:
+            alpha, method = floor, method + "+braking"
+        if status is StepStatus.RUNNING and safe_alpha <= self.params.alpha_min:
+            self.beta = True
+        elif status is not StepStatus.RUNNING or safe_alpha >= self.params.alpha_release:
+            self.beta = False
+        self.sdot = alpha if running else 0.0
+        self.s = min(self.s + self.sdot * self.params.period, traj.duration)
+        q_c, dq_c, _ = traj.sample(self.s)
+        return ScalingStep(alpha, safe_alpha, self.beta, self.s, self.sdot, q_c, dq_c * self.sdot, status, method,
+                           traj.version, min_sep, min_margin, (time.perf_counter() - start) * 1e6)

@@ -1,0 +1,36 @@
+"""Between the cores' types and the wire messages (shared.wire.messages)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import Trajectory
+from shared.wire.messages import HumanState, TrajectoryMsg
+
+
+def trajectory_to_msg(trajectory: Trajectory, goal_id: int, reason: str, junction: float = 0.0,
+                      base_version: int = -1, seq: int = 0, stamp: float = 0.0) -> TrajectoryMsg:
+    return TrajectoryMsg(version=trajectory.version, goal_id=goal_id, base_version=base_version, reason=reason,
+                         junction=float(junction), times=trajectory.times, positions=trajectory.positions,
+                         velocities=trajectory.velocities, seq=seq, stamp=stamp)
+
+
+def trajectory_from_msg(msg: TrajectoryMsg) -> Trajectory:
+    """The same q(s), sdot(s): the knots are the representation."""
+    return Trajectory(msg.times, msg.positions, msg.velocities, msg.version)
+
+
+def humans_to_msg(humans: HumanCapsules, valid: bool, sample_stamp: float, seq: int = 0,
+                  stamp: float = 0.0) -> HumanState:
+    return HumanState(segments=humans.segments, radii=humans.radii, velocities=humans.velocities,
+                      velocity_known=humans.velocity_known, valid=valid, sample_stamp=sample_stamp, seq=seq,
+                      stamp=stamp)
+
+
+def humans_from_msg(msg: HumanState) -> HumanCapsules | None:
+    """The capsules of a valid human state; None when the tracker says the track is not valid."""
+    if not msg.valid:
+        return None
+    return HumanCapsules(np.asarray(msg.segments), np.asarray(msg.radii), np.asarray(msg.velocities),
+                         np.asarray(msg.velocity_known))

@@ -1,0 +1,184 @@
+"""The cell's operator and witness, as used by `hrc demo` and the fault campaign (`hrc faults`):
+
+* ``Recorder`` subscribes to every key of the cell and keeps what arrives (bad messages are counted);
+* ``HumanFeed`` publishes a scripted human as raw tracker data at HUMAN_RATE, and can misbehave the way a
+  tracker does (fall silent, send NaN, let the person jump) for the fault campaign;
+* ``Shuttle`` sends goals between q_s and q_g: the next goal when the robot has arrived, the same goal again
+  when the robot is not following a trajectory for it (the planner refused it, or the scaler dropped it
+  after a stop), and 'recover' to the driver while it is stopped. One ``step`` per call, no thread.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+import msgpack
+import numpy as np
+
+from evidence.scenarios import Q_GOAL, Q_START
+from shared.core.errors import MessageError
+from shared.wire.keys import KeySpace
+from shared.wire.messages import (
+    DriveLagReport,
+    DriverRequest,
+    Goal,
+    HumanRaw,
+    HumanState,
+    JointCommand,
+    JointState,
+    LatencyReport,
+    MonitorReport,
+    SafetyEvent,
+    ScalerStatus,
+    TrajectoryMsg,
+    decode,
+    encode,
+)
+from tools.report import Recording
+
+HUMAN_RATE = 120.0          # Hz, raw tracker samples
+ARRIVED = 0.01              # rad: the robot is at its goal
+GOAL_RETRY = 1.0            # s without following a trajectory for the current goal: send it again
+RECOVER_EVERY = 1.0         # s between recovery requests while the driver is stopped
+
+
+class Recorder:
+    """Subscribes to every key of the cell and keeps what arrives (bad messages are counted, not kept)."""
+
+    def __init__(self, session, keys: KeySpace, rec: Recording) -> None:
+        self.rec, self.lock, self.bad = rec, threading.Lock(), 0
+        self.latest: dict[type, object] = {}
+        self.on_message = None           # called with every message kept (the demo's live 3D view)
+        table = [(keys.scaler_status, ScalerStatus, rec.statuses), (keys.command, JointCommand, rec.commands),
+                 (keys.joint_state, JointState, rec.joint_states), (keys.human_state, HumanState, rec.human_states),
+                 (keys.trajectory, TrajectoryMsg, rec.trajectories), (keys.safety_events, SafetyEvent, rec.events),
+                 (keys.latency, LatencyReport, rec.latency), (keys.drive_lag, DriveLagReport, rec.drive_lag),
+                 (keys.monitor, MonitorReport, rec.monitor)]
+        self.subs = [session.declare_subscriber(key, self._keeper(kind, store)) for key, kind, store in table]
+
+    def _keeper(self, kind, store: list):
+        def on_sample(sample):
+            try:
+                msg = decode(sample.payload.to_bytes(), kind)
+            except MessageError:
+                with self.lock:
+                    self.bad += 1
+                return
+            with self.lock:
+                store.append(msg)
+                self.latest[kind] = msg
+            if self.on_message is not None:
+                self.on_message(msg)
+        return on_sample
+
+    def get(self, kind):
+        with self.lock:
+            return self.latest.get(kind)
+
+    def close(self) -> None:
+        for sub in self.subs:
+            sub.undeclare()
+
+
+@dataclass
+class FeedFault:
+    """How the feed misbehaves: 'silent' (nothing is sent), 'nan' (every coordinate NaN), 'jump' (the person
+    is shown `offset` (m) away from where they are; with `every` > 0 only in every every-th sample, a
+    glitch). kind None: a healthy feed."""
+
+    kind: str | None = None
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    every: int = 0
+
+
+class HumanFeed(threading.Thread):
+    """Publishes a scripted or recorded human (anything with ``at(t) -> HumanCapsules | None``; None: the
+    tracker sees nobody, nothing is sent) as raw tracker data at HUMAN_RATE, time measured from t0.
+    ``fault`` may be changed at any time (FeedFault)."""
+
+    def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo") -> None:
+        super().__init__(daemon=True, name="human-feed")
+        self.pub = session.declare_publisher(keys.human_raw)
+        self.human, self.t0, self.source, self.running = human, t0, source, True
+        self.fault = FeedFault()
+
+    def run(self) -> None:
+        k = 0
+        while self.running:
+            k += 1
+            due = self.t0 + k / HUMAN_RATE
+            time.sleep(max(0.0, due - time.monotonic()))
+            now = time.monotonic()
+            caps = self.human.at(now - self.t0)
+            fault = self.fault
+            if fault.kind == "silent" or caps is None:       # a fault, or a dropout in a recorded motion
+                continue
+            shifted = fault.kind == "jump" and (fault.every <= 0 or k % fault.every == 0)
+            segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
+            payload = encode(HumanRaw(source=self.source, sample_time=now, segments=segments, radii=caps.radii,
+                                      seq=k, stamp=now))
+            self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)
+
+
+def with_nan_segments(payload: bytes) -> bytes:
+    """A HumanRaw on the wire with every coordinate NaN, as a broken tracker would send it (encode refuses)."""
+    body = msgpack.unpackb(payload, raw=False)
+    body["segments"] = np.full(len(body["segments"]) // 8, np.nan).tobytes()
+    return msgpack.packb(body, use_bin_type=True)
+
+
+class Shuttle:
+    """Shuttles the robot between q_s and q_g through goals, and asks a stopped driver to recover."""
+
+    def __init__(self, session, keys: KeySpace, recorder: Recorder, rec: Recording, say=lambda text: None,
+                 source: str = "hrc demo") -> None:
+        self.goal_pub = session.declare_publisher(keys.goal)
+        self.req_pub = session.declare_publisher(keys.driver_request)
+        self.recorder, self.rec, self.say, self.source = recorder, rec, say, source
+        self.ends = [Q_START, Q_GOAL]
+        self.leg, self.goal_id = 0, 0
+        self.goal_sent = self.last_recover = -1e9
+        self.recovering = True            # False: leave a stopped driver stopped (a fault is being watched)
+
+    @property
+    def target(self) -> np.ndarray:
+        return self.ends[(self.leg + 1) % 2]
+
+    def send_goal(self, now: float) -> None:
+        self.goal_sent = now
+        self.goal_pub.put(encode(Goal(goal_id=self.goal_id, name="q_g" if self.leg % 2 == 0 else "q_s",
+                                      q=self.target, seq=self.goal_id, stamp=now)))
+
+    def start(self, now: float) -> None:
+        self.goal_id = 1
+        self.send_goal(now)
+
+    def following_goal(self, status: ScalerStatus | None) -> bool:
+        """The scaler follows a trajectory planned for the current goal."""
+        if status is None or status.trajectory_version < 0:
+            return False
+        with self.recorder.lock:
+            mine = {t.version for t in self.rec.trajectories[-20:] if t.goal_id == self.goal_id}
+        return status.trajectory_version in mine
+
+    def step(self, now: float) -> None:
+        js, st = self.recorder.get(JointState), self.recorder.get(ScalerStatus)
+        following = self.following_goal(st)
+        if js is not None and st is not None and st.status == "finished" and following \
+                and np.abs(js.q - self.target).max() < ARRIVED:
+            self.rec.shuttles += 1
+            self.leg += 1
+            self.goal_id += 1
+            self.send_goal(now)
+        elif not following and now - self.goal_sent > GOAL_RETRY:
+            self.send_goal(now)
+        if self.recovering and js is not None and js.drive_state.startswith("stopped") \
+                and now - self.last_recover > RECOVER_EVERY:
+            self.last_recover = now
+            self.recover(now)
+            self.say(f"t={now - self.rec.t0:6.2f}s  robot stopped ({js.drive_state}): asking the driver to recover")
+
+    def recover(self, now: float) -> None:
+        self.req_pub.put(encode(DriverRequest(action="recover", source=self.source, stamp=now)))

@@ -1,0 +1,735 @@
+"""``hrc``: the command line of the HRC cell.
+
+Thin: it parses arguments, calls the cores or the services, and prints. Bad arguments give a clear
+message and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+from shared.core.errors import HrcError
+from shared.transport.pki import DEFAULT_HOSTS
+
+DESCRIPTION = """\
+Safety-aware kinodynamic control of a Pilz PRBT next to people (ISO/TS 15066 speed and separation
+monitoring). Subcommands:
+
+  hrc demo        run the paper's experiment: the PRBT shuttles between two poses while a scripted
+                  human goes through four phases (far, approaching, arm in the path, very close); the
+                  scaling layer keeps every link below its ISO/TS 15066 speed limit and the planning
+                  layer replans around the arm (--no-beta: without the replan requests, as in the
+                  paper's ablation; --no-planner: scaling only).
+  hrc up / hrc down              start / stop the whole cell (PRBT emulator and every service) under
+                                 supervisord; without kernel CAN inside a private network namespace
+  hrc goal Q1 .. Q6 | NAME      send a goal configuration (rad) or a named one (q_s, q_g, home) to
+                                 the planner of a running cell
+  hrc human inject X Y Z ...     publish a human pose (a capsule) once, or moving at a velocity
+  hrc human replay FILE          replay a recorded or scripted motion (CSV or JSON) at its own rate
+  hrc status                     which services are alive, the robot, the scaler, the monitor
+  hrc recover                    after a stop: ask the driver to reset and re-enable the drives
+  hrc certs --out DIR            the cell CA and a certificate per service, for mutual TLS and the
+                                 router's access control (several hosts; deploy/zenoh/secure-*.json5)
+  hrc faults [--only F ..]       the fault campaign against a cell that is up: kill -9, SIGSTOP, CAN
+                                 faults, tracker faults; stop times, violations, recovery (a table)
+The cell's commands reach it over Zenoh (--connect, default tcp/127.0.0.1:7447).
+Run 'hrc <command> --help' for the options of one command."""
+
+NAMED = {"q_s": [1.57, -0.4, 1.17, 0.0, 1.57, 0.0], "q_g": [-1.57, -0.4, 1.17, 0.0, 1.57, 0.0],
+         "home": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hrc", description=DESCRIPTION,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", metavar="<command>")
+    demo = sub.add_parser("demo", help="run the paper's experiment on the built-in scenario",
+                          description="Shuttle the PRBT between q_s and q_g next to a scripted human going "
+                                      "through the paper's four phases. By default on the real processes: the "
+                                      "PRBT emulator on CAN (vcan0, else udp_multicast in a private network "
+                                      "namespace made for it) and every service over Zenoh; progress while it "
+                                      "runs, then a report folder (--out): summary.json, a per-cycle trace "
+                                      "(format: docs/report-format.md) and the paper's figures as PNG. --sim: "
+                                      "both layers in-process on a simulated clock instead (deterministic, fast).",
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+    demo.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
+                      help="seconds to run (default: 24, all four phases; with --human, the motion's length)")
+    demo.add_argument("--human", type=Path, default=None, metavar="FILE",
+                      help="a recorded or scripted motion (CSV or JSON, several people, dropouts; format in "
+                           "docs/human-motion.md) in place of the paper's phases")
+    demo.add_argument("--phase-length", type=_positive_float, default=6.0, metavar="SECONDS",
+                      help="length of each of the four human phases (default 6)")
+    demo.add_argument("--config", type=Path, default=None, metavar="FILE",
+                      help="cell configuration YAML (default: built-in, same as deploy/cell.yaml)")
+    demo.add_argument("--scene", type=Path, default=None, metavar="FILE",
+                      help="static cell (floor, table, fixtures) for the planner (default deploy/scene.yaml)")
+    demo.add_argument("--no-beta", action="store_true",
+                      help="do not replan when the scaling layer asks (alpha below alpha_min): the paper's ablation")
+    demo.add_argument("--sim", action="store_true",
+                      help="in-process on a simulated clock (no processes, no CAN, no Zenoh)")
+    demo.add_argument("--no-planner", action="store_true", help="with --sim: scaling layer only, straight shuttles")
+    demo.add_argument("--seed", type=int, default=1, help="seed of the planner's random sampling (default 1)")
+    demo.add_argument("--out", type=Path, default=Path("hrc-demo-report"), metavar="DIR",
+                      help="report folder (default ./hrc-demo-report)")
+    demo.add_argument("--quiet", action="store_true", help="print only the summary")
+    demo.add_argument("--view", action="store_true",
+                      help="watch it live in 3D (rerun's web viewer on 127.0.0.1, --view-port); every report "
+                           "folder holds recording.rrd anyway")
+    demo.add_argument("--view-port", type=int, default=9090, help="web viewer port with --view (default 9090)")
+    demo.add_argument("--view-fd", type=int, default=None, help=argparse.SUPPRESS)
+
+    upp = sub.add_parser("up", help="start the cell under supervisord",
+                         description="Start the PRBT emulator and every service under supervisord "
+                                     "(deploy/supervisord.conf). Without kernel CAN the bus is udp_multicast "
+                                     "inside a private network namespace; the other hrc commands enter it.")
+    upp.add_argument("--interface", default=None, help="CAN interface (default: socketcan on vcan0 if present, "
+                                                        "else udp_multicast in a namespace)")
+    upp.add_argument("--port", type=int, default=7447, help="first of six loopback ports (default 7447)")
+    upp.add_argument("--prefix", default="hrc/cell1")
+    downp = sub.add_parser("down", help="stop the cell", description="Stop supervisord and every service.")
+    downp.add_argument("--prefix", default="hrc/cell1")
+
+    def cell_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--connect", default=None, metavar="ENDPOINT",
+                       help="a Zenoh endpoint of the running cell (default: the port `hrc up` used, else "
+                            "tcp/127.0.0.1:7447)")
+        p.add_argument("--prefix", default="hrc/cell1", help="key prefix of the cell (default hrc/cell1)")
+        p.add_argument("--timeout", type=_positive_float, default=3.0, metavar="SECONDS",
+                       help="how long to wait for the cell (default 3)")
+
+    goal = sub.add_parser("goal", help="send a goal configuration to the planner",
+                          description="Send a goal to the planner: six joint angles in rad, or one of "
+                                      f"{', '.join(NAMED)}. Waits until the planner is reachable first.")
+    goal.add_argument("q", nargs="+", metavar="Q", help="six joint angles (rad) or a name")
+    goal.add_argument("--id", type=int, default=None, help="goal id (default: from the clock)")
+    cell_options(goal)
+    recover = sub.add_parser("recover", help="ask the robot driver to reset and re-enable the drives",
+                             description="After a stop (a stale command, a lost heartbeat, a drive fault, a "
+                                         "restarted service) the driver holds the drives stopped until asked: "
+                                         "this asks it to reset faults and enable again. It refuses while the "
+                                         "cause is still there (see hrc status and the driver's events).")
+    cell_options(recover)
+    human = sub.add_parser("human", help="publish human poses to the tracker; convert keypoints to capsules")
+    human_sub = human.add_subparsers(dest="human_command", metavar="<what>")
+    inject = human_sub.add_parser("inject", help="one capsule, once or moving at a constant velocity",
+                                  description="Publish a human capsule (end points A and B, radius) as raw tracker "
+                                              "data, once, or moving at --velocity for --duration seconds at --rate Hz.")
+    # a single-string metavar: argparse (3.11) fails on tuple metavars when it reports missing positionals
+    inject.add_argument("a", nargs=3, type=float, metavar="A", help="capsule end A: x y z (m, base frame)")
+    inject.add_argument("b", nargs=3, type=float, metavar="B", help="capsule end B: x y z (m)")
+    inject.add_argument("--radius", type=_positive_float, default=0.06, help="capsule radius (m, default 0.06)")
+    inject.add_argument("--velocity", type=float, nargs=3, default=None, metavar=("VX", "VY", "VZ"),
+                        help="constant velocity (m/s) while --duration lasts")
+    inject.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS")
+    inject.add_argument("--rate", type=_positive_float, default=100.0, metavar="HZ")
+    cell_options(inject)
+    replay = human_sub.add_parser("replay", help="a recorded or scripted motion (CSV or JSON) at its own rate",
+                                  description="Publish the frames of a motion file (docs/human-motion.md: "
+                                              "CSV or JSON, several people, dropouts) as raw tracker data at "
+                                              "their own times; nothing during a dropout frame.")
+    replay.add_argument("file", type=Path, help="a .csv or .json motion file")
+    replay.add_argument("--speed", type=_positive_float, default=1.0, help="playback speed factor (default 1)")
+    cell_options(replay)
+    fromkp = human_sub.add_parser("from-keypoints", help="3D body keypoints (CSV) to a motion file of capsules",
+                                  description="Turn a CSV of 3D keypoints (t,person,keypoint,x,y,z: head, "
+                                              "shoulders, elbows, hands, hips) into a motion file of capsules "
+                                              "(docs/human-motion.md), radii from DIN 33402-2's 95th "
+                                              "percentiles. A person missing a keypoint makes a dropout frame.")
+    fromkp.add_argument("input", type=Path, help="keypoints CSV")
+    fromkp.add_argument("output", type=Path, help="motion file to write (.json or .csv)")
+    fromkp.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="input length unit (default m)")
+    fromkp.add_argument("--y-up", action="store_true", help="the capture volume's vertical axis is y (else z)")
+    fromkp.add_argument("--yaw", type=float, default=0.0, metavar="DEG",
+                        help="rotation about the vertical axis into the robot base frame (degrees)")
+    fromkp.add_argument("--translate", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "Z"),
+                        help="then this translation (m, robot base frame)")
+    view = sub.add_parser("view", help="the running cell in 3D (rerun), served on loopback",
+                          description="A live 3D view of a running cell with rerun: the robot's link capsules "
+                                      "at the measured joint state and the commanded ghost, every person's "
+                                      "capsules, the robot-human pair nearest its ISO/TS 15066 limit with its "
+                                      "approach speed against the limit, alpha and beta over time, the planner's "
+                                      "current and merged trajectories. A Zenoh subscriber of its own (a slow "
+                                      "viewer slows nothing else); the web viewer listens on 127.0.0.1 only.")
+    view.add_argument("--web-port", type=int, default=9090, help="web viewer port on 127.0.0.1 (default 9090)")
+    view.add_argument("--grpc-port", type=int, default=9876, help="viewer's gRPC port on 127.0.0.1 (default 9876)")
+    view.add_argument("--save", type=Path, default=None, metavar="FILE",
+                      help="write the view to an .rrd file instead of serving it (open it later with `rerun FILE`)")
+    view.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
+                      help="stop after this long (default: until Ctrl-C)")
+    view.add_argument("--pipe-fd", type=int, default=None, help=argparse.SUPPRESS)
+    cell_options(view)
+    certs = sub.add_parser("certs", help="make the cell's TLS certificates (multi-host, secured)",
+                           description="Make the cell CA and one certificate per identity (every service, "
+                                       "operator, router) for mutual TLS and the router's access control "
+                                       "(deploy/zenoh/secure-router.json5). Copy to each host the CA and only "
+                                       "its own key; keep ca-key.pem off the cell.")
+    certs.add_argument("--out", type=Path, required=True, metavar="DIR", help="where to write the PEM files")
+    certs.add_argument("--hosts", nargs="+", default=list(DEFAULT_HOSTS), metavar="HOST",
+                       help="names and addresses the certificates are valid for (the router's; default loopback)")
+    faults = sub.add_parser("faults", help="the fault campaign against a running cell (hrc up)",
+                            description="As the cell's operator (goals, a scripted person, recovery), inject each "
+                                        "fault while the robot moves: kill -9 and SIGSTOP of services, lost CAN "
+                                        "frames, a stopped heartbeat, a silent or NaN tracker, a person who jumps. "
+                                        "For each: time to stop against its bound, violations (the monitor's and "
+                                        "against the true person), the service back, the task resumed. Prints a "
+                                        "JSON line per fault and a table.")
+    faults.add_argument("--only", nargs="+", default=None, metavar="FAULT",
+                        help="these faults only (default: all, in order)")
+    faults.add_argument("--out", type=Path, default=None, metavar="DIR", help="write faults.json and faults.md here")
+    faults.add_argument("--config", type=Path, default=None, metavar="FILE", help="the cell configuration the "
+                        "services run with (default: built in)")
+    cell_options(faults)
+    status = sub.add_parser("status", help="what the running cell is doing",
+                            description="Listen to the cell for --timeout seconds and report which services are "
+                                        "alive, the robot's state, the scaler and the safety monitor.")
+    cell_options(status)
+    return parser
+
+
+DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
+
+
+def _scene(path: Path | None):
+    """The given scene file, else the shipped deploy/scene.yaml, else a bare floor (said on stderr)."""
+    from shared.planning.scene import Scene, load_scene
+
+    if path is not None:
+        return load_scene(path)
+    if DEFAULT_SCENE.exists():
+        return load_scene(DEFAULT_SCENE)
+    print(f"hrc: no {DEFAULT_SCENE}; planning with a bare floor at z = 0", file=sys.stderr)
+    return Scene(floor_z=0.0)
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    human = None
+    if args.human is not None:
+        from shared.tracking.motion import RecordedMotion
+
+        human = RecordedMotion.load(args.human)        # a bad file: ConfigError naming the frame, nothing starts
+    if args.duration is None:
+        args.duration = max(human.duration, 1.0) if human is not None else 24.0
+    if not args.sim:
+        return _demo_processes(args, human)
+    return _demo_sim(args, human)
+
+
+def _demo_processes(args: argparse.Namespace, human) -> int:
+    from shared.config import load_config
+    from shared.robot.model import default_robot
+    from tools import demo
+    from tools.launch import free_port
+
+    if args.no_planner:
+        raise UsageError("--no-planner needs --sim (the running cell always has its planner)")
+    if args.scene is not None:
+        raise UsageError("--scene needs --sim (the planner service reads deploy/scene.yaml)")
+    config = load_config(args.config)              # a bad file is refused here, before anything starts
+    server = None
+    if args.view and args.view_fd is None:         # the viewer is served here, on this side of any namespace
+        from tools.view import ViewServer
+
+        _check_port("--view-port", args.view_port)
+        server = ViewServer(free_port(), args.view_port)
+        args.view_fd = server.write_fd
+        print(f"hrc demo: watch it at {server.web_url} (listening on 127.0.0.1 only)", flush=True)
+    try:
+        fds = () if server is None else (server.write_fd,)
+        argv = [sys.executable, "-m", "tools.cli", *args.argv] + ([] if server is None else
+                                                                      ["--view-fd", str(server.write_fd)])
+        try:
+            code = demo.reexec_in_namespace(argv, fds)
+        except RuntimeError as exc:
+            print(f"hrc demo: error: {exc}", file=sys.stderr)
+            return 1
+        if code is not None:
+            return code
+        try:
+            summary = demo.run(args.out, args.duration, args.phase_length, args.config, args.seed, args.no_beta,
+                               args.quiet, default_robot(), config, human, str(args.human or ""), args.view_fd)
+        except RuntimeError as exc:
+            print(f"hrc demo: error: {exc}", file=sys.stderr)
+            return 1
+    finally:
+        if server is not None:
+            server.stop()
+    print(json.dumps({k: v for k, v in summary.items() if k not in ("replan_stall_ms", "replans")}
+                     | {"replans": len(summary["replans"]), "replan_stall_ms": {
+                         k: summary["replan_stall_ms"][k] for k in ("median", "max")}}))
+    print(f"hrc demo: report in {args.out}/ (summary.json, trace.csv, figures: {', '.join(summary['figures'])})")
+    if summary["violations"] is None:
+        print("hrc demo: error: no summary from the safety monitor", file=sys.stderr)
+        return 1
+    return 0 if summary["violations"] == 0 else 1
+
+
+def _demo_sim(args: argparse.Namespace, human) -> int:
+    if args.view:
+        raise UsageError("--view needs the processes (without --sim); a --sim run is its summary only")
+    from evidence.scenarios import Q_GOAL, Q_START, paper_phases
+    from evidence.sim import run_shuttle
+    from shared.config import load_config
+    from shared.robot.model import default_robot
+
+    config = load_config(args.config)
+    robot = default_robot()
+    human = human if human is not None else paper_phases(args.phase_length)
+    replanner = None
+    if not args.no_planner:
+        from shared.planning.collision import CollisionModel
+        from shared.planning.ompl_planner import JointPlanner, PlannerOptions
+        from shared.planning.replanner import Replanner
+
+        collision = CollisionModel(robot, _scene(args.scene), config.ssm.min_separation)
+        replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm)
+    every = max(1, int(round(0.5 / config.scaling.period)))
+    count = [0]
+
+    def progress(record) -> None:
+        count[0] += 1
+        if args.quiet or count[0] % every:
+            return
+        s = record.step
+        sep = f"{s.min_separation:5.2f}" if s.min_separation != float("inf") else "  -  "
+        print(f"t={record.t:6.2f}s  {record.phase:<20} alpha={s.alpha:4.2f} safe={s.safe_alpha:4.2f} "
+              f"beta={int(s.beta)}  sep={sep} m  shuttles={record.shuttles}  cycle={s.compute_us:6.1f} us",
+              flush=True)
+
+    if not args.quiet:
+        layers = "scaling layer only" if replanner is None else \
+            "scaling + planning layers" + (" (no beta replans)" if args.no_beta else "")
+        scenario = f"the motion in {args.human}" if args.human else "the built-in scenario"
+        print(f"hrc demo --sim: {layers} on {scenario} (in-process, simulated clock)")
+
+    def replanned(event) -> None:
+        if not args.quiet:
+            state = "replanned" if event.ok else "replan refused"
+            print(f"t={event.t:6.2f}s  {state} ({event.reason}) in {event.compute_ms:.0f} ms  {event.detail[:100]}",
+                  flush=True)
+
+    result = run_shuttle(robot, config, human, Q_START, Q_GOAL, args.duration, progress, replanner,
+                         beta_replans=not args.no_beta, on_replan=replanned)
+    summary = result.summary()
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(json.dumps(summary))
+    return 0 if summary["violations"] == 0 else 1
+
+
+def _session(args: argparse.Namespace):
+    from shared.transport.zenoh_session import open_session
+    from shared.wire.keys import KeySpace
+    from tools.cell import cell_endpoint
+
+    if args.connect is None:
+        args.connect = cell_endpoint(args.prefix)
+    keys = KeySpace(args.prefix)
+    return open_session("peer", connect=[args.connect]), keys
+
+
+def cmd_up(args: argparse.Namespace) -> int:
+    import os
+
+    from tools.cell import run_dir, up
+
+    interface = args.interface or ("socketcan" if os.path.exists("/sys/class/net/vcan0") else "udp_multicast")
+    if not 1024 <= args.port <= 65530:
+        print(f"hrc up: error: --port must be in 1024..65530, got {args.port}", file=sys.stderr)
+        return 2
+    try:
+        pid = up(args.prefix, interface, args.port)
+    except RuntimeError as exc:
+        print(f"hrc up: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"hrc up: cell {args.prefix} starting under supervisord (pid {pid}, CAN {interface}, Zenoh "
+          f"tcp/127.0.0.1:{args.port}); logs in {run_dir(args.prefix)}; `hrc status` to follow it")
+    return 0
+
+
+def cmd_down(args: argparse.Namespace) -> int:
+    from tools.cell import down
+
+    if not down(args.prefix):
+        print(f"hrc down: no running cell {args.prefix}", file=sys.stderr)
+        return 1
+    print(f"hrc down: cell {args.prefix} stopped")
+    return 0
+
+
+def _await_service(session, keys, service: str, timeout: float) -> bool:
+    from shared.transport.zenoh_session import await_liveliness
+
+    return await_liveliness(session, keys.alive(service), timeout)
+
+
+def cmd_goal(args: argparse.Namespace) -> int:
+    import time
+
+    import numpy as np
+
+    from shared.robot.model import default_robot
+    from shared.wire.messages import Goal, encode
+
+    if len(args.q) == 1 and args.q[0] in NAMED:
+        name, q = args.q[0], np.array(NAMED[args.q[0]])
+    elif len(args.q) == 6:
+        try:
+            q = np.array([float(v) for v in args.q])
+        except ValueError:
+            raise GoalArgumentError(f"joint angles must be numbers, got {' '.join(args.q)}") from None
+        name = ""
+    else:
+        raise GoalArgumentError(f"give six joint angles (rad) or one of {', '.join(NAMED)}, got {' '.join(args.q)}")
+    lim = default_robot().limits
+    if not np.all(np.isfinite(q)) or not lim.within(q):
+        raise GoalArgumentError(f"goal outside the joint limits (+-{', '.join(f'{u:.3f}' for u in lim.upper)} rad)")
+    session, keys = _session(args)
+    try:
+        if not _await_service(session, keys, "planner", args.timeout):
+            print(f"hrc goal: error: no planner reachable at {args.connect} within {args.timeout:.0f} s",
+                  file=sys.stderr)
+            return 1
+        goal_id = args.id if args.id is not None else int(time.time() * 1000) % (2 ** 31)
+        session.put(keys.goal, encode(Goal(goal_id=goal_id, name=name, q=q, stamp=time.monotonic())))
+        print(f"hrc goal: sent goal {goal_id} {name or ''} {np.round(q, 4).tolist()}".replace("  ", " "))
+    finally:
+        session.close()
+    return 0
+
+
+def cmd_recover(args: argparse.Namespace) -> int:
+    import time
+
+    from shared.wire.messages import DriverRequest, encode
+
+    session, keys = _session(args)
+    try:
+        if not _await_service(session, keys, "robot_driver", args.timeout):
+            print(f"hrc recover: error: no robot_driver reachable at {args.connect}", file=sys.stderr)
+            return 1
+        session.put(keys.driver_request, encode(DriverRequest(action="recover", source="hrc recover",
+                                                              stamp=time.monotonic())))
+        print("hrc recover: asked the robot driver to reset and re-enable the drives")
+    finally:
+        session.close()
+    return 0
+
+
+def cmd_human(args: argparse.Namespace) -> int:
+
+    import numpy as np
+
+
+    if args.human_command == "replay":
+        return _replay(args)
+    if args.human_command == "from-keypoints":
+        return _from_keypoints(args)
+    if args.human_command != "inject":
+        print("hrc human: error: choose what to do: 'hrc human inject ...', 'hrc human replay FILE' or "
+              "'hrc human from-keypoints IN OUT'", file=sys.stderr)
+        return 2
+    a, b = np.array(args.a), np.array(args.b)
+    velocity = np.zeros(3) if args.velocity is None else np.array(args.velocity)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(velocity))):
+        print("hrc human inject: error: positions and velocity must be finite numbers", file=sys.stderr)
+        return 2
+    if args.velocity is not None and args.duration is None:
+        print("hrc human inject: error: --velocity needs --duration", file=sys.stderr)
+        return 2
+    steps = 1 if args.duration is None else max(1, int(args.duration * args.rate))
+    radii = np.array([args.radius])
+    return _publish_raw(args, "inject", ((k / args.rate, lambda t: np.array([[a + velocity * t, b + velocity * t]]), radii)
+                                         for k in range(steps)))
+
+
+def _publish_raw(args: argparse.Namespace, what: str, frames) -> int:
+    """Publish (sample_time_offset, segments, radii) frames as raw tracker data, each at its offset from
+    now, once tracker_ingest is reachable (exit 1 if it is not)."""
+    import time
+
+    from shared.wire.messages import HumanRaw, encode
+
+    session, keys = _session(args)
+    try:
+        if not _await_service(session, keys, "tracker_ingest", args.timeout):
+            print(f"hrc human {what}: error: no tracker_ingest reachable at {args.connect}", file=sys.stderr)
+            return 1
+        pub = session.declare_publisher(keys.human_raw)
+        start = time.monotonic()
+        count = 0
+        for k, (offset, segments, radii) in enumerate(frames):
+            time.sleep(max(0.0, start + offset - time.monotonic()))
+            now = time.monotonic()
+            pub.put(encode(HumanRaw(source=f"hrc {what}", sample_time=now, segments=segments(now - start),
+                                    radii=radii, seq=k, stamp=now)))
+            count += 1
+        print(f"hrc human {what}: published {count} pose(s)")
+    finally:
+        session.close()
+    return 0
+
+
+def _from_keypoints(args: argparse.Namespace) -> int:
+    import math
+
+    from shared.tracking.keypoints import UNITS, FrameTransform, convert
+
+    if not all(math.isfinite(v) for v in (args.yaw, *args.translate)):
+        print("hrc human from-keypoints: error: --yaw and --translate must be finite numbers", file=sys.stderr)
+        return 2
+    transform = FrameTransform(UNITS[args.units], args.y_up, math.radians(args.yaw), tuple(args.translate))
+    frames, dropouts = convert(args.input, args.output, transform)   # ConfigError: exit 2 (main)
+    print(f"hrc human from-keypoints: {frames} frames ({dropouts} dropouts) written to {args.output}")
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from shared.tracking.motion import load_replay
+
+    frames = load_replay(args.file)              # ConfigError: a clear message and exit 2 (main)
+    t0 = frames[0].t
+    return _publish_raw(args, "replay", (((f.t - t0) / args.speed, lambda t, f=f: f.segments, f.radii)
+                                         for f in frames if not f.dropout))       # a dropout: silence
+
+
+def _check_port(name: str, port: int) -> None:
+    if not 1024 <= port <= 65535:
+        raise UsageError(f"{name} must be in 1024..65535, got {port}")
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    """Serve the viewer on loopback here and log into it from a subscriber (inside the cell's network
+    namespace when it has one: the pipe between the two crosses it)."""
+    import os
+    import subprocess
+
+    from tools.cell import reenter_argv
+    from tools.view import ViewServer
+
+    if args.pipe_fd is not None:
+        return _view_log(args)
+    if args.save is not None:               # logging to a file: here, or inside the cell's namespace
+        inner = None if os.environ.get("HRC_IN_CELL") else reenter_argv(
+            args.prefix, [sys.executable, "-m", "tools.cli", *args.argv])
+        if inner is None:
+            return _view_log(args)
+        return subprocess.call(inner, env=dict(os.environ, HRC_IN_CELL="1"))
+    _check_port("--web-port", args.web_port)
+    _check_port("--grpc-port", args.grpc_port)
+    server = ViewServer(args.grpc_port, args.web_port)
+    argv = [sys.executable, "-m", "tools.cli", "view", "--pipe-fd", str(server.write_fd), "--prefix", args.prefix,
+            "--timeout", str(args.timeout)] + (["--connect", args.connect] if args.connect else []) \
+        + (["--duration", str(args.duration)] if args.duration else [])
+    inner = reenter_argv(args.prefix, argv) or argv
+    print(f"hrc view: open {server.web_url} (listening on 127.0.0.1 only); Ctrl-C to stop", flush=True)
+    child = subprocess.Popen(inner, pass_fds=(server.write_fd,), env=dict(os.environ, HRC_IN_CELL="1"))
+    try:
+        return child.wait()
+    except KeyboardInterrupt:
+        child.terminate()
+        child.wait()
+        return 130
+    finally:
+        server.stop()
+
+
+def _view_log(args: argparse.Namespace) -> int:
+    """The logging end of `hrc view`: subscribe to the cell and log every message to the pipe or file."""
+    import time
+
+    from shared.config import CellConfig
+    from shared.core.errors import MessageError
+    from shared.robot.model import default_robot
+    from shared.wire.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, decode
+    from tools.view import CellLogger, pipe_stream
+
+    if args.save is not None:
+        from tools.view import no_analytics
+
+        no_analytics()
+        import rerun as rr
+
+        stream = rr.RecordingStream("hrc-view")
+        stream.save(str(args.save))
+    else:
+        stream = pipe_stream(args.pipe_fd)
+    session, keys = _session(args)
+    logger = CellLogger(stream, default_robot(), CellConfig().ssm, time.monotonic())
+    counts = {"logged": 0, "bad": 0}
+
+    def keep(kind):
+        def on_sample(sample):
+            try:
+                msg = decode(sample.payload.to_bytes(), kind)
+            except MessageError:
+                counts["bad"] += 1
+                return
+            logger.dispatch(msg)
+            counts["logged"] += 1
+        return on_sample
+
+    subs = [session.declare_subscriber(key, keep(kind)) for key, kind in (
+        (keys.joint_state, JointState), (keys.command, JointCommand), (keys.human_state, HumanState),
+        (keys.scaler_status, ScalerStatus), (keys.trajectory, TrajectoryMsg))]
+    started = time.monotonic()
+    try:
+        while args.duration is None or time.monotonic() - started < args.duration:
+            time.sleep(0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for sub in subs:
+            sub.undeclare()
+        session.close()
+        stream.flush()
+        stream.disconnect()
+    print(f"hrc view: {counts['logged']} messages logged ({counts['bad']} malformed ignored)"
+          + (f" to {args.save}" if args.save else ""))
+    return 0
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    import time
+
+    from shared.core.errors import MessageError
+    from shared.wire.keys import SERVICES
+    from shared.wire.messages import DriveLagReport, JointState, SafetyEvent, ScalerStatus, decode
+
+    session, keys = _session(args)
+    latest: dict = {}
+
+    def keep(kind):
+        def on_sample(sample):
+            try:
+                msg = decode(sample.payload.to_bytes(), kind)
+            except MessageError:
+                return
+            if kind is SafetyEvent and msg.event != "monitor_summary":
+                return
+            latest[kind] = msg
+        return on_sample
+
+    subs = [session.declare_subscriber(keys.joint_state, keep(JointState)),
+            session.declare_subscriber(keys.scaler_status, keep(ScalerStatus)),
+            session.declare_subscriber(keys.safety_events, keep(SafetyEvent)),
+            session.declare_subscriber(keys.drive_lag, keep(DriveLagReport))]
+    try:
+        time.sleep(args.timeout)
+        alive = sorted({str(r.ok.key_expr).rsplit("/", 1)[-1] for r in session.liveliness().get(keys.alive_all, timeout=1.0)
+                        if r.ok is not None})
+        print(f"cell {args.prefix} at {args.connect}")
+        print("  services: " + ", ".join(f"{s} {'up' if s in alive else 'down'}" for s in SERVICES if s != "cli"))
+        js = latest.get(JointState)
+        print(f"  robot:    {js.drive_state if js else 'no joint state'}"
+              + (f", q = {[round(float(v), 3) for v in js.q]}" if js else ""))
+        lag = latest.get(DriveLagReport)
+        print("  drives:   " + (f"lag p99 {', '.join(f'{x * 1e3:.1f}' for x in lag.lag)} ms (bound "
+                                 f"{lag.bound * 1e3:.0f} ms; 0 = not moving), following error max "
+                                 f"{lag.following_error.max() * 1e3:.2f} mrad" if lag else "no drive report"))
+        st = latest.get(ScalerStatus)
+        print("  scaler:   " + (f"alpha {st.alpha:.2f} (safe {st.safe_alpha:.2f}), beta {int(st.beta)}, trajectory "
+                                 f"{st.trajectory_version}, s {st.s:.2f}, {st.status}" if st else "no status"))
+        ev = latest.get(SafetyEvent)
+        print(f"  monitor:  {ev.text if ev else 'no summary'}")
+    finally:
+        for sub in subs:
+            sub.undeclare()
+        session.close()
+    return 0
+
+
+def cmd_certs(args: argparse.Namespace) -> int:
+    from shared.transport.acl import IDENTITIES
+    from shared.transport.pki import make_cell_pki
+
+    if args.out.exists() and any(args.out.glob("*.pem")):
+        raise CertsArgumentError(f"{args.out} already holds certificates; refusing to replace the cell CA")
+    try:
+        make_cell_pki(args.out, list(IDENTITIES), tuple(args.hosts))
+    except OSError as exc:
+        raise CertsArgumentError(f"cannot write to {args.out}: {exc.strerror}") from None
+    print(f"hrc certs: CA and certificates for {', '.join(IDENTITIES)} in {args.out} (valid for "
+          f"{', '.join(args.hosts)}); move ca-key.pem off the cell")
+    return 0
+
+
+class CertsArgumentError(HrcError):
+    """hrc certs cannot write where it was asked to."""
+
+
+def cmd_faults(args: argparse.Namespace) -> int:
+    from shared.config import load_config
+    from shared.robot.model import default_robot
+    from tools import faults
+    from tools.cell import cell_endpoint, cell_pid, run_dir
+
+    names = args.only or list(faults.FAULT_NAMES)
+    unknown = [n for n in names if n not in faults.FAULT_NAMES]
+    if unknown:
+        raise FaultArgumentError(f"unknown fault(s) {unknown}; known: {', '.join(faults.FAULT_NAMES)}")
+    if cell_pid(args.prefix) is None:
+        raise FaultArgumentError(f"no cell {args.prefix} is up under supervisord (start it with hrc up)")
+    config = load_config(args.config)
+    can_file = run_dir(args.prefix) / "cell.can"
+    interface = can_file.read_text().strip() if can_file.exists() else "udp_multicast"
+    channel = "vcan0" if interface == "socketcan" else None
+    if args.connect is None:
+        args.connect = cell_endpoint(args.prefix)
+    verdicts = faults.run_campaign(args.prefix, args.connect, interface, channel, config, default_robot(), names,
+                                   args.out, say=lambda text: print(text, flush=True))
+    return 0 if all(v.ok for v in verdicts) else 1
+
+
+class FaultArgumentError(HrcError):
+    """hrc faults was asked for a fault it does not know, or there is no cell to inject into."""
+
+
+class UsageError(HrcError):
+    """An option that does not fit the chosen mode, or a value out of range."""
+
+
+class GoalArgumentError(HrcError):
+    """A goal given on the command line is not six finite angles within the limits, nor a known name."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    if args.command in ("goal", "human", "status", "recover", "faults") and getattr(args, "prefix", None) \
+            and not os.environ.get("HRC_IN_CELL"):
+        from tools.cell import reenter_argv
+        argv2 = reenter_argv(args.prefix, [sys.executable, "-m", "tools.cli", *(argv or sys.argv[1:])])
+        if argv2 is not None:            # the cell runs in its own network namespace: run there
+            os.execvpe(argv2[0], argv2, dict(os.environ, HRC_IN_CELL="1"))
+    try:
+        return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
+                "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults,
+                "certs": cmd_certs, "view": cmd_view}[args.command](args)
+    except HrcError as exc:
+        print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

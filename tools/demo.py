@@ -1,0 +1,127 @@
+"""`hrc demo`: the paper's experiment on the real processes (the project's main job).
+
+Starts the PRBT emulator and every service as child processes (tools.launch), on kernel CAN (vcan0)
+where there is one, else on udp_multicast inside a private network namespace that it makes for itself
+(it re-runs itself under `unshare -n`, or `-rn` when not root). Then, as the cell's operator and witness:
+* a scripted human (evidence.scenarios.paper_phases), or a recorded motion (--human FILE: several people,
+  dropouts; shared.tracking.motion), goes out as raw tracker data at 120 Hz;
+* goals shuttle the robot between q_s and q_g: the next goal when the robot has arrived, the same goal
+  again when the robot is not following a plan for it (refused, or dropped after a stop); see
+  tools.actors;
+* everything the cell publishes is recorded; progress twice a second;
+* at the end, the report folder (tools.report; format in docs/report-format.md).
+`--no-beta` runs the planner with replans on the scaling layer's request switched off.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import time
+from pathlib import Path
+
+from evidence.scenarios import paper_phases
+from shared.drives.bus import in_private_namespace
+from shared.transport.zenoh_session import open_session
+from shared.wire.keys import KeySpace
+from shared.wire.messages import JointState, ScalerStatus
+from tools.actors import HumanFeed, Recorder, Shuttle
+from tools.launch import CellProcesses, LaunchError, free_port
+from tools.report import Recording, write_report
+
+PREFIX = "hrc/demo"
+
+
+def choose_bus() -> tuple[str, str | None]:
+    """Kernel CAN when vcan0 exists, else udp_multicast (which needs a private network namespace)."""
+    return ("socketcan", "vcan0") if os.path.exists("/sys/class/net/vcan0") else ("udp_multicast", None)
+
+
+def reexec_in_namespace(argv: list[str], pass_fds: tuple[int, ...] = ()) -> int | None:
+    """When udp_multicast is needed and this process is not in a private namespace: run argv in a new one
+    and return its exit code; None when no re-run is needed. Raises RuntimeError when none can be made."""
+    from tools.cell import in_new_namespace, namespace_reason
+
+    if choose_bus()[0] != "udp_multicast" or in_private_namespace():
+        return None
+    reason = namespace_reason()
+    if reason:
+        raise RuntimeError(f"no kernel CAN (vcan0), and no private network namespace for udp_multicast ({reason}); "
+                           "run 'hrc demo --sim' (in-process) instead")
+    return subprocess.call(in_new_namespace(argv), pass_fds=pass_fds)
+
+
+def run(out: Path, duration: float, phase_length: float, config_path: Path | None, seed: int, no_beta: bool,
+        quiet: bool, robot, config, human=None, human_name: str = "", view_fd: int | None = None) -> dict:
+    """The experiment on the real processes; returns the summary (written to out/summary.json). human:
+    a recorded motion (shared.tracking.motion.RecordedMotion) in place of the paper's phases; view_fd: a pipe to a
+    served 3D viewer (tools.view.ViewServer) to log every message into as it arrives."""
+    interface, channel = choose_bus()
+    keys = KeySpace(PREFIX)
+    cell = CellProcesses(out / "logs", PREFIX, interface, channel, config_path, seed,
+                         extra_args={"planner": ["--no-beta"]} if no_beta else {})
+    say = (lambda *a: None) if quiet else (lambda text: print(text, flush=True))
+    say(f"hrc demo: starting the cell (emulator + 5 services, CAN {interface}{' ' + channel if channel else ''}, "
+        f"Zenoh {cell.endpoint}); logs in {out / 'logs'}")
+    session = open_session("peer", listen=[f"tcp/127.0.0.1:{free_port()}"], connect=[cell.endpoint])
+    rec = Recording(t0=time.monotonic())
+    recorder = feed = None
+    try:
+        started = time.monotonic()
+        cell.start(session)
+        what = f"the motion in {human_name}" if human is not None else "the paper's four phases"
+        say(f"hrc demo: all services up in {time.monotonic() - started:.1f} s; {duration:.0f} s of {what}"
+            f"{' (no beta replans)' if no_beta else ''}")
+        recorder = Recorder(session, keys, rec)
+        human = human if human is not None else paper_phases(phase_length)
+        rec.phase = human.phase
+        rec.t0 = time.monotonic()
+        if view_fd is not None:
+            from tools.view import CellLogger, pipe_stream
+
+            recorder.on_message = CellLogger(pipe_stream(view_fd), robot, config.ssm, rec.t0).dispatch
+        feed = HumanFeed(session, keys, human, rec.t0)
+        feed.start()
+        _direct(session, keys, recorder, rec, duration, say)
+        feed.running = False
+        time.sleep(1.2)                             # the monitor's last summary (once a second)
+        alive, cpu = cell.alive(), cell.cpu_seconds()
+    except LaunchError as exc:
+        raise RuntimeError(f"the cell did not start: {exc}") from None
+    finally:
+        if feed is not None:
+            feed.running = False
+        if recorder is not None:
+            recorder.close()
+        codes = cell.stop()
+        session.close()
+    say(f"hrc demo: cell stopped (exit codes {codes}); writing the report to {out}")
+    extra = {"mode": "processes", "can": interface, "services_alive_at_end": alive, "exit_codes": codes,
+             "cpu_s": cpu, "cpus": os.cpu_count(),
+             "bad_messages_seen": recorder.bad, "no_beta": no_beta,
+             "human": human_name or "built-in: the paper's four phases"}
+    return write_report(out, robot, config, rec, extra)
+
+
+def _direct(session, keys: KeySpace, recorder: Recorder, rec: Recording, duration: float, say) -> None:
+    """Shuttle goals, recovery requests and progress until duration has passed."""
+    shuttle = Shuttle(session, keys, recorder, rec, say)
+    shuttle.start(time.monotonic())
+    seen_events = 0
+    last_print = -1e9
+    while (now := time.monotonic()) - rec.t0 < duration:
+        with recorder.lock:
+            new_events, seen_events = rec.events[seen_events:], len(rec.events)
+        for e in new_events:
+            if e.source == "planner" and e.event != "trajectory_goal" or e.severity != "info":
+                say(f"t={e.stamp - rec.t0:6.2f}s  {e.source}: {e.event}: {e.text[:110]}")
+        shuttle.step(now)
+        if now - last_print >= 0.5:
+            last_print = now
+            js, st = recorder.get(JointState), recorder.get(ScalerStatus)
+            t = now - rec.t0
+            sep = f"{st.min_separation:5.2f}" if st is not None and st.min_separation is not None else "  -  "
+            say(f"t={t:6.2f}s  {rec.phase(t):<18} alpha={st.alpha if st else 0:4.2f} beta={int(st.beta) if st else 0} "
+                f"sep={sep} m  v{st.trajectory_version if st else '-'}  shuttles={rec.shuttles}  "
+                f"robot={js.drive_state.split(':')[0] if js else '-'}")
+        time.sleep(0.02)

@@ -1,0 +1,91 @@
+"""Judging one injected fault from what was recorded around it (pure: arrays and messages in, numbers out).
+
+The fault campaign (tools.faults) injects a fault into the running cell at t_inject, lifts it at t_lift,
+and records the measured joint states. Here:
+* ``standstill_after``: how long after the injection the robot first stood still (every joint slower than
+  STILL rad/s, as the drives report it);
+* ``truth_violations``: the monitor's rule (shared.safety.monitor: the ISO/TS 15066 limit, the reaction window,
+  d_min) applied to the measured joint states against the *true* human (the scripted person the campaign
+  sends, not the tracker's view of them), so a fault that blinds the tracker or the monitor itself is still
+  judged;
+* ``FaultVerdict``: the whole verdict for one fault, as the campaign prints it and the tests assert it.
+Times in seconds (one CLOCK_MONOTONIC for the host), speeds in rad/s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+from shared.safety.monitor import ReactionWindow, SafetyMonitor
+
+STILL = 0.02                 # rad/s: every joint slower than this is a standstill
+
+
+def standstill_after(times: np.ndarray, speeds: np.ndarray, t_inject: float, still: float = STILL) -> float | None:
+    """Seconds from t_inject to the first sample at or after it with the robot still (speeds: the largest
+    joint speed of each sample), or None when it never stood still in the samples given."""
+    times, speeds = np.asarray(times, dtype=float), np.asarray(speeds, dtype=float)
+    idx = np.flatnonzero((times >= t_inject) & (speeds < still))
+    return float(times[idx[0]] - t_inject) if idx.size else None
+
+
+def moving_at(times: np.ndarray, speeds: np.ndarray, t: float, still: float = STILL) -> bool:
+    """The robot was moving at time t (the last sample before it)."""
+    times = np.asarray(times, dtype=float)
+    k = int(np.searchsorted(times, t, side="right")) - 1
+    return k >= 0 and float(np.asarray(speeds)[k]) >= still
+
+
+def truth_violations(monitor: SafetyMonitor, samples: list[tuple[float, np.ndarray, np.ndarray]],
+                     human_at: Callable[[float], HumanCapsules]) -> list[tuple[float, str]]:
+    """(time, description) of every violation of the monitor's rule over `samples` (time, q, qd), sorted by
+    time, with the human as human_at(time) says they really were."""
+    window = ReactionWindow(monitor.ssm.reaction_time, monitor.ssm.stopping_time)
+    found = []
+    for t, q, qd in sorted(samples, key=lambda s: s[0]):
+        for v in window.update(t, monitor.check(q, qd, human_at(t))):
+            found.append((t, f"{v.link} / capsule {v.capsule}: {v.kind}, separation {v.separation:.3f} m, "
+                             f"approach {v.approach_speed:.3f} m/s, limit {v.limit:.3f} m/s"))
+    return found
+
+
+@dataclass
+class FaultVerdict:
+    """One fault's outcome. expect: 'stop' (the robot must stand still within bound_s), 'slow' (the scaling
+    must take the fault's effect within bound_s; stop_s then holds that reaction time) or 'any' (no stop is
+    needed: the fault is outside the chain that keeps the robot safe, which goes on working, or either a
+    stop or going on is safe). stop_s: measured injection -> standstill (None: not observed). detected_s:
+    injection -> the first protective reaction seen (a driver stop event, an EMCY, the scaler's alpha at
+    0). back: the service is running again (restarted under the supervisor, or resumed). resumed_s: lift -> the next
+    completed
+    shuttle. t_inject: when (s since the campaign began; its logs are stamped). violations: the monitor
+    service's reports plus the check against the true human."""
+
+    name: str
+    expect: str
+    bound_s: float | None
+    bound_why: str
+    moving_at_injection: bool = False
+    t_inject: float = 0.0                 # s since the campaign started (to find the fault in the logs)
+    stop_s: float | None = None
+    detected_s: float | None = None
+    detected_by: str = ""
+    back: bool = False
+    resumed_s: float | None = None
+    monitor_violations: int = 0
+    truth_violations: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        stopped_in_time = self.expect == "any" or (self.stop_s is not None and self.bound_s is not None
+                                                   and self.stop_s <= self.bound_s)
+        return (self.moving_at_injection and stopped_in_time and self.back and self.resumed_s is not None
+                and self.monitor_violations == 0 and self.truth_violations == 0)
+
+    def as_dict(self) -> dict:
+        return {**asdict(self), "ok": self.ok}

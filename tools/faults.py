@@ -1,0 +1,409 @@
+"""`hrc faults`: the fault campaign against a cell running under supervisord (`hrc up`).
+
+As the cell's operator it shuttles the robot between q_s and q_g next to a scripted person (sent as raw
+tracker data, tools.actors), and, while the robot moves, injects one fault after the other:
+
+  kill_<service>     kill -9 of scaler, tracker_ingest, planner, safety_monitor, robot_driver
+  freeze_<service>   SIGSTOP of the scaler or the robot driver for HOLD seconds, then SIGCONT
+  can_drop           one drive loses a tenth of its CAN frames both ways (emulator, SDO 0x2F00:1)
+  heartbeat_stop     one drive's heartbeat stops (SDO 0x2F00:2)
+  tracker_silent     the raw tracker stream stops
+  tracker_nan        the tracker sends NaN coordinates
+  human_jump         the person is shown 0.3 m nearer to the robot than they are (then back)
+  human_glitch       every 12th sample shows the person 1.5 m farther away than they are
+
+For each it measures, from the recorded messages and the CAN bus (pure judging in tools.faultcheck): the
+time to standstill or to the first protective reaction against a bound stated from the configuration, the
+monitor's violations and a re-check against the true person, whether the service is back under the
+supervisor, and how long until the next shuttle completes. While a fault is active the operator does not
+ask the driver to recover (the stop is what is measured); after it, it does.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from evidence.scenarios import IN_PATH, Keyframe, ScriptedHuman
+from hwsim.drive import DriveLimits
+from hwsim.emulator import WATCHDOG_POLL
+from shared.config import CellConfig
+from shared.drives import driver_core
+from shared.drives.prbt import EMCY_SYNC_TIMEOUT, PERIOD
+from shared.robot.model import RobotModel
+from shared.safety.monitor import SafetyMonitor
+from shared.transport.zenoh_session import await_liveliness, open_session
+from shared.wire.keys import KeySpace
+from shared.wire.messages import JointState, ScalerStatus
+from tools.actors import FeedFault, HumanFeed, Recorder, Shuttle
+from tools.cell import service_info
+from tools.faultcheck import FaultVerdict, moving_at, standstill_after, truth_violations
+from tools.launch import free_port
+from tools.report import Recording
+
+HOLD = 1.5                      # s a fault stays active (kills: until the supervisor restarts the service)
+MOVING = 0.3                    # rad/s: the robot counts as moving (at speed) above this joint speed
+AHEAD = 1.2                     # rad still to go on the leg when a fault is injected (about a second)
+SETTLE = 25.0                   # s to wait for the robot to move before a fault
+RESUME = 45.0                   # s after a fault for the next shuttle to complete
+FAULT_NAMES = ("kill_scaler", "kill_tracker_ingest", "kill_planner", "kill_safety_monitor", "kill_robot_driver",
+               "freeze_scaler", "freeze_robot_driver", "can_drop", "heartbeat_stop", "tracker_silent", "tracker_nan",
+               "human_jump", "human_glitch")
+DROP_NODE, HEARTBEAT_NODE = 4, 5
+# the person shown nearer by this much (m): from 1.2-1.7 m to 0.9-1.4 m off the robot's axis, still beyond
+# d_min of every link on the path. A jump further in (0.6 m was tried) teleports the person next to the
+# moving flange, where no system could keep d_min and the monitor rightly counts it.
+JUMP = 0.3
+# ... made while the person is this far (m) from the axis, so that where they are shown (1.3 m and more,
+# velocity unknown, so the ISO 13855 1.6 m/s) is still beyond the protective distance of the moving robot:
+# a person shown inside it has not been seen coming, which speed and separation monitoring cannot answer
+JUMP_FROM = 1.6
+
+
+@dataclass(frozen=True)
+class Expectation:
+    expect: str              # stop | slow | any
+    bound_s: float | None
+    why: str
+
+
+def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation]:
+    """What each fault must cause, with its bound stated from the configuration and the drives' timings."""
+    brake = float(np.max(robot.limits.velocity / robot.limits.monitor_acceleration))
+    # the robot driver's and the emulated drives' own defaults, as the cell runs them (hrc up)
+    p, ct, hb = PERIOD, driver_core.COMMAND_TIMEOUT, driver_core.HEARTBEAT_TIMEOUT
+    wd = DriveLimits.sync_timeout_factor * DriveLimits.period + WATCHDOG_POLL     # the drives look every 5 ms
+    human = max(config.scaling.human_timeout, 0.05)
+    horizon = config.ssm.reaction_time + config.ssm.stopping_time
+    # + one SYNC more everywhere the drives keep reporting: a drive reports the position of the SYNC
+    # instant, so a standstill reached between two SYNCs is seen at the next one
+    command_stop = Expectation("stop", ct + 2 * p + brake, f"command timeout {ct * 1e3:.0f} ms + SYNC and report "
+                                                           f"{2 * p * 1e3:.0f} ms + braking from full speed "
+                                                           f"{brake * 1e3:.0f} ms")
+    human_stop = Expectation("stop", human + 3 * p + brake,
+                             f"human data timeout {human * 1e3:.0f} ms + tick, SYNC and report {3 * p * 1e3:.0f} ms + "
+                             f"braking {brake * 1e3:.0f} ms")
+    driver_stop = Expectation("stop", wd + brake, f"drives' SYNC watchdog {wd * 1e3:.0f} ms (timeout and poll) + braking "
+                                                  f"{brake * 1e3:.0f} ms")
+    carry_on = Expectation("any", None, "not in the chain that stops the robot: the motion stays scaled")
+    return {
+        "kill_scaler": command_stop, "freeze_scaler": command_stop,
+        "kill_tracker_ingest": human_stop, "tracker_silent": human_stop, "tracker_nan": human_stop,
+        "kill_robot_driver": driver_stop, "freeze_robot_driver": driver_stop,
+        "heartbeat_stop": Expectation("stop", hb + 2 * p + brake, f"heartbeat timeout {hb * 1e3:.0f} ms + SYNC and "
+                                                                  f"report + braking {brake * 1e3:.0f} ms"),
+        "kill_planner": carry_on, "kill_safety_monitor": carry_on,
+        "can_drop": Expectation("any", None, "lost frames: the drive lags or faults; either is safe"),
+        "human_jump": Expectation("slow", config.ssm.reaction_time,
+                                  "the scaler takes the nearer person within T_r = "
+                                  f"{config.ssm.reaction_time * 1e3:.0f} ms"),
+        "human_glitch": Expectation("any", None, "a glitch away must not speed the robot up (judged against the "
+                                                 f"true person over T_r + T_s = {horizon * 1e3:.0f} ms windows)"),
+    }
+
+
+def campaign_human(duration: float = 3600.0) -> ScriptedHuman:
+    """The person of the campaign: walks back and forth 1.2 to 1.7 m from the robot's axis, 0.5 m/s."""
+    frames, t, k = [], 0.0, 0
+    while t <= duration:
+        frames.append(Keyframe(t, -1.2 if k % 2 else -1.7, 0.0, 0.0, IN_PATH, "walking beside the cell"))
+        t, k = t + 1.0, k + 1
+    return ScriptedHuman(frames)
+
+
+class InjectionError(RuntimeError):
+    """A fault could not be injected or lifted (the emulator did not answer its SDO requests)."""
+
+
+class CanProbe:
+    """The campaign's own node on the CAN bus: fault injection into the emulated drives by SDO (0x2F00) and
+    a record of every EMCY, independent of the robot driver."""
+
+    def __init__(self, interface: str, channel: str | None) -> None:
+        import canopen
+
+        from shared.drives.bus import open_bus
+        from shared.drives.prbt import EDS_PATH, NODE_IDS
+
+        self.network = canopen.Network(open_bus(interface, channel))
+        self.network.connect()
+        self.nodes = {nid: self.network.add_node(nid, str(EDS_PATH)) for nid in NODE_IDS}
+        self.lock = threading.Lock()
+        self.emcy: list[tuple[float, int, int]] = []           # (monotonic time, node, code)
+        for nid in NODE_IDS:
+            self.network.subscribe(0x80 + nid, lambda can_id, data, ts, nid=nid: self._on_emcy(nid, data))
+
+    def _on_emcy(self, nid: int, data: bytes) -> None:
+        if len(data) >= 2:
+            with self.lock:
+                self.emcy.append((time.monotonic(), nid, int.from_bytes(data[:2], "little")))
+
+    def inject(self, node: int, subindex: int, value: int, tries: int = 3) -> None:
+        """SDO write 0x2F00:subindex = value, tried `tries` times (a busy emulator can miss one request);
+        InjectionError with what was asked and the last answer if none went through."""
+        import canopen
+
+        for attempt in range(tries):
+            try:
+                self.nodes[node].sdo[0x2F00][subindex].raw = value
+                return
+            except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+                last = exc
+                time.sleep(0.05 * (attempt + 1))
+        raise InjectionError(f"node {node}: SDO write 0x2F00:{subindex} = {value} not answered after {tries} tries "
+                             f"({last})")
+
+    def emcy_since(self, t: float) -> list[tuple[float, int, int]]:
+        with self.lock:
+            return [e for e in self.emcy if e[0] >= t]
+
+    def close(self) -> None:
+        self.network.disconnect()
+
+
+class Campaign:
+    """One operator session against the running cell; run(name) injects one fault and judges it."""
+
+    def __init__(self, prefix: str, endpoint: str, interface: str, channel: str | None, config: CellConfig,
+                 robot: RobotModel, say: Callable[[str], None] = print) -> None:
+        self.prefix, self.keys, self.config, self.robot, self.say = prefix, KeySpace(prefix), config, robot, say
+        self.expect = expectations(config, robot)
+        self.session = open_session("peer", listen=[f"tcp/127.0.0.1:{free_port()}"], connect=[endpoint])
+        self.rec = Recording(t0=time.monotonic())
+        self.recorder = Recorder(self.session, self.keys, self.rec)
+        self.human = campaign_human()
+        self.feed = HumanFeed(self.session, self.keys, self.human, self.rec.t0, source="hrc faults")
+        self.shuttle = Shuttle(self.session, self.keys, self.recorder, self.rec, source="hrc faults")
+        self.can = CanProbe(interface, channel)
+        self.monitor = SafetyMonitor(robot, config.ssm)
+        self.running = True
+        self.feed.start()
+        self.shuttle.start(time.monotonic())
+        self.operator = threading.Thread(target=self._operate, daemon=True, name="operator")
+        self.operator.start()
+
+    def _operate(self) -> None:
+        while self.running:
+            self.shuttle.step(time.monotonic())
+            time.sleep(0.02)
+
+    def close(self) -> None:
+        self.running = False
+        self.feed.running = False
+        self.operator.join(2.0)
+        self.recorder.close()
+        self.can.close()
+        self.session.close()
+
+    # ------------------------------------------------------------------------------------------ observing
+    def _speed(self) -> float:
+        js = self.recorder.get(JointState)
+        return float(np.abs(js.qd).max()) if js is not None and js.enabled else 0.0
+
+    def wait_moving(self, timeout: float = SETTLE) -> bool:
+        """Wait until the robot moves at speed with most of a leg still ahead (so that a stop is the fault's
+        doing, not the end of the shuttle); False after timeout."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            st, js = self.recorder.get(ScalerStatus), self.recorder.get(JointState)
+            ahead = float(np.abs(js.q - self.shuttle.target).max()) if js is not None else 0.0
+            if self._speed() > MOVING and st is not None and st.alpha > 0.2 and ahead > AHEAD:
+                return True
+            time.sleep(0.01)
+        return False
+
+    def wait_person_beyond(self, distance: float, timeout: float = 3.0) -> bool:
+        """Wait until the scripted person is at least `distance` (m) from the robot's axis; False after
+        timeout (the person walks back and forth in 2 s)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            ends = self.human.at(time.monotonic() - self.rec.t0).segments.reshape(-1, 3)
+            if float(np.linalg.norm(ends[:, :2], axis=1).min()) >= distance:
+                return True
+            time.sleep(0.005)
+        return False
+
+    def _service_back(self, service: str, old_pid: int, killed: bool, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            pid, state = service_info(self.prefix, service)
+            if state == "RUNNING" and (pid != old_pid or not killed) and pid and \
+                    await_liveliness(self.session, self.keys.alive(service), 0.5):
+                return True
+            time.sleep(0.3)
+        return False
+
+    def _wait_shuttle(self, after: int, deadline: float) -> float | None:
+        """The time the next shuttle after `after` completed, or None at the deadline."""
+        while time.monotonic() < deadline:
+            if self.rec.shuttles > after:
+                return time.monotonic()
+            time.sleep(0.05)
+        return None
+
+    def _joint_samples(self, t_from: float) -> list[JointState]:
+        with self.recorder.lock:
+            return [js for js in self.rec.joint_states if js.stamp >= t_from]
+
+    # ------------------------------------------------------------------------------------------ one fault
+    def run(self, name: str) -> FaultVerdict:
+        if name not in FAULT_NAMES:
+            raise ValueError(f"unknown fault {name!r}; known: {', '.join(FAULT_NAMES)}")
+        exp = self.expect[name]
+        verdict = FaultVerdict(name, exp.expect, exp.bound_s, exp.why)
+        verdict.moving_at_injection = self.wait_moving()
+        if name == "human_jump":
+            self.wait_person_beyond(JUMP_FROM)
+        verdict.t_inject = round(time.monotonic() - self.rec.t0, 3)
+        service = name.split("_", 1)[1] if name.startswith(("kill_", "freeze_")) else None
+        old_pid = service_info(self.prefix, service)[0] if service else 0
+        if service and old_pid <= 0:              # never signal pid 0 (that is this whole process group)
+            verdict.notes.append(f"{service} was not running under supervisord: nothing injected")
+            return verdict
+        before = self.recorder.get(ScalerStatus)
+        self.shuttle.recovering = False
+        t_inject = time.monotonic()
+        try:
+            lift = self._inject(name, old_pid)
+        except InjectionError as exc:           # nothing was injected: no verdict to give, said so
+            self.shuttle.recovering = True
+            verdict.notes.append(f"not injected: {exc}")
+            return verdict
+        time.sleep(HOLD)
+        try:
+            lift()
+        except InjectionError as exc:
+            verdict.notes.append(f"not lifted: {exc}")
+        t_lift = time.monotonic()
+        shuttles = self.rec.shuttles
+        self.shuttle.recovering = True
+        verdict.back = self._service_back(service, old_pid, name.startswith("kill_"), 40.0) if service else True
+        done = self._wait_shuttle(shuttles, t_lift + RESUME)
+        verdict.resumed_s = None if done is None else round(done - t_lift, 2)
+        self._judge(verdict, t_inject, t_lift, before)
+        return verdict
+
+    def _inject(self, name: str, pid: int) -> Callable[[], None]:
+        """Start the fault now; returns what lifts it."""
+        nothing = lambda: None  # noqa: E731
+        if name.startswith("kill_"):
+            os.kill(pid, signal.SIGKILL)
+            return nothing
+        if name.startswith("freeze_"):
+            os.kill(pid, signal.SIGSTOP)
+            return lambda: os.kill(pid, signal.SIGCONT)
+        if name == "can_drop":
+            self.can.inject(DROP_NODE, 1, 100)
+            return lambda: self.can.inject(DROP_NODE, 1, 0)
+        if name == "heartbeat_stop":
+            self.can.inject(HEARTBEAT_NODE, 2, 1)
+            return lambda: self.can.inject(HEARTBEAT_NODE, 2, 0)
+        faults = {"tracker_silent": FeedFault("silent"), "tracker_nan": FeedFault("nan"),
+                  "human_jump": FeedFault("jump", (JUMP, 0.0, 0.0)),
+                  "human_glitch": FeedFault("jump", (-1.5, 0.0, 0.0), every=12)}
+        self.feed.fault = faults[name]
+
+        def healthy() -> None:
+            self.feed.fault = FeedFault()
+        return healthy
+
+    def _judge(self, v: FaultVerdict, t_inject: float, t_lift: float, before: ScalerStatus | None) -> None:
+        states = self._joint_samples(t_inject - 1.0)
+        times = np.array([js.stamp for js in states])
+        speeds = np.array([np.abs(js.qd).max() for js in states])
+        during = times <= t_lift
+        v.moving_at_injection = v.moving_at_injection and moving_at(times, speeds, t_inject)
+        with self.recorder.lock:
+            events = [e for e in self.rec.events if e.stamp >= t_inject - 0.5]
+            statuses = [s for s in self.rec.statuses if s.stamp >= t_inject]
+        reactions = [(e.stamp - t_inject, f"{e.source}: {e.event}") for e in events
+                     if e.severity == "stop" and e.stamp >= t_inject and e.source != "safety_monitor"]
+        reactions += [(s.stamp - t_inject, f"scaler: {s.status}") for s in statuses
+                      if s.status in ("stale_human_data", "no_human_data")][:1]
+        if v.name.endswith("robot_driver"):
+            emcy = self.can.emcy_since(t_inject)
+            first = {}
+            for t, node, code in emcy:
+                if code == EMCY_SYNC_TIMEOUT:
+                    first.setdefault(node, t)
+            if len(first) == len(self.can.nodes):
+                reactions.append((max(first.values()) - t_inject, "drives: SYNC timeout EMCY on every node"))
+            before_fault = [js for js in states if js.stamp <= t_inject]
+            last = before_fault[-1] if before_fault else None
+            if reactions and last is not None:
+                # no TPDO without SYNC: the drives brake at their limit once their watchdog fires, unseen
+                brake = float(np.max(np.abs(last.qd) / self.robot.limits.monitor_acceleration))
+                v.stop_s = round(min(r[0] for r in reactions) + brake, 3)
+                v.notes.append("stop_s = SYNC-watchdog EMCY + braking from the last measured speed at the "
+                               "drives' deceleration (without SYNC the drives send no TPDO to measure it by)")
+        elif v.name == "human_jump" and before is not None and before.min_separation is not None:
+            nearer = [s for s in statuses if s.min_separation is not None
+                      and s.min_separation < before.min_separation - 2 * JUMP / 3]
+            if nearer:
+                reactions.append((nearer[0].stamp - t_inject, "scaler: the nearer person is in the scaling problem"))
+        else:
+            stop = standstill_after(times[during], speeds[during], t_inject)
+            v.stop_s = None if stop is None else round(stop, 3)
+        if reactions:
+            first = min(reactions)
+            v.detected_s, v.detected_by = round(first[0], 3), first[1]
+        if v.expect == "slow":
+            v.stop_s = v.detected_s               # the bound is on the reaction: the speed follows within T_r
+        reported = [e for e in events if e.source == "safety_monitor" and e.event == "ssm_violation"]
+        v.monitor_violations = len(reported)
+        v.notes += [f"monitor: t+{e.stamp - t_inject:.2f}s {e.text}" for e in reported[:3]]
+        samples = [(js.stamp, js.q, js.qd) for js in states if js.stamp >= t_inject - 0.5]
+        found = truth_violations(self.monitor, samples, lambda t: self.human.at(t - self.rec.t0))
+        v.truth_violations = len(found)
+        v.notes += [f"truth: t+{t - t_inject:.2f}s {text}" for t, text in found[:3]]
+
+
+# ---------------------------------------------------------------------------------------------- output
+def markdown_table(verdicts: list[FaultVerdict]) -> str:
+    rows = ["| fault | expected | bound | stop / reaction measured | first reaction | back | next shuttle after | "
+            "violations (monitor / truth) |", "|---|---|---|---|---|---|---|---|"]
+    ms = lambda x: "-" if x is None else f"{x * 1e3:.0f} ms"  # noqa: E731
+    for v in verdicts:
+        rows.append(f"| {v.name} | {v.expect} | {ms(v.bound_s)} | {ms(v.stop_s)} | {v.detected_by or '-'} "
+                    f"({ms(v.detected_s)}) | {'yes' if v.back else 'NO'} | "
+                    f"{'-' if v.resumed_s is None else f'{v.resumed_s:.1f} s'} | {v.monitor_violations} / "
+                    f"{v.truth_violations} |")
+    return "\n".join(rows)
+
+
+def time_left(done: int, total: int, elapsed: float) -> str:
+    """' (N s so far, about M s left)' from the mean time of the faults done; '' before the first."""
+    if done <= 0:
+        return ""
+    return f" ({elapsed:.0f} s so far, about {elapsed / done * (total - done):.0f} s left)"
+
+
+def run_campaign(prefix: str, endpoint: str, interface: str, channel: str | None, config: CellConfig,
+                 robot: RobotModel, names: list[str], out: Path | None,
+                 say: Callable[[str], None] = print) -> list[FaultVerdict]:
+    campaign = Campaign(prefix, endpoint, interface, channel, config, robot, say)
+    verdicts = []
+    started = time.monotonic()
+    try:
+        for k, name in enumerate(names):
+            say(f"hrc faults: [{k + 1}/{len(names)}] {name} ...{time_left(k, len(names), time.monotonic() - started)}")
+            verdict = campaign.run(name)
+            verdicts.append(verdict)
+            say(json.dumps({"fault": verdict.as_dict()}))
+    finally:
+        campaign.close()
+    table = markdown_table(verdicts)
+    say(table)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "faults.json").write_text(json.dumps([v.as_dict() for v in verdicts], indent=1))
+        (out / "faults.md").write_text(table + "\n")
+    return verdicts

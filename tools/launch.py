@@ -1,0 +1,156 @@
+"""Start the whole cell as child processes of one program (the thin launcher behind `hrc demo` and the
+end-to-end benchmark; `hrc up` uses supervisord instead, for a cell that outlives the command).
+
+The PRBT emulator first, then the robot driver, tracker_ingest, scaler, planner and safety monitor, each
+`python -m ...` with its output in <run>/<name>.log. Each is a Zenoh peer listening on its own loopback
+port and connecting to the driver's (peers do not forward; gossip meshes them). A service is up when its
+liveliness token is visible, which it declares only once it is ready. Every child dies with the
+launcher (PR_SET_PDEATHSIG) and is ended by PID in ``stop``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SERVICE_ORDER = ("robot_driver", "tracker_ingest", "scaler", "planner", "safety_monitor")
+
+
+class LaunchError(RuntimeError):
+    """A process of the cell did not come up; the message holds the tail of its log."""
+
+
+def free_port() -> int:
+    """A currently free loopback TCP port (the kernel's choice)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# Niceness of the processes outside the control path, as in deploy/supervisord.conf: a (re)starting planner
+# must not starve the driver's SYNC thread on a small machine.
+NICENESS = {"planner": 10, "safety_monitor": 5}
+
+
+def die_with_parent() -> None:
+    """In a child before exec: the kernel sends it SIGKILL when its parent dies (PR_SET_PDEATHSIG)."""
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)     # PR_SET_PDEATHSIG
+
+
+@dataclass
+class CellProcesses:
+    """The emulator and the five services of one cell, as children of this process."""
+
+    run: Path
+    prefix: str
+    interface: str
+    channel: str | None = None
+    config: Path | None = None
+    planner_seed: int | None = None
+    services: tuple[str, ...] = SERVICE_ORDER
+    extra_args: dict[str, list[str]] = field(default_factory=dict)     # per process, appended to its argv
+    procs: dict[str, subprocess.Popen] = field(default_factory=dict)
+    port: int = 0
+
+    def __post_init__(self) -> None:
+        self.run.mkdir(parents=True, exist_ok=True)
+        self.port = self.port or free_port()
+
+    @property
+    def endpoint(self) -> str:
+        """The Zenoh endpoint a client of the cell connects to (the driver's)."""
+        return f"tcp/127.0.0.1:{self.port}"
+
+    def _spawn(self, name: str, argv: list[str]) -> None:
+        env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
+        log = open(self.run / f"{name}.log", "w")
+        niceness = NICENESS.get(name, 0)
+
+        def prepare() -> None:
+            die_with_parent()
+            os.nice(niceness)
+        self.procs[name] = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", *argv], cwd=ROOT, env=env,
+                                            stdout=log, stderr=subprocess.STDOUT, preexec_fn=prepare)
+        log.close()
+
+    def _tail(self, name: str, lines: int = 12) -> str:
+        try:
+            return "".join((self.run / f"{name}.log").read_text().splitlines(True)[-lines:])
+        except OSError:
+            return ""
+
+    def _wait_line(self, name: str, text: str, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if text in (self.run / f"{name}.log").read_text():
+                return
+            if self.procs[name].poll() is not None:
+                break
+            time.sleep(0.05)
+        raise LaunchError(f"{name} did not start (exit {self.procs[name].poll()}):\n{self._tail(name)}")
+
+    def start(self, session, timeout: float = 90.0) -> None:
+        """Start everything; return when every service's liveliness token is visible to `session`
+        (a Zenoh session connected to ``endpoint``)."""
+        from shared.transport.zenoh_session import await_liveliness
+        from shared.wire.keys import KeySpace
+
+        bus = ["--interface", self.interface] + (["--channel", self.channel] if self.channel else [])
+        common = ["--prefix", self.prefix, "--log-level", "WARNING"] + \
+            (["--config", str(self.config)] if self.config else [])
+        self._spawn("hwsim", ["hwsim", *bus])
+        self._wait_line("hwsim", "hwsim: PRBT emulator", 30.0)
+        for name in self.services:
+            listen = self.endpoint if name == "robot_driver" else f"tcp/127.0.0.1:{free_port()}"
+            extra = bus if name == "robot_driver" else ["--connect", self.endpoint]
+            if name == "planner" and self.planner_seed is not None:
+                extra += ["--seed", str(self.planner_seed)]
+            self._spawn(name, [f"services.{name}", *common, "--listen", listen, *extra, *self.extra_args.get(name, [])])
+        keys = KeySpace(self.prefix)
+        deadline = time.monotonic() + timeout
+        for name in self.services:
+            while not await_liveliness(session, keys.alive(name), 0.5):
+                dead = [n for n, p in self.procs.items() if p.poll() is not None]
+                if dead:
+                    raise LaunchError(f"{dead[0]} exited ({self.procs[dead[0]].returncode}):\n{self._tail(dead[0])}")
+                if time.monotonic() > deadline:
+                    raise LaunchError(f"{name} not up within {timeout:.0f} s:\n{self._tail(name)}")
+
+    def cpu_seconds(self) -> dict[str, float]:
+        """CPU time (user + system, s) each live child has used so far (/proc/<pid>/stat)."""
+        tick = os.sysconf("SC_CLK_TCK")
+        out = {}
+        for name, proc in self.procs.items():
+            try:
+                fields = Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+                out[name] = round((int(fields[11]) + int(fields[12])) / tick, 2)
+            except (OSError, IndexError, ValueError):
+                pass
+        return out
+
+    def alive(self) -> dict[str, bool]:
+        return {name: proc.poll() is None for name, proc in self.procs.items()}
+
+    def stop(self, timeout: float = 5.0) -> dict[str, int | None]:
+        """SIGTERM every child (services first, the emulator last), then SIGKILL what is left; exit codes."""
+        for name in [*reversed(self.services), "hwsim"]:
+            proc = self.procs.get(name)
+            if proc is not None and proc.poll() is None:
+                proc.send_signal(signal.SIGCONT)
+                proc.terminate()
+        codes = {}
+        for name, proc in self.procs.items():
+            try:
+                codes[name] = proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                codes[name] = proc.wait()
+        return codes
