@@ -116,7 +116,7 @@ def main() -> int:
                 spent = time.perf_counter() - started
                 print(f"{k + 1}/{len(tasks)} scenarios, {spent:.0f} s, about "
                       f"{spent / (k + 1) * (len(tasks) - k - 1):.0f} s left", flush=True)
-    from shared.safety.ssm import SsmParameters
+    from shared.safety.parameters import SsmParameters
     horizon = SsmParameters().horizon
     strategies = aggregate(rows, horizon)
     args.out.mkdir(parents=True, exist_ok=True)

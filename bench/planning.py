@@ -30,7 +30,7 @@ from shared.planning.replanner import HorizonOptions, ReplanFailed, Replanner, R
 from shared.planning.scene import load_scene
 from shared.planning.timing import TimingError, parameterize
 from shared.robot.model import default_robot
-from shared.safety.ssm import SsmParameters
+from shared.safety.parameters import SsmParameters
 
 
 def placement(rng: np.random.Generator) -> HumanCapsules:

@@ -21,8 +21,9 @@ from evidence.scenarios import Q_GOAL, Q_START
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
-from shared.safety.ssm import SsmParameters
-from shared.scaling.layer import ScalingLayer, ScalingParameters
+from shared.safety.parameters import SsmParameters
+from shared.scaling.layer import ScalingLayer
+from shared.scaling.parameters import ScalingParameters
 
 
 def random_humans(rng: np.random.Generator, m: int) -> HumanCapsules:

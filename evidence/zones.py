@@ -26,8 +26,10 @@ import numpy as np
 from shared.core.geometry import capsule_pair_distances
 from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel
-from shared.safety.ssm import SsmParameters, protective_separation_distance
-from shared.scaling.layer import ScalingLayer, ScalingParameters, ScalingStep, StepStatus
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import protective_separation_distance
+from shared.scaling.layer import ScalingLayer, ScalingStep, StepStatus
+from shared.scaling.parameters import ScalingParameters
 
 ISO_13855_SPEED = 2.0        # m/s, the approach speed the zones are sized for
 REDUCED_SPEED = 0.25         # m/s, ISO 10218-1 reduced speed

@@ -16,8 +16,8 @@ from pathlib import Path
 import yaml
 
 from shared.core.errors import ConfigError, KeyError_
-from shared.safety.ssm import SsmParameters
-from shared.scaling.layer import ScalingParameters
+from shared.safety.parameters import SsmParameters
+from shared.scaling.parameters import ScalingParameters
 from shared.wire.keys import KeySpace
 
 SECTIONS = ("cell", "ssm", "scaling")

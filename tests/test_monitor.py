@@ -11,7 +11,8 @@ from shared.config import CellConfig
 from shared.core.humans import HumanCapsules
 from shared.robot.model import default_robot
 from shared.safety.monitor import SafetyMonitor
-from shared.safety.ssm import SsmParameters, pair_ssm
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import pair_ssm
 
 ROBOT = default_robot()
 SSM = SsmParameters()

@@ -20,7 +20,7 @@ from shared.planning.replanner import HoldClock, HorizonOptions, ReplanFailed, R
 from shared.planning.scene import load_scene
 from shared.planning.timing import TimingError, parameterize
 from shared.robot.model import default_robot
-from shared.safety.ssm import SsmParameters
+from shared.safety.parameters import SsmParameters
 from shared.scaling.problem import ssm_alpha_bound
 from shared.wire.convert import trajectory_from_msg, trajectory_to_msg
 from shared.wire.messages import TrajectoryMsg, decode, encode

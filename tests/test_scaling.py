@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
-from shared.safety.ssm import SsmParameters
+from shared.safety.parameters import SsmParameters
 from shared.scaling.problem import PiqpScalingSolver, build_rows, solve, solve_closed_form
 
 ROBOT = default_robot()

@@ -12,8 +12,10 @@ from evidence.scenarios import Q_GOAL, Q_START, body_segments
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
-from shared.safety.ssm import SsmParameters, pair_ssm
-from shared.scaling.layer import ScalingLayer, ScalingParameters, StepStatus
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import pair_ssm
+from shared.scaling.layer import ScalingLayer, StepStatus
+from shared.scaling.parameters import ScalingParameters
 
 ROBOT = default_robot()
 NOBODY = HumanCapsules.empty()

@@ -11,7 +11,8 @@ import pytest
 
 from shared.core.errors import ConfigError
 from shared.core.humans import HumanCapsules
-from shared.safety.ssm import SsmParameters, default_human_speed, pair_ssm, protective_separation_distance, velocity_limit
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import default_human_speed, pair_ssm, protective_separation_distance, velocity_limit
 
 P = SsmParameters()
 

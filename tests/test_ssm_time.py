@@ -11,7 +11,7 @@ from shared.planning.path_search import PathSearch, SearchOptions
 from shared.planning.scene import load_scene
 from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
 from shared.robot.model import default_robot
-from shared.safety.ssm import SsmParameters
+from shared.safety.parameters import SsmParameters
 from shared.scaling.problem import ssm_alpha_bound
 
 ROBOT = default_robot()

@@ -9,7 +9,8 @@ from shared.core.geometry import capsule_frames
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
-from shared.safety.ssm import SsmParameters, pair_ssm
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import pair_ssm
 from shared.wire.convert import trajectory_to_msg
 from shared.wire.messages import HumanState, JointCommand, JointState, ScalerStatus
 from tools.view import closest_pair, write_recording

@@ -10,7 +10,7 @@ from shared.config import CellConfig
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
-from shared.safety.ssm import SsmParameters
+from shared.safety.parameters import SsmParameters
 
 ROBOT = default_robot()
 

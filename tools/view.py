@@ -30,7 +30,8 @@ import numpy as np
 
 from shared.core.geometry import capsule_frames, capsule_pair_distances
 from shared.robot.model import RobotModel
-from shared.safety.ssm import SsmParameters, pair_ssm
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import pair_ssm
 from shared.wire.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg
 
 ROBOT_COLOR, GHOST_COLOR = (70, 110, 200, 255), (150, 190, 255, 90)

@@ -20,7 +20,6 @@ All kernels are compiled: OMPL calls them thousands of times per plan.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numba
@@ -29,6 +28,7 @@ import numpy as np
 from shared.core.errors import ConfigError
 from shared.core.geometry import segment_closest_params
 from shared.core.humans import HumanCapsules
+from shared.core.sections import check_numbers
 from shared.planning.scene import Scene
 from shared.robot.model import RobotModel, chain_world, place_points
 
@@ -49,10 +49,7 @@ class CollisionMargins:
     tolerance: float = 1e-3
 
     def __post_init__(self) -> None:
-        for name in ("human", "static", "self_", "tolerance"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ConfigError(f"collision.{name}: expected a finite number >= 0, got {value!r}")
+        check_numbers(self, "collision", non_negative=True)
         if self.tolerance <= 0:
             raise ConfigError("collision.tolerance: must be positive")
 

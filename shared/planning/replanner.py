@@ -43,7 +43,7 @@ from shared.planning.ompl_planner import JointPlanner, PlanningError
 from shared.planning.path_search import PathSearch, SearchOptions
 from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
 from shared.planning.timing import TimingError, parameterize
-from shared.safety.ssm import SsmParameters
+from shared.safety.parameters import SsmParameters
 
 
 @dataclass(frozen=True)

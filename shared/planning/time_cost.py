@@ -32,7 +32,8 @@ import numpy as np
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.robot.model import RobotModel, _chain_points_and_jacobians
-from shared.safety.ssm import SsmParameters, _pair_ssm_kernel
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import _pair_ssm_kernel
 from shared.scaling.problem import _NO_ROWS, _upper_bound
 
 

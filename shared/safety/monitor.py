@@ -38,7 +38,8 @@ import pinocchio as pin
 
 from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel
-from shared.safety.ssm import SsmParameters, default_human_speed, velocity_limit
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import default_human_speed, velocity_limit
 
 
 def _capsule_placement(a: np.ndarray, b: np.ndarray) -> tuple[pin.SE3, float]:

@@ -28,65 +28,17 @@ from __future__ import annotations
 import enum
 import math
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from shared.core.errors import ConfigError
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.robot.model import RobotModel
-from shared.safety.ssm import SsmParameters
+from shared.safety.parameters import SsmParameters
+from shared.scaling.parameters import ScalingParameters
 from shared.scaling.problem import PiqpScalingSolver, build_rows, solve, ssm_alpha_bound
-
-SOLVERS = ("piqp", "closed_form")
-
-
-@dataclass(frozen=True)
-class ScalingParameters:
-    """period (s): control period. alpha_min / alpha_release: beta hysteresis thresholds on the safe bound.
-    human_timeout (s): human data older than this stops the robot (5 periods at 100 Hz).
-    acceleration_weight: price of one unit of acceleration slack (in units of the limit) against alpha.
-    solver: 'piqp' (closed form as fallback) or 'closed_form'."""
-
-    period: float = 0.01
-    alpha_min: float = 0.2
-    alpha_release: float = 0.3
-    human_timeout: float = 0.05
-    acceleration_weight: float = 100.0
-    solver: str = "piqp"
-
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            if f.name == "solver":
-                continue
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ConfigError(f"scaling.{f.name}: expected a finite number, got {value!r}")
-        if not 0.0 < self.period <= 1.0:
-            raise ConfigError(f"scaling.period: must be in (0, 1] s, got {self.period}")
-        if not 0.0 <= self.alpha_min < self.alpha_release <= 1.0:
-            raise ConfigError("scaling: need 0 <= alpha_min < alpha_release <= 1, got "
-                              f"{self.alpha_min} and {self.alpha_release}")
-        if self.human_timeout <= 0.0:
-            raise ConfigError(f"scaling.human_timeout: must be positive, got {self.human_timeout}")
-        if self.acceleration_weight <= 0.0:
-            raise ConfigError(f"scaling.acceleration_weight: must be positive, got {self.acceleration_weight}")
-        if self.solver not in SOLVERS:
-            raise ConfigError(f"scaling.solver: expected one of {SOLVERS}, got {self.solver!r}")
-
-    @classmethod
-    def from_mapping(cls, raw: object) -> "ScalingParameters":
-        if raw is None:
-            return cls()
-        if not isinstance(raw, dict):
-            raise ConfigError(f"scaling: expected a mapping, got {type(raw).__name__}")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(map(str, raw)) - known)
-        if unknown:
-            raise ConfigError(f"scaling: unknown key(s) {unknown}; known: {sorted(known)}")
-        return cls(**raw)
 
 
 @numba.njit(cache=True)

@@ -33,7 +33,8 @@ import piqp
 
 from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel
-from shared.safety.ssm import PairSsm, SsmParameters, pair_ssm
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import PairSsm, pair_ssm
 
 
 @dataclass(slots=True)

@@ -1,0 +1,90 @@
+"""The SSM parameters of a cell (the ``ssm`` section of its configuration): ISO/TS 15066's reaction and stopping
+allowances, the uncertainties, the human speeds of ISO 13855, and the drive lag the scaling layer keeps a
+margin for. Their own module, free of compiled code, so reading a configuration loads nothing heavy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from shared.core.errors import ConfigError
+from shared.core.sections import check_numbers, from_mapping
+
+
+@dataclass(frozen=True)
+class SsmParameters:
+    """The SSM parameter set. Defaults and where they come from:
+
+    reaction_time T_r = 0.10 s: the system's reaction latency bound: tracker latency and velocity filter
+      (a few 240 Hz samples), one control period (10 ms), one drive interpolation period (10 ms), the CAN
+      and Zenoh hops (sub-millisecond, measured by bench/), with margin. Must stay >= the measured p99 of
+      human-sample-to-target-frame latency; the end-to-end benchmark checks this.
+    stopping_time T_s = 0.30 s: Pilz publishes no stopping data. A Cartesian stop from the PRBT's 1 m/s
+      speed limit at its 5 m/s^2 deceleration limit takes 0.20 s (also the controller's Stop-1 trajectory
+      duration, stop_trajectory_duration = 0.2 s); a joint stop from 1.57 rad/s at the 6 rad/s^2 the
+      controller tolerates takes 0.26 s. The larger, rounded up, so the drives can really stop within it.
+    stopping_deceleration a_max = 5.0 m/s^2: the PRBT's Cartesian deceleration limit (cartesian_limits.yaml).
+    intrusion_distance C = 0.0 m: the human is modelled by capsules that enclose the tracked segments,
+      hands included, so nothing reaches past the modelled body (ISO 13855's C is for presence sensors
+      that see only part of the body; set it per ISO 13855 when the body model is partial).
+    human_uncertainty Z_d = 0.05 m: motion-capture position error (millimetres) plus marker/skin and
+      capsule-fitting error, the value used in the SSM literature for marker-based tracking.
+    robot_uncertainty Z_r = 0.02 m: encoder error is negligible (0.001 deg per count); this covers the drive
+      following error over one 10 ms interpolation period at the PRBT's link speeds.
+    min_separation d_min = 0.05 m: the separation the independent monitor and the planner require at all
+      times, also when the robot stands still.
+    human_speed_near = 2.0 m/s within human_near_distance = 0.5 m, human_speed_far = 1.6 m/s beyond: the
+      approach speeds of ISO 13855, used where the tracker gives no velocity.
+    drive_lag = 0.012 s: how far the measured joints run behind the driver's setpoints. An interpolated
+      position drive whose setpoints are followable (the driver sends no others) reaches each one at the
+      next SYNC, one 10 ms period behind; 20 % on top covers the count quantisation of the measurement.
+      The robot driver measures the real lag and warns when its p99 exceeds this value.
+    link_acceleration = 4.4 m/s^2: how fast a link point's speed can change, the drives' 6 rad/s^2 at the
+      arm's 0.741 m reach.
+    tracking_margin (derived, m/s) = drive_lag x link_acceleration = 0.053 m/s: while the joints run
+      drive_lag behind, the measured speed differs from the commanded one by at most this much. The
+      scaling layer keeps the commanded approach speed this far below the limit, so the *measured* robot
+      meets it too (the independent monitor checks measured states).
+    """
+
+    reaction_time: float = 0.10
+    stopping_time: float = 0.30
+    stopping_deceleration: float = 5.0
+    intrusion_distance: float = 0.0
+    human_uncertainty: float = 0.05
+    robot_uncertainty: float = 0.02
+    min_separation: float = 0.05
+    human_speed_near: float = 2.0
+    human_speed_far: float = 1.6
+    human_near_distance: float = 0.5
+    drive_lag: float = 0.012
+    link_acceleration: float = 4.4
+
+    def __post_init__(self) -> None:
+        check_numbers(self, "ssm", non_negative=True)
+        if self.reaction_time + self.stopping_time <= 0:
+            raise ConfigError("ssm: reaction_time + stopping_time must be positive")
+        if self.drive_lag <= 0:
+            raise ConfigError(f"ssm.drive_lag: must be positive (the drives cannot follow without lag), "
+                              f"got {self.drive_lag!r}")
+
+    @classmethod
+    def from_mapping(cls, raw: object) -> "SsmParameters":
+        """Build from a config mapping; unknown keys and bad values raise ConfigError naming the key."""
+        return from_mapping(cls, raw, "ssm")
+
+    @property
+    def tracking_margin(self) -> float:
+        """m/s kept between the commanded approach speed and the limit: drive_lag x link_acceleration."""
+        return self.drive_lag * self.link_acceleration
+
+    @property
+    def horizon(self) -> float:
+        """T_s + T_r (s): how long the human keeps approaching before the robot has stopped."""
+        return self.reaction_time + self.stopping_time
+
+    @property
+    def fixed_distance(self) -> float:
+        """The distance terms that do not depend on speed: a_max T_s^2 / 2 + C + Z_d + Z_r (m)."""
+        return (0.5 * self.stopping_deceleration * self.stopping_time ** 2 + self.intrusion_distance
+                + self.human_uncertainty + self.robot_uncertainty)

@@ -1,0 +1,47 @@
+"""The scaling layer's parameters (the ``scaling`` section of a cell's configuration): control period, the
+beta hysteresis, the human data timeout, the acceleration slack's price and the solver. Their own module,
+free of compiled code, so reading a configuration loads nothing heavy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from shared.core.errors import ConfigError
+from shared.core.sections import check_numbers, from_mapping
+
+SOLVERS = ("piqp", "closed_form")
+
+
+@dataclass(frozen=True)
+class ScalingParameters:
+    """period (s): control period. alpha_min / alpha_release: beta hysteresis thresholds on the safe bound.
+    human_timeout (s): human data older than this stops the robot (5 periods at 100 Hz).
+    acceleration_weight: price of one unit of acceleration slack (in units of the limit) against alpha.
+    solver: 'piqp' (closed form as fallback) or 'closed_form'."""
+
+    period: float = 0.01
+    alpha_min: float = 0.2
+    alpha_release: float = 0.3
+    human_timeout: float = 0.05
+    acceleration_weight: float = 100.0
+    solver: str = "piqp"
+
+    def __post_init__(self) -> None:
+        check_numbers(self, "scaling", skip=("solver",))
+        if not 0.0 < self.period <= 1.0:
+            raise ConfigError(f"scaling.period: must be in (0, 1] s, got {self.period}")
+        if not 0.0 <= self.alpha_min < self.alpha_release <= 1.0:
+            raise ConfigError("scaling: need 0 <= alpha_min < alpha_release <= 1, got "
+                              f"{self.alpha_min} and {self.alpha_release}")
+        if self.human_timeout <= 0.0:
+            raise ConfigError(f"scaling.human_timeout: must be positive, got {self.human_timeout}")
+        if self.acceleration_weight <= 0.0:
+            raise ConfigError(f"scaling.acceleration_weight: must be positive, got {self.acceleration_weight}")
+        if self.solver not in SOLVERS:
+            raise ConfigError(f"scaling.solver: expected one of {SOLVERS}, got {self.solver!r}")
+
+    @classmethod
+    def from_mapping(cls, raw: object) -> "ScalingParameters":
+        """Build from a config mapping; unknown keys and bad values raise ConfigError naming the key."""
+        return from_mapping(cls, raw, "scaling")
