@@ -2,24 +2,22 @@
 
 The robot shuttles between two configurations; a scripted human (or a recorded motion, whose dropout
 frames, None, stop the robot as missing data does in the cell) moves through the cell. Every control
-period the scaling layer runs exactly as in the scaler service. The planning layer, when given, runs the
-horizon check on every human sample (Alg. 1), replans and merges when the path ahead is blocked (Alg. 2)
-and when the scaling layer raises beta, and plans each new shuttle around the humans. Every command is
-judged at the state it commands by the independent monitor's rule (shared.safety.monitor: coal distances,
-the ISO limit at the closest points, the react-within-T_r-then-brake allowance), counting violations;
-`command_exceedances` counts, stricter, every command the scaling layer chose (not one where it was
-braking at the drives' limit, `braking_cycles`) whose conservative end-point bound exceeds the limit at
-all. The robot is taken to follow its command exactly: the commands are followable by construction
-(the scaling layer slows down no faster than the drives can brake), and the drive model itself comes
-with the CAN emulator. With charge_planning, the planner's compute time (measured, or a fixed time per
-path search, which keeps runs repeatable) passes on the simulated clock before its result is used (the robot keeps
-executing the old trajectory meanwhile, and a new shuttle,
-planned in the cycle its predecessor ends, waits for its plan); without it, results are used in the
-cycle that asked for them. The predictions are told how long the scaling layer has been asking for a
-replan (HoldClock), as the planner service tells them.
+period the scaling layer runs exactly as in the scaler service, and the planning layer, when given, takes
+a turn of the planner service's own loop (shared.planning.loop: a new shuttle planned around the humans,
+beta replans, the horizon check and merge) on what the scaler last reported; a new trajectory is taken by
+the scaler's own rule (ScalingLayer.take). Every command is judged (CommandJudge) at the state it commands
+by the independent monitor's rule (shared.safety.monitor: coal distances, the ISO limit at the closest
+points, the react-within-T_r-then-brake allowance), counting violations; `command_exceedances` counts,
+stricter, every command the scaling layer chose (not one where it was braking at the drives' limit,
+`braking_cycles`) whose conservative end-point bound exceeds the limit at all. The robot is taken to follow
+its command exactly: the commands are followable by construction (the scaling layer slows down no faster
+than the drives can brake), and the drive model itself comes with the CAN emulator. With charge_planning,
+the planner's compute time (measured, or a fixed time per path search, which keeps runs repeatable) passes
+on the simulated clock before its result is used (the robot keeps executing the old trajectory meanwhile,
+and a new shuttle waits for its plan); without it, results are used in the cycle that asked for them.
 
 The speed policy is a parameter: the scaling layer (default), or any ScalingLayer subclass such as the
-zone-based baseline (evidence.zones). Same core code as the services: ScalingLayer, Replanner.
+zone-based baseline (evidence.zones). Same core code as the services: ScalingLayer, PlanningLoop.
 """
 
 from __future__ import annotations
@@ -32,9 +30,8 @@ import numpy as np
 from evidence.scenarios import ScriptedHuman
 from shared.config import CellConfig
 from shared.core.trajectory import straight_line_trajectory
-from shared.planning.ompl_planner import PlanningError
-from shared.planning.replanner import HoldClock, ReplanFailed, Replanner
-from shared.planning.timing import TimingError
+from shared.planning.loop import PlanningInputs, PlanningLoop, PlanningOutcome
+from shared.planning.replanner import HoldClock, Replanner
 from shared.robot.model import RobotModel
 from shared.safety.monitor import MonitorResult, ReactionWindow, SafetyMonitor
 from shared.safety.ssm import pair_ssm
@@ -112,143 +109,128 @@ def leg_fraction(q: np.ndarray, start: np.ndarray, goal: np.ndarray) -> float:
     return 0.0 if span <= 0.0 else float(np.clip(1.0 - np.linalg.norm(q - goal) / span, 0.0, 1.0))
 
 
+class CommandJudge:
+    """The judging half of a run: every commanded state against the ISO limit. The conservative end-point
+    bound first (fast); where it comes near, the independent monitor's rule (shared.safety.monitor, with
+    its ReactionWindow seeing every cycle) counts violations; a command beyond the bound that the scaling
+    layer chose (not braking at the drives' limit) counts as a command exceedance."""
+
+    def __init__(self, robot: RobotModel, config: CellConfig, monitor: SafetyMonitor | None = None) -> None:
+        self.robot, self.ssm = robot, config.ssm
+        self.monitor = monitor or SafetyMonitor(robot, config.ssm)
+        self.window = ReactionWindow(config.ssm.reaction_time, config.ssm.stopping_time)
+
+    def judge(self, t: float, step: ScalingStep, humans, result: SimResult) -> float:
+        """Count this cycle's command into result; returns its smallest approach margin (m/s; inf when there
+        is nobody to judge against, a tracker dropout in a recorded motion)."""
+        margin = float("inf")
+        if humans is not None:
+            points, jac = self.robot.capsule_kinematics(step.q_command)
+            check = pair_ssm(points, self.robot.radii, jac @ step.qd_command, humans, self.ssm)
+            margin = float(check.margin.min()) if check.margin.size else margin
+        braking = step.method.endswith("+braking")
+        result.braking_cycles += braking
+        if margin < -1e-9 and not braking:
+            result.command_exceedances += 1
+        judged = self.monitor.check(step.q_command, step.qd_command, humans) if margin < 0.02 else MonitorResult()
+        result.violations += len(self.window.update(t, judged))
+        return margin
+
+
 def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a: np.ndarray, q_b: np.ndarray,
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
                 beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
                 charge_planning: bool | float = False, monitor: SafetyMonitor | None = None) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
-    replanner: the planning layer (None: scaling only, straight shuttles). beta_replans: answer the
-    scaling layer's replan requests (the paper's ablation switches this off). on_record / on_replan: called
-    with each SimRecord / ReplanEvent as it happens. layer: the speed policy (default: a new ScalingLayer).
-    charge_planning: planning takes time on the simulated clock: True its measured wall time, a number
-    that many seconds per path search (repeatable whatever the machine's load). monitor: the judge (default:
-    a SafetyMonitor of this robot; pass one to reuse it across runs)."""
+    replanner: the planning layer (None: scaling only, straight shuttles), run by the planner service's
+    own loop (shared.planning.loop.PlanningLoop) once a cycle, before the scaling step, on what the
+    scaler last reported. beta_replans: answer the scaling layer's replan requests (the paper's ablation
+    switches this off). on_record / on_replan: called with each SimRecord / ReplanEvent as it happens.
+    layer: the speed policy (default: a new ScalingLayer). charge_planning: planning takes time on the
+    simulated clock: True its measured wall time, a number that many seconds per path search (repeatable
+    whatever the machine's load). monitor: the judge's monitor (default: a SafetyMonitor of this robot;
+    pass one to reuse it across runs)."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
-    monitor = monitor or SafetyMonitor(robot, config.ssm)
-    window = ReactionWindow(config.ssm.reaction_time, config.ssm.stopping_time)
+    judge = CommandJudge(robot, config, monitor)
+    loop = PlanningLoop(replanner, beta_cooldown=beta_cooldown, beta_replans=beta_replans) \
+        if replanner is not None else None
     period = config.scaling.period
     lim = robot.limits
     ends = [np.asarray(q_a, dtype=float), np.asarray(q_b, dtype=float)]
     result = SimResult()
     leg = 0
     layer.set_trajectory(straight_line_trajectory(ends[0], ends[1], lim.velocity, lim.acceleration))
-    beta_before = False
+    beta = False                      # the scaling layer's last beta flag (what its status said)
     held = HoldClock()                # how long the scaling layer has been asking for a replan
-    next_beta_try = next_horizon_try = 0.0
-    pending_leg = False
+    pending_leg = False               # a shuttle ended: the next one waits for its plan
     busy_until = -1.0                 # charge_planning: the planner is computing until then
     speed_now = 0.0                   # the robot's commanded joint speed after the last step (rad/s)
-    waiting: tuple | None = None      # (ready at, ReplanResult or Trajectory, reason, compute ms)
+    waiting: tuple | None = None      # (ready at, PlanningOutcome, compute ms)
 
     def log_replan(event: ReplanEvent) -> None:
         result.replans.append(event)
         if on_replan is not None:
             on_replan(event)
 
-    def charged(started: float, searches: int) -> float:
-        """Simulated seconds a planning call takes (see charge_planning)."""
-        if charge_planning is True:
-            return time.perf_counter() - started
-        return (replanner.searches - searches) * float(charge_planning)
-
-    def replan(t: float, reason: str, action, *args) -> None:
-        nonlocal busy_until, waiting
-        started, searches = time.perf_counter(), replanner.searches
-        try:
-            res = action(*args)
-        except ReplanFailed as exc:
-            elapsed = (time.perf_counter() - started) * 1e3
-            busy_until = t + charged(started, searches) if charge_planning else busy_until
-            log_replan(ReplanEvent(t, reason, False, elapsed, str(exc)))
-            return
-        elapsed = (time.perf_counter() - started) * 1e3
-        if res is None:
-            return
-        if charge_planning:
-            busy_until = t + charged(started, searches)
-            waiting = (busy_until, res, reason, elapsed)
-            return
-        take(t, res, reason, elapsed)
-
-    def plan_leg(t: float, goal: np.ndarray, humans) -> None:
-        """The next shuttle, planned around the humans from where the last one ended."""
-        nonlocal busy_until, waiting, pending_leg
-        started, searches = time.perf_counter(), replanner.searches
-        try:
-            traj = replanner.plan_goal(layer.trajectory.positions[-1], goal, humans, layer.trajectory.version + 1,
-                                       held.waited(t))
-            if charge_planning:
-                busy_until = t + charged(started, searches)
-                waiting = (busy_until, traj, "goal", 0.0)
-            else:
-                layer.set_trajectory(traj)
-                pending_leg = False
-        except (PlanningError, TimingError) as exc:       # goal blocked for now: hold and try again
-            if charge_planning:
-                busy_until = t + charged(started, searches)
-            log_replan(ReplanEvent(t, "goal", False, 0.0, f"{type(exc).__name__}: {exc}"))
-
-    def take(t: float, res, reason: str, elapsed: float) -> None:
+    def take(t: float, outcome: PlanningOutcome, elapsed: float) -> None:
+        nonlocal pending_leg
+        res = outcome.result
         here = layer.trajectory.sample(layer.s)[0]
         if layer.take(res.trajectory, res.from_rest, res.junction, here, START_TOLERANCE) is None:
-            log_replan(ReplanEvent(t, reason, True, elapsed, res.detail))
+            if outcome.action == "goal":
+                pending_leg = False
+            else:
+                log_replan(ReplanEvent(t, outcome.action, True, elapsed, res.detail))
+
+    def planning_turn(t: float, k: int, humans) -> None:
+        """One turn of the planner's loop on what the scaler last reported; its result is taken at once, or
+        when its charged time has passed."""
+        nonlocal busy_until, waiting
+        following = None if pending_leg or layer.s >= layer.trajectory.duration else (layer.trajectory, layer.s)
+        inputs = PlanningInputs(ends[(leg + 1) % 2], pending_leg, layer.trajectory.sample(layer.s)[0], humans, k,
+                                following, speed_now, beta, held.waited(t), layer.trajectory.version + 1)
+        started = time.perf_counter()
+        outcome = loop.step(t, inputs)
+        elapsed = time.perf_counter() - started
+        if outcome is None:
+            return
+        if charge_planning:
+            busy_until = t + (elapsed if charge_planning is True else outcome.searches * float(charge_planning))
+        if outcome.result is None:
+            log_replan(ReplanEvent(t, outcome.action, False, elapsed * 1e3, outcome.refused or ""))
+        elif charge_planning:
+            waiting = (busy_until, outcome, elapsed * 1e3)
+        else:
+            take(t, outcome, elapsed * 1e3)
 
     for k in range(int(round(duration / period))):
         t = k * period
         humans = human.at(t)
-        goal = ends[(leg + 1) % 2]
         if waiting is not None and t >= waiting[0]:         # a charged result is ready now
-            ready, res, reason, elapsed = waiting
+            _, outcome, elapsed = waiting
             waiting = None
-            if reason == "goal":
-                layer.set_trajectory(res)
-                pending_leg = False
-            else:
-                take(t, res, reason, elapsed)
-        if t < busy_until:
-            pass                                            # the planner is still computing
-        elif pending_leg and replanner is not None:        # a new shuttle: tried again
-            plan_leg(t, goal, humans)
-        elif replanner is not None and layer.s < layer.trajectory.duration and t >= next_horizon_try:
-            failures = len(result.replans)
-            replan(t, "horizon", replanner.on_horizon, layer.trajectory, layer.s, goal, humans, speed_now,
-                   held.waited(t))
-            if len(result.replans) > failures and not result.replans[-1].ok:
-                next_horizon_try = t + beta_cooldown / 2     # do not hammer a blocked horizon every cycle
+            take(t, outcome, elapsed)
+        if loop is not None and t >= busy_until:
+            planning_turn(t, k, humans)
         step = layer.step(humans, 0.0)
         speed_now = float(np.abs(step.qd_command).max())
-        if step.beta and not beta_before:
+        if step.beta and not beta:
             result.beta_requests += 1
-        beta_before = step.beta
+        beta = step.beta
         held.update(t, step.beta)
-        if step.beta and beta_replans and replanner is not None and t >= next_beta_try and t >= busy_until:
-            next_beta_try = t + beta_cooldown
-            replan(t, "beta", replanner.on_beta, layer.trajectory, layer.s, goal, humans, speed_now, held.waited(t))
-        # the commanded motion against the limit: the conservative end-point bound first (fast); where it
-        # comes near, the independent monitor judges (its ReactionWindow sees every cycle)
-        margin = float("inf")          # a tracker dropout in a recorded motion: nobody to judge against
-        if humans is not None:
-            points, jac = robot.capsule_kinematics(step.q_command)
-            check = pair_ssm(points, robot.radii, jac @ step.qd_command, humans, config.ssm)
-            margin = float(check.margin.min()) if check.margin.size else margin
-        braking = step.method.endswith("+braking")
-        result.braking_cycles += braking
-        if margin < -1e-9 and not braking:
-            result.command_exceedances += 1
-        judged = monitor.check(step.q_command, step.qd_command, humans) if margin < 0.02 else MonitorResult()
-        result.violations += len(window.update(t, judged))
+        margin = judge.judge(t, step, humans, result)
         if step.status is StepStatus.FINISHED and not pending_leg:
             result.shuttles += 1
             leg += 1
             start, goal = ends[leg % 2], ends[(leg + 1) % 2]
-            if replanner is None:
+            if loop is None:
                 layer.set_trajectory(straight_line_trajectory(start, goal, lim.velocity, lim.acceleration,
                                                               version=layer.trajectory.version + 1))
             else:
-                pending_leg = True
-                if t >= busy_until:                         # planned at once, as the planner service does
-                    plan_leg(t, goal, humans)               # on the goal that follows an arrival
+                pending_leg = True          # a new goal: the planner takes a turn on it at once (when free)
+                if t >= busy_until:
+                    planning_turn(t, k, humans)
         result.progress = result.shuttles + leg_fraction(step.q_command, ends[leg % 2], ends[(leg + 1) % 2])
         record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
         result.records.append(record)

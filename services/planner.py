@@ -1,17 +1,13 @@
-"""planner: the planning layer as a service (a thin shell around shared.planning.replanner).
+"""planner: the planning layer as a service (a thin shell around shared.planning.loop.PlanningLoop).
 
 Inputs (the latest of each is kept): goals, human states, joint states, scaler status. A worker thread
-(OMPL holds the GIL: planning never runs in a latency-critical process) then, in this order:
-* a new goal: a plan from where the robot is (base_version -1; Replanner.plan_goal: the direct line
-  unless the path searched fastest under the SSM is predicted faster), or, while a trajectory is being
-  followed, a merge into it;
-* a replan request (beta in the scaler status, at most every beta_cooldown): Replanner.on_beta, which
-  keeps the old trajectory unless the new one is predicted to be 10 % faster;
-* every new human state (at most every horizon_period): the horizon check, and a merge when the path
-  ahead is blocked and the way round is predicted faster (failed replans back off).
-Both predictions are told how long the scaler has been asking for a replan (HoldClock).
-Every published trajectory and every refusal is reported as an event on <prefix>/safety/events (source
-planner, severity info): why, and how long it took.
+(OMPL holds the GIL: planning never runs in a latency-critical process) wakes on every new input and takes
+one turn of the planning loop, the same loop the simulation runs (a new goal first, then a replan request,
+then the horizon check on a new human sample; see shared.planning.loop), telling it how long the scaler
+has been asking for a replan (HoldClock) and how fast the robot moves. Every published trajectory and
+every refusal is reported as an event on <prefix>/safety/events (source planner, severity info): why, and
+how long it took. The service bounds every path search by the wall clock (CELL_BUDGET; anytime: the best
+path found by then is used).
 
     python -m services.planner --connect tcp/127.0.0.1:7447 [--scene deploy/scene.yaml] [--seed 1]
 """
@@ -30,9 +26,10 @@ from shared.core.errors import HrcError
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.loop import PlanningInputs, PlanningLoop
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import CELL_BUDGET, SearchOptions
-from shared.planning.replanner import HoldClock, ReplanFailed, Replanner, ReplanOptions, ReplanResult
+from shared.planning.replanner import HoldClock, Replanner, ReplanOptions
 from shared.planning.scene import Scene, load_scene
 from shared.planning.timing import TimingError
 from shared.robot.model import default_robot
@@ -43,10 +40,11 @@ DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
 
 
 class PlannerService:
-    def __init__(self, shell: ServiceShell, replanner: Replanner, horizon_period: float = 0.02,
-                 beta_cooldown: float = 0.5, beta_replans: bool = True) -> None:
-        self.shell, self.replanner, self.beta_replans = shell, replanner, beta_replans
-        self.horizon_period, self.beta_cooldown = horizon_period, beta_cooldown
+    """The shell around the planning loop: inputs from Zenoh kept under a lock, a worker thread that takes
+    the loop's turns, trajectories and events out."""
+
+    def __init__(self, shell: ServiceShell, loop: PlanningLoop) -> None:
+        self.shell, self.loop = shell, loop
         self.lock = threading.Lock()
         self.wake = threading.Event()
         self.goal: Goal | None = None
@@ -115,67 +113,45 @@ class PlannerService:
             return None
         return (self.trajectory, st.s) if st.s < self.trajectory.duration - 1e-6 else None
 
-    def _apply(self, result: ReplanResult, base: Trajectory, started: float) -> None:
-        ms = (time.perf_counter() - started) * 1e3
-        if result.from_rest:
-            self._publish(result.trajectory, result.reason, 0.0, -1, ms, result.detail)
-        else:
-            self._publish(result.trajectory, result.reason, result.junction, base.version, ms, result.detail)
-
-    def work_once(self, now: float, state: dict) -> None:
+    def work_once(self, now: float) -> None:
+        """One turn of the planning loop on the latest inputs; its outcome published (a trajectory, or an
+        event saying why there is none)."""
         with self.lock:
             goal, new_goal, humans, q, status = self.goal, self.new_goal, self.humans, self.q, self.status
-            human_seq = self.human_seq
-            waited = self.held.waited(time.monotonic())
             if goal is None or q is None:        # keep a goal until the robot's position is known
                 return
             self.new_goal = False
-        # above every version the scaler has reported: a restarted planner must not publish an old number
-        version = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen) + 1
-        following = self._following()
-        started = time.perf_counter()
+            following = self._following()
+            speed = None
+            if following is not None and status is not None:
+                speed = float(np.abs(following[0].sample(following[1])[1]).max() * status.alpha)
+            # above every version the scaler has reported: a restarted planner must not publish an old number
+            version = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen) + 1
+            inputs = PlanningInputs(goal.q, new_goal, q, humans, self.human_seq, following, speed,
+                                    status is not None and status.beta, self.held.waited(now), version)
         if new_goal:
             self.goal_id = goal.goal_id
-            try:
-                if following is None:
-                    traj = self.replanner.plan_goal(q, goal.q, humans, version, waited)
-                    self._publish(traj, "goal", 0.0, -1, (time.perf_counter() - started) * 1e3)
-                else:
-                    self._apply(self.replanner.replan(following[0], following[1], goal.q, humans, "goal"),
-                                following[0], started)
-            except (PlanningError, TimingError, ReplanFailed) as exc:
-                self._event("plan_refused", f"goal {goal.goal_id}: {type(exc).__name__}: {exc}",
-                            (time.perf_counter() - started) * 1e3)
+        started = time.perf_counter()
+        outcome = self.loop.step(now, inputs)
+        if outcome is None:
             return
-        if following is None:
+        ms = (time.perf_counter() - started) * 1e3
+        if outcome.result is None:
+            what = f"goal {goal.goal_id}" if outcome.action == "goal" else outcome.action
+            self._event("plan_refused" if outcome.action == "goal" else "replan_refused",
+                        f"{what}: {outcome.refused}"[:500], ms)
             return
-        traj, s = following
-        if self.beta_replans and status is not None and status.beta and now >= state["next_beta"]:
-            state["next_beta"] = now + self.beta_cooldown
-            speed = float(np.abs(traj.sample(s)[1]).max() * status.alpha)
-            try:
-                self._apply(self.replanner.on_beta(traj, s, goal.q, humans, speed, waited), traj, started)
-            except ReplanFailed as exc:
-                self._event("replan_refused", f"beta: {exc}"[:500], (time.perf_counter() - started) * 1e3)
-            return
-        if human_seq != state["human_seq"] and now >= state["next_horizon"]:
-            state["human_seq"] = human_seq
-            state["next_horizon"] = now + self.horizon_period
-            try:
-                speed = float(np.abs(traj.sample(s)[1]).max() * status.alpha) if status is not None else None
-                result = self.replanner.on_horizon(traj, s, goal.q, humans, speed, waited)
-                if result is not None:
-                    self._apply(result, traj, started)
-            except ReplanFailed as exc:
-                state["next_horizon"] = now + self.beta_cooldown / 2
-                self._event("replan_refused", f"horizon: {exc}"[:500], (time.perf_counter() - started) * 1e3)
+        result = outcome.result
+        if result.from_rest:
+            self._publish(result.trajectory, result.reason, 0.0, -1, ms, result.detail)
+        else:
+            self._publish(result.trajectory, result.reason, result.junction, following[0].version, ms, result.detail)
 
     def run(self, stop: threading.Event) -> None:
-        state = {"next_beta": 0.0, "next_horizon": 0.0, "human_seq": -1}
         while not stop.is_set():
             self.wake.wait(0.05)
             self.wake.clear()
-            self.work_once(time.monotonic(), state)
+            self.work_once(time.monotonic())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -210,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         replanner.path(mid, mid + 0.3, someone)
     except (PlanningError, TimingError):
         pass
-    service = PlannerService(shell, replanner, beta_replans=not args.no_beta)
+    service = PlannerService(shell, PlanningLoop(replanner, beta_replans=not args.no_beta))
     return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, "
                         f"keys {shell.keys.prefix}/",
                  service.run, on_stop=service.wake.set)

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from tests.util import free_port, require_namespace
-from tools.cell import CONF, cell_pid, run_dir
+from tools.cell import cell_pid, conf_path, run_dir
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
 
@@ -70,7 +70,7 @@ def test_a_user_session(cell):
         # kill -9 the scaler: the driver stops the drives (stale commands), supervisord restarts it
         env = dict(os.environ, HRC_RUN=str(run_dir(prefix)), HRC_PYTHON=sys.executable, HRC_CAN="udp_multicast",
                    HRC_PREFIX=prefix, **{f"HRC_PORT{k if k else ''}": "0" for k in range(6)})
-        ctl = [sys.executable, "-c", "from supervisor.supervisorctl import main; main()", "-c", str(CONF)]
+        ctl = [sys.executable, "-c", "from supervisor.supervisorctl import main; main()", "-c", str(conf_path(prefix))]
         pid = int(subprocess.run(ctl + ["pid", "scaler"], capture_output=True, text=True, env=env).stdout.strip())
         os.kill(pid, signal.SIGKILL)
         text = wait_status(prefix, r"robot:\s+stopped", timeout=10)

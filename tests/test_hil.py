@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from tests.util import require_namespace
+from tools.cell import unshare_flags
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
 
@@ -33,7 +34,9 @@ def run_harness(prefix: list[str], extra: list[str]) -> dict:
 @pytest.fixture(scope="module")
 def udp_results():
     require_namespace("the driver core is covered in lockstep by tests/test_driver_core.py")
-    return run_harness(["unshare", "-rn"], ["--interface", "udp_multicast"])
+    # the namespace the cell gets (tools.cell): without a user namespace when root, so the safety chain keeps
+    # its right to SCHED_FIFO (under -rn it ran at normal priority and a busy machine lengthened its lags)
+    return run_harness(["unshare", unshare_flags()], ["--interface", "udp_multicast"])
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)

@@ -7,6 +7,7 @@ import pytest
 from shared.config import CellConfig, load_config
 from shared.core.errors import ConfigError, KeyError_
 from shared.wire.keys import KeySpace
+from tools.programs import PROGRAMS, supervisord_conf
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -57,3 +58,11 @@ def test_bad_config_files_name_the_field(tmp_path, text, field):
 def test_missing_file_is_a_config_error(tmp_path):
     with pytest.raises(ConfigError, match="cannot read"):
         load_config(tmp_path / "nope.yaml")
+
+
+def test_the_shipped_supervisord_conf_is_the_program_table():
+    """deploy/supervisord.conf is tools.programs' output (hrc up writes the same into its run folder)."""
+    shipped = (Path(__file__).resolve().parents[1] / "deploy" / "supervisord.conf").read_text()
+    assert shipped == supervisord_conf(), "regenerate it: python -m tools.programs > deploy/supervisord.conf"
+    for program in PROGRAMS:
+        assert f"[program:{program.name}]" in shipped and f"-m {program.module} " in shipped

@@ -19,9 +19,9 @@ import time
 from pathlib import Path
 
 from shared.core.errors import HrcError
+from tools.programs import supervisord_conf
 
 ROOT = Path(__file__).resolve().parents[1]
-CONF = ROOT / "deploy" / "supervisord.conf"
 
 
 NAMESPACE_SETUP = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$@\""
@@ -52,6 +52,11 @@ def run_dir(prefix: str) -> Path:
     return base / f"hrc-{prefix.replace('/', '_')}"
 
 
+def conf_path(prefix: str) -> Path:
+    """supervisord's configuration of the cell, written by `up` from tools.programs."""
+    return run_dir(prefix) / "supervisord.conf"
+
+
 def cell_pid(prefix: str) -> int | None:
     try:
         pid = int((run_dir(prefix) / "cell.pid").read_text())
@@ -73,9 +78,11 @@ def up(prefix: str, interface: str, port: int) -> int:
         raise RuntimeError(f"a cell with prefix {prefix} is already up (pid {cell_pid(prefix)})")
     run = run_dir(prefix)
     run.mkdir(parents=True, exist_ok=True)
+    conf = conf_path(prefix)
+    conf.write_text(supervisord_conf())
     env = dict(os.environ, HRC_RUN=str(run), HRC_PYTHON=sys.executable, HRC_CAN=interface, HRC_PREFIX=prefix,
                PYTHONPATH=str(ROOT), **{f"HRC_PORT{k if k else ''}": str(port + k) for k in range(6)})
-    supervisord = [sys.executable, "-c", "from supervisor.supervisord import main; main()", "-c", str(CONF)]
+    supervisord = [sys.executable, "-c", "from supervisor.supervisord import main; main()", "-c", str(conf)]
     argv = in_new_namespace(supervisord) if interface == "udp_multicast" else supervisord
     log = open(run / "up.log", "w")
     proc = subprocess.Popen(argv, env=env, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)

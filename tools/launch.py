@@ -20,8 +20,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tools.programs import BY_NAME, SERVICES
+
 ROOT = Path(__file__).resolve().parents[1]
-SERVICE_ORDER = ("robot_driver", "tracker_ingest", "scaler", "planner", "safety_monitor")
 
 
 class LaunchError(RuntimeError):
@@ -35,9 +36,6 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-# Niceness of the processes outside the control path, as in deploy/supervisord.conf: a (re)starting planner
-# must not starve the driver's SYNC thread on a small machine.
-NICENESS = {"planner": 10, "safety_monitor": 5}
 
 
 def die_with_parent() -> None:
@@ -55,7 +53,7 @@ class CellProcesses:
     channel: str | None = None
     config: Path | None = None
     planner_seed: int | None = None
-    services: tuple[str, ...] = SERVICE_ORDER
+    services: tuple[str, ...] = SERVICES
     extra_args: dict[str, list[str]] = field(default_factory=dict)     # per process, appended to its argv
     procs: dict[str, subprocess.Popen] = field(default_factory=dict)
     port: int = 0
@@ -72,7 +70,7 @@ class CellProcesses:
     def _spawn(self, name: str, argv: list[str]) -> None:
         env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
         log = open(self.run / f"{name}.log", "w")
-        niceness = NICENESS.get(name, 0)
+        niceness = BY_NAME[name].niceness
 
         def prepare() -> None:
             die_with_parent()
@@ -103,17 +101,18 @@ class CellProcesses:
         from shared.transport.zenoh_session import await_liveliness
         from shared.wire.keys import KeySpace
 
-        bus = ["--interface", self.interface] + (["--channel", self.channel] if self.channel else [])
-        common = ["--prefix", self.prefix, "--log-level", "WARNING"] + \
-            (["--config", str(self.config)] if self.config else [])
-        self._spawn("hwsim", ["hwsim", *bus])
-        self._wait_line("hwsim", "hwsim: PRBT emulator", 30.0)
+        emulator = BY_NAME["hwsim"]
+        self._spawn(emulator.name, emulator.argv(interface=self.interface, channel=self.channel))
+        self._wait_line(emulator.name, emulator.ready, 30.0)
         for name in self.services:
-            listen = self.endpoint if name == "robot_driver" else f"tcp/127.0.0.1:{free_port()}"
-            extra = bus if name == "robot_driver" else ["--connect", self.endpoint]
+            program = BY_NAME[name]
+            extra = ["--log-level", "WARNING"] + (["--config", str(self.config)] if self.config else [])
             if name == "planner" and self.planner_seed is not None:
                 extra += ["--seed", str(self.planner_seed)]
-            self._spawn(name, [f"services.{name}", *common, "--listen", listen, *extra, *self.extra_args.get(name, [])])
+            listen = self.endpoint if program.hub else f"tcp/127.0.0.1:{free_port()}"
+            self._spawn(name, program.argv(interface=self.interface, channel=self.channel, prefix=self.prefix,
+                                           listen=listen, connect=self.endpoint,
+                                           extra=extra + self.extra_args.get(name, [])))
         keys = KeySpace(self.prefix)
         deadline = time.monotonic() + timeout
         for name in self.services:

@@ -35,6 +35,7 @@ from shared.wire.keys import KeySpace  # noqa: E402
 from shared.wire.messages import DriveLagReport, DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode  # noqa: E402
 from tests.util import free_port  # noqa: E402
 from tools.launch import die_with_parent  # noqa: E402
+from tools.programs import BY_NAME  # noqa: E402
 
 Q0 = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
 PERIOD = 0.01
@@ -63,33 +64,24 @@ class Cell:
                                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                             preexec_fn=die_with_parent)
 
+    def _start(self, name: str, *extra: str, timeout: float = 20.0) -> None:
+        """One program of the cell's table (tools.programs), started and waited for as the table says; peers
+        do not forward: each listens on its own port (the driver on the cell's), gossip meshes them."""
+        program = BY_NAME[name]
+        listen = f"tcp/127.0.0.1:{self.port if program.hub else free_port()}"
+        self._spawn(name, program.argv(interface=self.interface, channel=self.channel, prefix=self.keys.prefix,
+                                       listen=listen, connect=f"tcp/127.0.0.1:{self.port}",
+                                       extra=[*extra, "--log-level", "WARNING"] if program.on_zenoh else extra))
+        self._expect_line(name, program.ready, timeout=timeout)
+
     def start(self) -> None:
-        bus_args = ["--interface", self.interface] + (["--channel", self.channel] if self.channel else [])
-        self._spawn("hwsim", ["hwsim", *bus_args])
-        self._expect_line("hwsim", "hwsim: PRBT emulator")
-        self._spawn("driver", ["services.robot_driver", *bus_args, "--prefix", self.keys.prefix,
-                               "--listen", f"tcp/127.0.0.1:{self.port}", "--log-level", "WARNING"])
-        self._expect_line("driver", "robot_driver: drives up", timeout=30)
-        if self.with_scaler:        # peers do not forward: each listens on its own port, gossip meshes them
-            self._spawn("scaler", ["services.scaler", "--prefix", self.keys.prefix, "--listen",
-                                   f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
-                                   "--log-level", "WARNING"])
-            self._expect_line("scaler", "scaler:")
-        if self.with_tracker:
-            self._spawn("tracker", ["services.tracker_ingest", "--prefix", self.keys.prefix, "--listen",
-                                    f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
-                                    "--log-level", "WARNING"])
-            self._expect_line("tracker", "tracker_ingest:")
-        if self.with_tracker:
-            self._spawn("monitor", ["services.safety_monitor", "--prefix", self.keys.prefix, "--listen",
-                                    f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
-                                    "--log-level", "WARNING"])
-            self._expect_line("monitor", "safety_monitor:")
-        if self.with_planner:
-            self._spawn("planner", ["services.planner", "--prefix", self.keys.prefix, "--seed", "3", "--listen",
-                                    f"tcp/127.0.0.1:{free_port()}", "--connect", f"tcp/127.0.0.1:{self.port}",
-                                    "--log-level", "WARNING"])
-            self._expect_line("planner", "planner:")
+        self._start("hwsim")
+        self._start("robot_driver", timeout=30)
+        wanted = (("scaler", self.with_scaler), ("tracker_ingest", self.with_tracker),
+                  ("safety_monitor", self.with_tracker), ("planner", self.with_planner))
+        for name, on in wanted:
+            if on:
+                self._start(name, *(["--seed", "3"] if name == "planner" else []))
         self.session = open_session("peer", listen=[f"tcp/127.0.0.1:{free_port()}"],
                                     connect=[f"tcp/127.0.0.1:{self.port}"])
         self.cmd_pub = self.session.declare_publisher(self.keys.command)
@@ -349,17 +341,17 @@ def emulator_watchdog(cell: Cell) -> dict:
     ok_recover = recover(cell)
     cell.hold_until(lambda s: False, 0.2)                    # running, commands flowing
     t0 = time.monotonic()
-    cell.procs["driver"].send_signal(signal.SIGSTOP)        # SYNC and targets stop
+    cell.procs["robot_driver"].send_signal(signal.SIGSTOP)        # SYNC and targets stop
     time.sleep(0.5)
     with cell.lock:
         emcy = [(t - t0, node, code) for t, node, code in cell.emcy if t >= t0 and code]
-    cell.procs["driver"].send_signal(signal.SIGCONT)
+    cell.procs["robot_driver"].send_signal(signal.SIGCONT)
     time.sleep(0.5)
     nodes = sorted({node for _, node, code in emcy if code == 0x8100})
     first = min((t for t, _, code in emcy if code == 0x8100), default=None)
     return {"ok": ok_recover and nodes == list(NODE_IDS) and first is not None and first <= 0.06 + 0.05,
             "recovered_first": ok_recover, "sync_timeout_emcy_nodes": nodes, "first_after_s": first, "emcy": emcy[:8],
-            "driver_alive": cell.procs["driver"].poll() is None}
+            "driver_alive": cell.procs["robot_driver"].poll() is None}
 
 
 def garbage_frames(cell: Cell) -> dict:
@@ -413,7 +405,7 @@ def bad_messages(cell: Cell) -> dict:
         time.sleep(PERIOD)
     stops = [e.event for _, e in cell.events_since(t0) if e.severity == "stop"]
     return {"ok": ok_recover and cell.latest().enabled and not stops and len(cell.states) - before > 40
-            and cell.procs["driver"].poll() is None, "stops": stops, "states_published": len(cell.states) - before}
+            and cell.procs["robot_driver"].poll() is None, "stops": stops, "states_published": len(cell.states) - before}
 
 
 # ------------------------------------------------------------------ with the scaler (robot + scaling layer)

@@ -1,0 +1,123 @@
+"""The planning layer's cadence: when to plan what, the one loop the planner service and the simulation run.
+
+Each turn the loop is given what the planning layer knows at that moment (``PlanningInputs``: the goal,
+where the robot is, the people, the trajectory the scaler follows and where on it, the scaler's beta flag,
+how long it has been held) and takes at most one action, in this order:
+
+1. a new goal: from rest, ``Replanner.plan_goal`` (the direct line unless the searched path is predicted
+   faster); while a trajectory is being followed, a merge into it (Alg. 2, reason 'goal');
+2. a replan request (beta raised), at most every ``beta_cooldown``: ``Replanner.on_beta``;
+3. a new human sample, at most every ``horizon_period``: the horizon check (Alg. 1) and a merge when the
+   path ahead is blocked and the way round is predicted faster; after a refused one, the horizon is left
+   alone for half a beta cooldown (a blocked horizon is not hammered every sample).
+
+The outcome (``PlanningOutcome``) says what was done and what came of it: a trajectory to publish, or why
+none. Pure apart from the Replanner's own wall-clock budgets: no I/O, the clock is the caller's `now`
+(the service passes the monotonic clock, the simulation its simulated one).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import Trajectory
+from shared.planning.ompl_planner import PlanningError
+from shared.planning.replanner import ReplanFailed, Replanner, ReplanResult
+from shared.planning.timing import TimingError
+
+
+@dataclass(frozen=True)
+class PlanningInputs:
+    """What the planning layer knows at one moment.
+
+    goal: the goal configuration (rad; None: none yet). new_goal: it has not been planned for yet.
+    q: where the robot is (rad; None: not known yet). humans: the latest human state (None: none).
+    human_sample: a counter of human samples (a new value is a new sample). following: the trajectory the
+    scaler follows and its path parameter s, None when it follows none of ours or has finished it.
+    speed: the robot's joint speed (rad/s, max over joints; None: unknown). beta: the scaler asks for a
+    replan. waited: how long it has been asking (s, HoldClock). version: the number a new trajectory from
+    rest gets (above every version the scaler has followed)."""
+
+    goal: np.ndarray | None
+    new_goal: bool
+    q: np.ndarray | None
+    humans: HumanCapsules | None
+    human_sample: int
+    following: tuple[Trajectory, float] | None
+    speed: float | None
+    beta: bool
+    waited: float
+    version: int
+
+
+@dataclass(frozen=True)
+class PlanningOutcome:
+    """One action of the loop. action: 'goal', 'beta' or 'horizon'. result: the new trajectory (a goal from
+    rest comes as a ReplanResult with from_rest and junction 0), None when there is none: `refused` then says
+    why (None: nothing needed doing, the horizon was clear). searches: path searches the action ran (the
+    simulation charges planning time by them)."""
+
+    action: str
+    result: ReplanResult | None = None
+    refused: str | None = None
+    searches: int = 0
+
+
+class PlanningLoop:
+    """The cadence above around one Replanner. beta_replans False: the paper's ablation (beta ignored)."""
+
+    def __init__(self, replanner: Replanner, horizon_period: float = 0.02, beta_cooldown: float = 0.5,
+                 beta_replans: bool = True) -> None:
+        self.replanner = replanner
+        self.horizon_period, self.beta_cooldown, self.beta_replans = horizon_period, beta_cooldown, beta_replans
+        self.next_beta = self.next_horizon = -np.inf
+        self.last_sample: int | None = None
+
+    def step(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
+        """At most one planning action for this moment (see the module docstring); None when none is due."""
+        if inputs.goal is None or inputs.q is None:
+            return None
+        searches = self.replanner.searches
+        if inputs.new_goal:
+            return self._goal(inputs, searches)
+        if inputs.following is None:
+            return None
+        trajectory, s = inputs.following
+        if self.beta_replans and inputs.beta and now >= self.next_beta:
+            self.next_beta = now + self.beta_cooldown
+            try:
+                result = self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans, inputs.speed,
+                                                inputs.waited)
+            except ReplanFailed as exc:
+                return PlanningOutcome("beta", refused=str(exc), searches=self.replanner.searches - searches)
+            return PlanningOutcome("beta", result, searches=self.replanner.searches - searches)
+        if inputs.human_sample != self.last_sample and now >= self.next_horizon:
+            self.last_sample = inputs.human_sample
+            self.next_horizon = now + self.horizon_period
+            try:
+                result = self.replanner.on_horizon(trajectory, s, inputs.goal, inputs.humans, inputs.speed,
+                                                   inputs.waited)
+            except ReplanFailed as exc:
+                self.next_horizon = now + self.beta_cooldown / 2
+                return PlanningOutcome("horizon", refused=str(exc), searches=self.replanner.searches - searches)
+            if result is None:
+                return None
+            return PlanningOutcome("horizon", result, searches=self.replanner.searches - searches)
+        return None
+
+    def _goal(self, inputs: PlanningInputs, searches: int) -> PlanningOutcome:
+        try:
+            if inputs.following is None:
+                trajectory = self.replanner.plan_goal(inputs.q, inputs.goal, inputs.humans, inputs.version,
+                                                      inputs.waited)
+                result = ReplanResult(trajectory, 0.0, "goal", 0.0, from_rest=True)
+            else:
+                old, s = inputs.following
+                result = self.replanner.replan(old, s, inputs.goal, inputs.humans, "goal", waited=inputs.waited)
+        except (PlanningError, TimingError, ReplanFailed) as exc:
+            return PlanningOutcome("goal", refused=f"{type(exc).__name__}: {exc}",
+                                   searches=self.replanner.searches - searches)
+        return PlanningOutcome("goal", result, searches=self.replanner.searches - searches)

@@ -1,0 +1,170 @@
+"""The planning loop (the cadence both the planner service and the simulation run), and the planner
+service in-process on a fake shell: the same loop behind Zenoh."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from evidence.scenarios import Q_GOAL, Q_START
+from services.planner import PlannerService
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.planning.collision import CollisionModel
+from shared.planning.loop import PlanningInputs, PlanningLoop
+from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
+from shared.planning.replanner import ReplanFailed, Replanner, ReplanOptions, ReplanResult
+from shared.planning.scene import load_scene
+from shared.robot.model import default_robot
+from shared.safety.parameters import SsmParameters
+from shared.wire.convert import humans_to_msg
+from shared.wire.messages import Goal, JointState, SafetyEvent, ScalerStatus, TrajectoryMsg
+from tests.fake_shell import FakeShell
+
+ROBOT = default_robot()
+LIM = ROBOT.limits
+OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=3)
+
+
+class RecordingReplanner:
+    """Answers every call at once and records it: the loop's cadence is what is under test here."""
+
+    def __init__(self, horizon=None, beta_fails: bool = False, horizon_fails: bool = False) -> None:
+        self.calls: list[str] = []
+        self.searches = 0
+        self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
+
+    def _result(self, reason: str) -> ReplanResult:
+        self.searches += 1
+        return ReplanResult(OLD, 0.5, reason, 0.0)
+
+    def plan_goal(self, q, goal, humans, version, waited):
+        self.calls.append(f"plan_goal v{version}")
+        if np.allclose(goal, 99.0):
+            raise PlanningError("the goal is out of reach")
+        self.searches += 1
+        return OLD
+
+    def replan(self, old, s, goal, humans, reason, waited=0.0):
+        self.calls.append("replan")
+        return self._result(reason)
+
+    def on_beta(self, old, s, goal, humans, speed, waited):
+        self.calls.append("beta")
+        if self.beta_fails:
+            raise ReplanFailed("not 10 % faster")
+        return self._result("beta")
+
+    def on_horizon(self, old, s, goal, humans, speed, waited):
+        self.calls.append("horizon")
+        if self.horizon_fails:
+            raise ReplanFailed("blocked, no way round")
+        return self._result("horizon") if self.horizon else None
+
+
+def inputs(**changes) -> PlanningInputs:
+    base = dict(goal=Q_GOAL, new_goal=False, q=Q_START, humans=None, human_sample=0, following=(OLD, 0.2),
+                speed=1.0, beta=False, waited=0.0, version=4)
+    base.update(changes)
+    return PlanningInputs(**base)
+
+
+def test_nothing_is_planned_without_a_goal_or_a_known_position():
+    loop = PlanningLoop(RecordingReplanner(horizon=True))
+    assert loop.step(0.0, inputs(goal=None, new_goal=True)) is None
+    assert loop.step(0.0, inputs(q=None, new_goal=True)) is None
+    assert loop.replanner.calls == []
+
+
+def test_a_new_goal_comes_first_from_rest_or_merged_into_the_followed_trajectory():
+    loop = PlanningLoop(RecordingReplanner(horizon=True))
+    rest = loop.step(0.0, inputs(new_goal=True, following=None, beta=True))
+    assert rest.action == "goal" and rest.result.from_rest and rest.result.junction == 0.0 and rest.searches == 1
+    merged = loop.step(0.0, inputs(new_goal=True, beta=True))
+    assert merged.action == "goal" and not merged.result.from_rest
+    assert loop.replanner.calls == ["plan_goal v4", "replan"]
+
+
+def test_a_goal_that_cannot_be_planned_is_refused_with_the_reason():
+    outcome = PlanningLoop(RecordingReplanner()).step(0.0, inputs(goal=np.full(6, 99.0), new_goal=True, following=None))
+    assert outcome.action == "goal" and outcome.result is None
+    assert outcome.refused == "PlanningError: the goal is out of reach"
+
+
+def test_beta_is_answered_at_most_once_a_cooldown_and_before_the_horizon():
+    loop = PlanningLoop(RecordingReplanner(horizon=True), beta_cooldown=0.5)
+    assert loop.step(0.0, inputs(beta=True, human_sample=1)).action == "beta"
+    assert loop.step(0.1, inputs(beta=True, human_sample=1)).action == "horizon"   # beta cools down
+    assert loop.step(0.2, inputs(beta=True, human_sample=1)) is None               # same sample: nothing
+    assert loop.step(0.5, inputs(beta=True, human_sample=1)).action == "beta"
+    assert loop.replanner.calls == ["beta", "horizon", "beta"]
+
+
+def test_without_beta_replans_the_request_is_ignored():
+    loop = PlanningLoop(RecordingReplanner(), beta_replans=False)
+    assert loop.step(0.0, inputs(beta=True, human_sample=1)) is None      # the horizon is clear
+    assert loop.replanner.calls == ["horizon"]
+
+
+def test_the_horizon_is_checked_once_a_sample_at_most_every_period_and_backs_off_after_a_refusal():
+    loop = PlanningLoop(RecordingReplanner(horizon=True), horizon_period=0.02, beta_cooldown=0.5)
+    assert loop.step(0.00, inputs(human_sample=1)).action == "horizon"
+    assert loop.step(0.01, inputs(human_sample=2)) is None                 # within the period
+    assert loop.step(0.02, inputs(human_sample=2)).action == "horizon"
+    loop.replanner.horizon_fails = True
+    refused = loop.step(0.04, inputs(human_sample=3))
+    assert refused.result is None and refused.refused == "blocked, no way round"
+    assert loop.step(0.06, inputs(human_sample=4)) is None                 # backing off half a cooldown
+    assert loop.step(0.29, inputs(human_sample=5)).action == "horizon"
+    assert loop.replanner.calls == ["horizon"] * 4
+
+
+def test_a_finished_trajectory_is_not_replanned():
+    loop = PlanningLoop(RecordingReplanner(horizon=True))
+    assert loop.step(0.0, inputs(following=None, beta=True, human_sample=1)) is None
+    assert loop.replanner.calls == []
+
+
+# ------------------------------------------------------------------------ the service, in-process
+@pytest.fixture(scope="module")
+def replanner() -> Replanner:
+    collision = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
+    return Replanner(collision, JointPlanner(collision, PlannerOptions(seed=5)), SsmParameters(),
+                     options=ReplanOptions(seed=5))
+
+
+def test_the_planner_service_plans_a_goal_and_answers_beta_through_the_loop(replanner):
+    shell = FakeShell("planner")
+    service = PlannerService(shell, PlanningLoop(replanner))
+    keys = shell.keys
+    shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.zeros(6), drive_state="running", enabled=True,
+                                               fault=False))
+    shell.deliver(keys.goal, Goal(goal_id=7, name="q_g", q=Q_GOAL))
+    service.work_once(1.0)
+    sent = shell.published(keys.trajectory, TrajectoryMsg)
+    assert len(sent) == 1 and sent[0].goal_id == 7 and sent[0].base_version == -1 and sent[0].reason == "goal"
+    assert np.allclose(sent[0].positions[0], Q_START) and np.allclose(sent[0].positions[-1], Q_GOAL)
+    events = shell.published(keys.safety_events, SafetyEvent)
+    assert events[-1].event == "trajectory_goal" and events[-1].source == "planner"
+    # the scaler follows it and asks for a replan with a person's arm across the path
+    arm = HumanCapsules.from_arrays([[[-0.75, -0.15, 0.55], [-0.35, 0.15, 0.55]]], [0.05], np.zeros((1, 2, 3)),
+                                    [True])
+    shell.deliver(keys.human_state, humans_to_msg(arm, True, 1.5))
+    shell.deliver(keys.scaler_status, ScalerStatus(s=0.3, alpha=0.0, safe_alpha=0.0, beta=True, q_command=Q_START,
+                                                   trajectory_version=sent[0].version, status="running",
+                                                   method="piqp", min_separation=None, min_margin=None,
+                                                   compute_us=50.0))
+    service.work_once(2.0)
+    events = shell.published(keys.safety_events, SafetyEvent)
+    assert events[-1].event in ("trajectory_beta", "replan_refused")     # answered, one way or the other
+    assert "predicted" in events[-1].text            # the decision says both predicted times
+
+
+def test_the_planner_service_drops_bad_bytes_and_goes_on(replanner):
+    shell = FakeShell("planner")
+    service = PlannerService(shell, PlanningLoop(replanner))
+    shell.deliver(shell.keys.goal, b"\x93garbage")
+    shell.deliver(shell.keys.goal, Goal(goal_id=1, name="bad", q=np.full(6, 0.0)).__class__.__name__.encode())
+    assert shell.bad_messages == 2 and service.goal is None
+    service.work_once(0.0)
+    assert shell.published(shell.keys.trajectory, TrajectoryMsg) == []

@@ -1,0 +1,114 @@
+"""The cell's programs, described once: what each one runs, in which order, at which niceness, and how it
+joins the CAN bus and Zenoh.
+
+Three starters read this table and nothing else: supervisord's configuration for `hrc up`
+(``supervisord_conf``; ``deploy/supervisord.conf`` is its output, kept for integrators who run
+supervisord themselves, and a test keeps the two equal), the demo's launcher (``tools.launch``) and the
+hardware-in-the-loop harness (``tests/hil/harness.py``). Every Zenoh program is a peer listening on its
+own loopback port; all but the hub (the robot driver) connect to the hub's (peers do not forward; gossip
+meshes them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Program:
+    """One process of the cell. ready: a line its output holds once it is up (the bus programs, which
+    have no liveliness token to wait for, or whose bring-up must finish before the next starts)."""
+
+    name: str
+    module: str                    # run as `python -m <module>`
+    on_can: bool = False           # takes --interface (and --channel)
+    on_zenoh: bool = True          # takes --prefix, --listen and, unless it is the hub, --connect
+    hub: bool = False              # the endpoint every other peer connects to
+    niceness: int = 0              # outside the control path: yields the CPU to the safety chain
+    priority: int = 30             # supervisord's start order (lower first)
+    startsecs: int = 1             # supervisord counts a start as good after this long
+    ready: str = ""
+
+    def argv(self, *, interface: str, channel: str | None = None, prefix: str = "", listen: str = "",
+             connect: str = "", extra: tuple[str, ...] | list[str] = ()) -> list[str]:
+        """The arguments after `python -m`: the module and what this program needs to join the cell."""
+        args = [self.module]
+        if self.on_can:
+            args += ["--interface", interface] + (["--channel", channel] if channel else [])
+        if self.on_zenoh:
+            args += ["--prefix", prefix, "--listen", listen] + ([] if self.hub else ["--connect", connect])
+        return args + list(extra)
+
+
+# The planner (nice 10) and the monitor (nice 5) yield the CPU to the control path: on a small machine a
+# restarting planner (OMPL, compiled kernels) otherwise starved the driver's SYNC thread past the drives'
+# watchdog (found by hrc faults on a 2-core VM). The safety chain itself asks for SCHED_FIFO at start-up
+# (shared.scheduling).
+PROGRAMS: tuple[Program, ...] = (
+    Program("hwsim", "hwsim", on_can=True, on_zenoh=False, priority=10, ready="hwsim: PRBT emulator"),
+    Program("robot_driver", "services.robot_driver", on_can=True, hub=True, priority=20, startsecs=3,
+            ready="robot_driver: drives up"),
+    Program("tracker_ingest", "services.tracker_ingest", ready="tracker_ingest:"),
+    Program("scaler", "services.scaler", ready="scaler:"),
+    Program("planner", "services.planner", niceness=10, ready="planner:"),
+    Program("safety_monitor", "services.safety_monitor", niceness=5, ready="safety_monitor:"),
+)
+BY_NAME = {p.name: p for p in PROGRAMS}
+SERVICES = tuple(p.name for p in PROGRAMS if p.on_zenoh)        # in start order, the hub first
+
+_HEADER = """\
+; The whole cell under supervisord: the PRBT emulator and every service, restarted when they crash,
+; stopped cleanly (SIGTERM, then SIGKILL after stopwaitsecs) when supervisord stops. Generated from
+; tools/programs.py (the one description of the cell's programs; `hrc up` writes this into its run folder):
+; edit that table, not this file. `hrc up` starts it (inside a private network namespace when the CAN bus
+; is udp_multicast) with these variables set:
+;   HRC_RUN     a run folder (sockets, logs)       HRC_PYTHON  the interpreter of the installed project
+;   HRC_CAN     python-can interface               HRC_PREFIX  the cell's key prefix
+;   HRC_PORT    the first of six loopback ports (robot driver, then one per service)
+; The planner (nice 10) and the monitor (nice 5) yield the CPU to the control path.
+[supervisord]
+nodaemon=true
+logfile=%(ENV_HRC_RUN)s/supervisord.log
+pidfile=%(ENV_HRC_RUN)s/supervisord.pid
+childlogdir=%(ENV_HRC_RUN)s
+
+[unix_http_server]
+file=%(ENV_HRC_RUN)s/supervisor.sock
+
+[supervisorctl]
+serverurl=unix://%(ENV_HRC_RUN)s/supervisor.sock
+
+[rpcinterface:supervisor]
+supervisor.rpcinterface_factory = supervisor.rpcinterface:make_main_rpcinterface
+"""
+
+
+def _port(k: int) -> str:
+    return f"%(ENV_HRC_PORT{k if k else ''})s"
+
+
+def supervisord_conf() -> str:
+    """supervisord's configuration of the whole cell (the values come from HRC_* environment variables)."""
+    sections = [_HEADER]
+    zenoh = [p for p in PROGRAMS if p.on_zenoh]
+    for program in PROGRAMS:
+        port = _port(zenoh.index(program)) if program.on_zenoh else ""
+        argv = program.argv(interface="%(ENV_HRC_CAN)s", prefix="%(ENV_HRC_PREFIX)s",
+                            listen=f"tcp/127.0.0.1:{port}", connect=f"tcp/127.0.0.1:{_port(0)}")
+        nice = f"nice -n {program.niceness} " if program.niceness else ""
+        sections.append(f"""
+[program:{program.name}]
+command={nice}%(ENV_HRC_PYTHON)s -m {' '.join(argv)}
+priority={program.priority}
+startsecs={program.startsecs}
+autorestart=true
+stopsignal=TERM
+stopwaitsecs=5
+redirect_stderr=true
+stdout_logfile=%(ENV_HRC_RUN)s/{program.name}.log
+""")
+    return "".join(sections)
+
+
+if __name__ == "__main__":          # python -m tools.programs > deploy/supervisord.conf
+    print(supervisord_conf(), end="")
