@@ -25,8 +25,10 @@ from evidence.scenarios import Q_GOAL, Q_START, body_segments
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.decision import ReplanFailed
+from shared.planning.horizon import HorizonOptions, horizon_check
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
-from shared.planning.replanner import HorizonOptions, ReplanFailed, Replanner, ReplanOptions, horizon_check
+from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import load_scene
 from shared.planning.timing import TimingError, parameterize
 from shared.robot.model import default_robot

@@ -30,8 +30,9 @@ import numpy as np
 from evidence.scenarios import ScriptedHuman
 from shared.config import CellConfig
 from shared.core.trajectory import straight_line_trajectory
+from shared.planning.decision import HoldClock
 from shared.planning.loop import PlanningInputs, PlanningLoop, PlanningOutcome
-from shared.planning.replanner import HoldClock, Replanner
+from shared.planning.replanner import Replanner
 from shared.robot.model import RobotModel
 from shared.safety.monitor import MonitorResult, ReactionWindow, SafetyMonitor
 from shared.safety.ssm import pair_ssm

@@ -26,10 +26,11 @@ from shared.core.errors import HrcError
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.decision import HoldClock
 from shared.planning.loop import PlanningInputs, PlanningLoop
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import CELL_BUDGET, SearchOptions
-from shared.planning.replanner import HoldClock, Replanner, ReplanOptions
+from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import Scene, load_scene
 from shared.planning.timing import TimingError
 from shared.robot.model import default_robot

@@ -8,6 +8,8 @@ from evidence.scenarios import Q_GOAL, Q_START, body_segments
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.decision import HoldClock, ReplanFailed
+from shared.planning.horizon import HorizonOptions, horizon_check, people_passing
 from shared.planning.ompl_planner import (
     GoalInCollision,
     JointPlanner,
@@ -16,7 +18,7 @@ from shared.planning.ompl_planner import (
     PlannerOptions,
     StartInCollision,
 )
-from shared.planning.replanner import HoldClock, HorizonOptions, ReplanFailed, Replanner, ReplanOptions, horizon_check
+from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import load_scene
 from shared.planning.timing import TimingError, parameterize
 from shared.robot.model import default_robot
@@ -207,9 +209,9 @@ def test_a_person_crossing_out_of_the_path_is_waited_for_and_one_standing_in_it_
     leaving = HumanCapsules(seg, ARM_ACROSS.radii, np.tile([0.0, -2.0, 0.0], (2, 2, 1)), np.ones(2, bool))
     check = horizon_check(OLD, 0.0, CM, leaving, replanner.horizon)
     assert check.first_infeasible is not None                  # blocked now ...
-    assert replanner.passing(OLD, 0.0, check, leaving)         # ... but gone by the time the robot is there
+    assert people_passing(OLD, 0.0, check, leaving, CM)       # ... but gone by the time the robot is there
     assert replanner.on_horizon(OLD, 0.0, Q_GOAL, leaving) is None
-    assert not replanner.passing(OLD, 0.0, check, ARM_ACROSS)
+    assert not people_passing(OLD, 0.0, check, ARM_ACROSS, CM)
 
 
 def test_the_hold_clock_counts_only_while_the_scaler_keeps_asking():

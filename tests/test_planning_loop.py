@@ -11,9 +11,10 @@ from services.planner import PlannerService
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.decision import ReplanFailed, ReplanResult
 from shared.planning.loop import PlanningInputs, PlanningLoop
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
-from shared.planning.replanner import ReplanFailed, Replanner, ReplanOptions, ReplanResult
+from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import load_scene
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters

@@ -24,8 +24,9 @@ import numpy as np
 
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
+from shared.planning.decision import ReplanFailed, ReplanResult
 from shared.planning.ompl_planner import PlanningError
-from shared.planning.replanner import ReplanFailed, Replanner, ReplanResult
+from shared.planning.replanner import Replanner
 from shared.planning.timing import TimingError
 
 

@@ -1,19 +1,16 @@
-"""The planning layer's online part: horizon check (Alg. 1), replan and merge (Alg. 2), beta replans,
-all planning for time under the SSM.
+"""The planning layer's online part, the replanner: every new trajectory, planned for time under the SSM.
+The paper's pieces have their own modules: the horizon check (Alg. 1, ``shared.planning.horizon``), the
+splice of a merge (Alg. 2, ``shared.planning.merge``), the keep-or-replace rule
+(``shared.planning.decision``); when to call which is the planning loop's (``shared.planning.loop``).
 
-* ``horizon_check``: the next n configurations of the trajectory from the current path parameter (n and
-  spacing configurable), all checked at once against the latest human capsules; returns the first
-  infeasible one.
 * Every new path is the one a seeded search finds fastest under the SSM (``shared.planning.path_search`` on the
   time cost of ``shared.planning.time_cost``): a person near the direct line gets a small detour that keeps the
   robot out of their slowdown, or none when crawling past is quicker. RRT-Connect (``shared.planning.ompl_planner``)
   seeds the search only where no simple detour is free (a cluttered static scene).
-* Keep or replace: the old trajectory and the new one are both predicted by the same cost, from the
-  same moment, with the same people assumed to stay for ``patience`` plus the time the robot has already
-  been held (``HoldClock``; ski rental: once waiting has cost what the way round costs extra, go round).
-  A person who passes (tracked velocity) clears the old path in the prediction and is waited for; one
-  who stays makes it slow and is gone round. The reason, with both predicted times, is the result's
-  detail (the planner's event).
+* Keep or replace (``keep_or_replace``): both trajectories predicted by the same cost, from the same
+  moment, with the same people staying ``patience`` plus the time already held. A person who passes
+  (tracked velocity) clears the old path in the prediction and is waited for; one who stays makes it
+  slow and is gone round.
 * ``Replanner.plan_goal``: a new goal: the direct line (the exact trapezoid) unless the searched path is
   predicted faster.
 * ``Replanner.replan``: keeps the old trajectory unchanged up to a junction s_j, and from there follows
@@ -35,94 +32,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from shared.core.errors import HrcError
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory, polyline_trajectory, straight_line_trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace
+from shared.planning.horizon import HorizonOptions, horizon_check, people_passing
+from shared.planning.merge import merge
 from shared.planning.ompl_planner import JointPlanner, PlanningError
 from shared.planning.path_search import PathSearch, SearchOptions
 from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
 from shared.planning.timing import TimingError, parameterize
 from shared.safety.parameters import SsmParameters
-
-
-@dataclass(frozen=True)
-class HorizonOptions:
-    """samples: how many configurations ahead; spacing: nominal seconds between them."""
-
-    samples: int = 25
-    spacing: float = 0.04
-
-
-@dataclass(frozen=True)
-class HorizonResult:
-    s: np.ndarray                  # path parameters checked (nominal s)
-    clearance: np.ndarray          # clearance of each (m)
-    first_infeasible: int | None   # index into s, or None when all are feasible
-
-    @property
-    def last_feasible_s(self) -> float | None:
-        """s of the last feasible sample before the first infeasible one (None if the first is infeasible)."""
-        if self.first_infeasible is None:
-            return float(self.s[-1])
-        return None if self.first_infeasible == 0 else float(self.s[self.first_infeasible - 1])
-
-
-def horizon_check(trajectory: Trajectory, s: float, collision: CollisionModel, humans: HumanCapsules | None,
-                  options: HorizonOptions = HorizonOptions()) -> HorizonResult:
-    """Alg. 1: the first infeasible configuration among the next samples of the trajectory (one batch)."""
-    samples = np.minimum(s + options.spacing * np.arange(options.samples + 1), trajectory.duration)
-    samples = np.unique(samples)
-    q, _, _ = trajectory.sample(samples)
-    clearance = collision.clearances(q, humans)
-    bad = np.flatnonzero(clearance <= collision.margins.tolerance)
-    return HorizonResult(samples, clearance, int(bad[0]) if bad.size else None)
-
-
-def merge(old: Trajectory, s_junction: float, new_part: Trajectory, version: int) -> Trajectory:
-    """The old trajectory's knots up to s_junction (exactly, plus the junction itself), then new_part
-    shifted to start at s_junction. Continuity is the caller's: new_part must start at q(s_j), q'(s_j)."""
-    keep = old.times < s_junction - 1e-3    # a knot closer than 1 ms would make a needle-thin interval; the
-    # interval that replaces it, from exact values and tangents at both ends, is the same cubic
-    q_j, dq_j, _ = old.sample(float(s_junction))
-    times = np.concatenate([old.times[keep], [s_junction], s_junction + new_part.times[1:]])
-    positions = np.vstack([old.positions[keep], q_j, new_part.positions[1:]])
-    velocities = np.vstack([old.velocities[keep], dq_j, new_part.velocities[1:]])
-    return Trajectory(times, positions, velocities, version)
-
-
-@dataclass(frozen=True)
-class ReplanResult:
-    trajectory: Trajectory
-    junction: float       # s where the new trajectory starts to differ from the old one
-    reason: str           # 'horizon', 'beta' or 'goal'
-    plan_s: float         # wall time spent (s)
-    predicted: float = float("nan")   # its predicted time to the goal under the SSM (s)
-    baseline: float = float("nan")    # the old trajectory's, predicted the same way (s)
-    detail: str = ""
-    from_rest: bool = False   # True: a new trajectory from the robot's configuration at rest (junction =
-    # the s it was planned at); take it only while the robot is still there, with path speed 0
-
-
-class ReplanFailed(HrcError):
-    """No acceptable new trajectory; the old one stays (and the scaling layer keeps the robot safe)."""
-
-
-class HoldClock:
-    """How long the scaling layer has been asking for a replan (beta raised without a break), in s: the
-    `waited` of a prediction (Replanner.predicted_time). Pure; fed the beta flag of each status."""
-
-    def __init__(self) -> None:
-        self.since: float | None = None
-
-    def update(self, now: float, beta: bool) -> None:
-        if not beta:
-            self.since = None
-        elif self.since is None:
-            self.since = now
-
-    def waited(self, now: float) -> float:
-        return 0.0 if self.since is None else max(0.0, now - self.since)
 
 
 @dataclass(frozen=True)
@@ -334,33 +254,6 @@ class Replanner:
             baseline += float(np.max(v / (2.0 * self.limits.acceleration)))
         return baseline
 
-    def _decide(self, result: ReplanResult, baseline: float, gain: float, started: float, what: str) -> ReplanResult:
-        """Keep the new trajectory when its prediction beats the old one's by `gain`, else ReplanFailed;
-        either way the reason carries both predicted times."""
-        how = "from rest" if result.from_rest else f"merged at s={result.junction:.2f}"
-        if result.predicted <= (1.0 - gain) * baseline:
-            return ReplanResult(result.trajectory, result.junction, result.reason, time.perf_counter() - started,
-                                result.predicted, baseline, f"{what}, {how}: predicted {result.predicted:.2f} s "
-                                f"instead of {baseline:.2f} s", result.from_rest)
-        need = f"{100 * gain:.0f} % faster than" if gain > 0 else "faster than"
-        raise ReplanFailed(f"{what}, kept the old trajectory: the new one ({how}) predicted "
-                           f"{result.predicted:.2f} s, not {need} the old {baseline:.2f} s")
-
-    def passing(self, old: Trajectory, s_now: float, check: HorizonResult, humans: HumanCapsules) -> bool:
-        """The horizon is blocked now, but the people in the way are moving out of it: with their tracked
-        velocities, at the nominal time the robot would reach each blocked sample, none blocks any more
-        (a person crossing the path). Waiting for them (the scaling layer slows the robot as needed) is
-        then quicker than a detour."""
-        if humans is None or not humans.velocity_known.any():
-            return False
-        blocked = check.s[check.first_infeasible:]
-        q = old.sample(blocked)[0]
-        for qk, sk in zip(q, blocked):
-            later = humans.extrapolated(float(sk - s_now))
-            if self.collision.clearances(qk[None, :], later)[0] <= self.collision.margins.tolerance:
-                return False
-        return True
-
     def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                    speed_now: float | None = None, waited: float = 0.0) -> ReplanResult | None:
         """Alg. 1 + 2: None when the horizon is clear, or when the people in the way are passing
@@ -373,7 +266,7 @@ class Replanner:
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
         # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
         # a beta replan plans the way out, and only when it is predicted to pay)
-        if check.first_infeasible in (None, 0) or self.passing(old, s_now, check, humans):
+        if check.first_infeasible in (None, 0) or people_passing(old, s_now, check, humans, self.collision):
             return None
         blocked = float(check.s[check.first_infeasible])
         at_rest = speed_now is not None and speed_now < self.options.rest_speed
@@ -385,7 +278,7 @@ class Replanner:
             if s_branch is None or s_branch < s_now + self.options.lead:
                 s_branch = min(old.duration, s_now + self.options.lead)
             result = self.replan(old, s_now, q_goal, humans, "horizon", s_branch, waited)
-        return self._decide(result, baseline, 0.0, started, f"path blocked at s={blocked:.2f}")
+        return keep_or_replace(result, baseline, 0.0, started, f"path blocked at s={blocked:.2f}")
 
     def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                 speed_now: float | None = None, waited: float = 0.0) -> ReplanResult:
@@ -407,4 +300,4 @@ class Replanner:
             stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
             s_branch = min(old.duration, s_now + self.options.lead + stopping)
             result = self.replan(old, s_now, q_goal, humans, "beta", s_branch, waited)
-        return self._decide(result, baseline, self.options.min_gain, started, "replan request")
+        return keep_or_replace(result, baseline, self.options.min_gain, started, "replan request")
