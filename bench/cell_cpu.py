@@ -31,7 +31,8 @@ from evidence.scenarios import make_scenario  # noqa: E402
 from shared.transport.zenoh_session import open_session  # noqa: E402
 from shared.wire.keys import KeySpace  # noqa: E402
 from tools.actors import HumanFeed, Recorder, Shuttle  # noqa: E402
-from tools.demo import choose_bus, reexec_in_namespace  # noqa: E402
+from tools.cell import choose_bus  # noqa: E402
+from tools.demo import reexec_in_namespace  # noqa: E402
 from tools.launch import CellProcesses, free_port  # noqa: E402
 from tools.report import Recording  # noqa: E402
 

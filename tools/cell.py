@@ -27,6 +27,12 @@ ROOT = Path(__file__).resolve().parents[1]
 NAMESPACE_SETUP = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$@\""
 
 
+def choose_bus() -> tuple[str, str | None]:
+    """(interface, channel) of the cell's CAN bus: kernel CAN when vcan0 exists, else udp_multicast (which
+    needs a private network namespace)."""
+    return ("socketcan", "vcan0") if os.path.exists("/sys/class/net/vcan0") else ("udp_multicast", None)
+
+
 def unshare_flags() -> str:
     """-n for root (a network namespace alone: the processes keep the right to SCHED_FIFO, which a new user
     namespace takes away), else -rn (unprivileged: a user namespace too)."""

@@ -343,11 +343,10 @@ def _session(args: argparse.Namespace):
 
 
 def cmd_up(args: argparse.Namespace) -> int:
-    import os
 
-    from tools.cell import run_dir, up
+    from tools.cell import choose_bus, run_dir, up
 
-    interface = args.interface or ("socketcan" if os.path.exists("/sys/class/net/vcan0") else "udp_multicast")
+    interface = args.interface or choose_bus()[0]
     if not 1024 <= args.port <= 65530:
         print(f"hrc up: error: --port must be in 1024..65530, got {args.port}", file=sys.stderr)
         return 2

@@ -26,15 +26,11 @@ from shared.transport.zenoh_session import open_session
 from shared.wire.keys import KeySpace
 from shared.wire.messages import JointState, ScalerStatus
 from tools.actors import HumanFeed, Recorder, Shuttle
+from tools.cell import choose_bus
 from tools.launch import CellProcesses, LaunchError, free_port
 from tools.report import Recording, write_report
 
 PREFIX = "hrc/demo"
-
-
-def choose_bus() -> tuple[str, str | None]:
-    """Kernel CAN when vcan0 exists, else udp_multicast (which needs a private network namespace)."""
-    return ("socketcan", "vcan0") if os.path.exists("/sys/class/net/vcan0") else ("udp_multicast", None)
 
 
 def reexec_in_namespace(argv: list[str], pass_fds: tuple[int, ...] = ()) -> int | None:

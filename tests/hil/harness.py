@@ -28,6 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+from evidence.scenarios import Q_GOAL, Q_START  # noqa: E402
 from shared.drives.bus import open_bus  # noqa: E402
 from shared.drives.prbt import EDS_PATH, NODE_IDS  # noqa: E402
 from shared.transport.zenoh_session import await_liveliness, open_session  # noqa: E402
@@ -37,7 +38,7 @@ from tests.util import free_port  # noqa: E402
 from tools.launch import die_with_parent  # noqa: E402
 from tools.programs import BY_NAME  # noqa: E402
 
-Q0 = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+Q0 = Q_START
 PERIOD = 0.01
 
 
@@ -488,7 +489,7 @@ def system_near_human(cell: Cell) -> dict:
     # human data flows again) ends first; a new one published mid-motion would make the drives reverse
     # (the planner service never does that: it merges)
     _wait(lambda: np.abs(cell.latest().qd).max() < 1e-3, 5.0)
-    goal = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+    goal = Q_GOAL.copy()
     traj = _publish_trajectory(cell, goal, 5)
     reached = _wait(lambda: np.abs(cell.latest().q - goal).max() < 0.005, traj.duration * 8)
     time.sleep(1.2)
@@ -535,7 +536,7 @@ def system_replan(cell: Cell) -> dict:
     robot = default_robot()
     feed = HumanFeed(cell)
     _wait(lambda: cell.latest().enabled, 5.0)
-    goal = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+    goal = Q_GOAL.copy()
     arm = HumanCapsules.from_arrays([[[-0.75, -0.15, 0.55], [-0.35, 0.15, 0.55]],
                                      [[-1.0, -0.2, 0.9], [-1.0, -0.2, 1.45]]], [0.05, 0.17],
                                     np.zeros((2, 2, 3)), [True, True])

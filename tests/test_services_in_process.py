@@ -1,0 +1,129 @@
+"""The scaler, tracker_ingest and the safety monitor as service classes, in-process on a fake shell (the real
+ServiceShell over an in-memory session): their handling of every input, the messages they publish, and
+bad input dropped with the service going on. The multi-process tests (test_system, test_demo_processes)
+run the same classes over Zenoh."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from evidence.scenarios import Q_GOAL, Q_START
+from services.safety_monitor import MonitorService
+from services.scaler import Scaler
+from services.tracker_ingest import TrackerIngest
+from shared.config import CellConfig
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.robot.model import default_robot
+from shared.safety.monitor import SafetyMonitor
+from shared.scaling.layer import ScalingLayer
+from shared.tracking.tracker import HumanTracker, TrackerParameters
+from shared.wire.convert import humans_to_msg, trajectory_to_msg
+from shared.wire.messages import HumanRaw, HumanState, JointCommand, JointState, MonitorReport, SafetyEvent, ScalerStatus
+from tests.fake_shell import FakeShell
+
+ROBOT = default_robot()
+CONFIG = CellConfig()
+LIM = ROBOT.limits
+FAR = HumanCapsules.from_arrays([[[-3.0, 0.0, 0.9], [-3.0, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
+
+
+def joint_state(q, enabled: bool = True) -> JointState:
+    return JointState(q=np.asarray(q, float), qd=np.zeros(6), drive_state="running:operation_enabled",
+                      enabled=enabled, fault=False, stamp=time.monotonic())
+
+
+# ---------------------------------------------------------------------------------------------- scaler
+def test_the_scaler_follows_a_fresh_trajectory_and_publishes_a_command_and_a_status_each_tick():
+    shell = FakeShell("scaler")
+    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, CONFIG.scaling))
+    keys = shell.keys
+    shell.deliver(keys.joint_state, joint_state(Q_START))
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    for k in range(30):
+        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now + k * 0.01))
+        scaler.tick(now + k * 0.01)
+    commands = shell.published(keys.command, JointCommand)
+    statuses = shell.published(keys.scaler_status, ScalerStatus)
+    assert len(commands) == len(statuses) == 30
+    assert scaler.version == 1 and statuses[-1].trajectory_version == 1
+    assert statuses[-1].s > 0.0 and statuses[-1].alpha > 0.9            # nobody near: full speed
+    assert not np.allclose(commands[-1].q, Q_START)                       # moving along the shuttle
+
+
+def test_the_scaler_stops_the_robot_on_stale_human_data():
+    shell = FakeShell("scaler")
+    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, CONFIG.scaling))
+    keys = shell.keys
+    shell.deliver(keys.joint_state, joint_state(Q_START))
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+    for k in range(60):                     # no new human sample for 0.6 s (the timeout is 0.05 s)
+        scaler.tick(now + k * 0.01)
+    last = shell.published(keys.scaler_status, ScalerStatus)[-1]
+    assert last.alpha == 0.0 and last.status == "stale_human_data"
+
+
+def test_the_scaler_refuses_a_merge_into_a_trajectory_it_does_not_follow_and_drops_garbage():
+    shell = FakeShell("scaler")
+    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, CONFIG.scaling))
+    keys = shell.keys
+    shell.deliver(keys.joint_state, joint_state(Q_START))
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=5)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "beta", 0.4, base_version=3))
+    shell.deliver(keys.trajectory, b"\xc1 not msgpack")
+    shell.deliver(keys.human_state, b"")
+    scaler.tick(time.monotonic())
+    assert scaler.version == -1 and shell.bad_messages == 2
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].trajectory_version == -1    # holding
+
+
+# -------------------------------------------------------------------------------------- tracker_ingest
+def test_tracker_ingest_publishes_each_sample_with_velocities_and_announces_a_dropout():
+    shell = FakeShell("tracker_ingest")
+    service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=0.04, dropout=0.05)))
+    keys = shell.keys
+    t0 = time.monotonic()
+    for k in range(10):                     # one capsule walking at 1 m/s along x
+        x = -2.0 + 0.01 * k
+        shell.deliver(keys.human_raw, HumanRaw(source="test", sample_time=t0 + 0.01 * k,
+                                               segments=np.array([[[x, 0.0, 0.9], [x, 0.0, 1.5]]]),
+                                               radii=np.array([0.2])))
+    states = shell.published(keys.human_state, HumanState)
+    assert len(states) == 10 and all(s.valid for s in states)
+    assert np.allclose(states[-1].velocities[0, :, 0], 1.0, atol=0.05) and states[-1].velocity_known[0]
+    service.check(time.monotonic())         # its 100 Hz check: tracking
+    assert [e.event for e in shell.published(keys.safety_events, SafetyEvent)] == ["tracker_ok"]
+    service.check(time.monotonic() + 1.0)   # nothing for a second
+    assert not shell.published(keys.human_state, HumanState)[-1].valid
+    event = shell.published(keys.safety_events, SafetyEvent)[-1]
+    assert event.event == "tracker_dropout" and event.severity == "stop"
+    shell.deliver(keys.human_raw, b"\x80")  # an empty map: not a message
+    assert shell.bad_messages == 1
+
+
+# ------------------------------------------------------------------------------------------ the monitor
+def test_the_monitor_checks_states_paired_with_people_and_counts_the_rest_unchecked():
+    shell = FakeShell("safety_monitor")
+    service = MonitorService(shell, SafetyMonitor(ROBOT, CONFIG.ssm))
+    keys = shell.keys
+    now = time.monotonic()
+    shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.full(6, 0.2), drive_state="running", enabled=True,
+                                               fault=False, stamp=now - 0.9))      # nobody known then
+    for k in range(5):
+        t = now - 0.05 + 0.01 * k
+        shell.deliver(keys.human_state, humans_to_msg(FAR, True, t))
+        shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.full(6, 0.2), drive_state="running",
+                                                   enabled=True, fault=False, stamp=t))
+    service.check_pass(now + 0.2)
+    assert service.checks >= 4 and service.violations == 0 and service.unchecked >= 1
+    service.summary()
+    report = shell.published(keys.monitor, MonitorReport)[-1]
+    assert report.checks == service.checks and report.unchecked == service.unchecked and report.violations == 0
+    assert shell.published(keys.safety_events, SafetyEvent)[-1].event == "monitor_summary"
