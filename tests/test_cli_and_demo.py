@@ -11,6 +11,7 @@ from evidence.scenarios import Q_GOAL, Q_START, paper_phases
 from evidence.sim import run_shuttle
 from shared.config import CellConfig
 from shared.robot.model import default_robot
+from tests.util import run_hrc
 
 
 def hrc(*args):
@@ -34,13 +35,13 @@ def test_demo_runs_and_prints_a_json_summary(tmp_path):
     (["fly"], "invalid choice"),
 ])
 def test_bad_arguments_exit_nonzero_with_a_clear_message(args, text):
-    out = hrc(*args)
+    out = run_hrc(*args)
     assert out.returncode == 2
     assert text in out.stderr and "Traceback" not in out.stderr
 
 
 def test_help_teaches_the_commands():
-    out = hrc("--help")
+    out = run_hrc("--help")
     assert out.returncode == 0 and "hrc demo" in out.stdout
 
 

@@ -4,8 +4,6 @@ returns a valid object or raises the project's ConfigError naming what is wrong;
 with a message, never a traceback."""
 
 import json
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
@@ -18,6 +16,7 @@ from shared.config import load_config
 from shared.core.errors import ConfigError
 from shared.planning.scene import load_scene
 from shared.tracking.motion import load_replay, parse_csv, parse_json
+from tests.util import run_hrc
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -88,11 +87,6 @@ def test_every_loader_takes_raw_bytes(payload, loader_suffix):
     _loads(loader, payload, suffix)
 
 
-def hrc(*args):
-    return subprocess.run([sys.executable, "-m", "tools.cli", *args], capture_output=True, text=True, timeout=60,
-                          cwd=ROOT)
-
-
 @pytest.mark.parametrize("args", [
     ["goal"], ["goal", "1", "2"], ["goal", "a", "b", "c", "d", "e", "f"], ["goal", "9", "0", "0", "0", "0", "0"],
     ["goal", "nowhere"], ["goal", "q_g", "--timeout", "-1"], ["goal", "q_g", "--prefix", "bad/*/prefix"],
@@ -107,7 +101,7 @@ def hrc(*args):
     ["--bogus"], [],
 ])
 def test_every_command_refuses_bad_arguments_clearly(args):
-    out = hrc(*args)
+    out = run_hrc(*args)                     # in-process: an escaping exception fails here
     assert out.returncode != 0, (args, out.stdout)
     assert "Traceback" not in out.stderr, (args, out.stderr)
     assert out.stderr.strip() or out.stdout.strip(), args

@@ -1,14 +1,18 @@
-"""Helpers the tests share: a free loopback port, and the private network namespace the multi-process
-tests need (they skip, saying why and what covers the same behaviour, where it cannot be made)."""
+"""Helpers the tests share: a free loopback port, `hrc` run in-process, and the private network namespace the
+multi-process tests need (they skip, saying why and what covers the same behaviour, where it cannot be made)."""
 
 from __future__ import annotations
+
+import contextlib
+import io
+from dataclasses import dataclass
 
 import pytest
 
 from tools.cell import namespace_reason
 from tools.launch import free_port
 
-__all__ = ["free_port", "namespace_reason", "require_namespace"]
+__all__ = ["CliRun", "free_port", "namespace_reason", "require_namespace", "run_hrc"]
 
 
 def require_namespace(covered_by: str) -> None:
@@ -17,3 +21,26 @@ def require_namespace(covered_by: str) -> None:
     if reason:
         print(f"SKIP: no private network namespace ({reason}); {covered_by}")
         pytest.skip(reason)
+
+
+@dataclass
+class CliRun:
+    """What `hrc` printed and returned, as subprocess.CompletedProcess names it."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def run_hrc(*args: str) -> CliRun:
+    """`hrc ARGS` in this process, through tools.cli.main(argv): its exit code (argparse's SystemExit too)
+    and what it printed. An exception it lets escape fails the calling test, as a traceback would."""
+    from tools.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(list(args))
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    return CliRun(int(code or 0), out.getvalue(), err.getvalue())
