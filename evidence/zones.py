@@ -99,5 +99,7 @@ class ZoneScalingLayer(ScalingLayer):
         self.sdot = alpha
         self.s = min(self.s + alpha * self.params.period, traj.duration)
         q_c, dq_c, _ = traj.sample(self.s)
-        return ScalingStep(alpha, target, False, self.s, alpha, q_c, dq_c * alpha, status, "zones", traj.version,
-                           separation, math.inf, (time.perf_counter() - start) * 1e6)
+        return ScalingStep(alpha=alpha, safe_alpha=target, beta=False, s=self.s, sdot=alpha, q_command=q_c,
+                           qd_command=dq_c * alpha, status=status, method="zones", trajectory_version=traj.version,
+                           min_separation=separation, min_margin=math.inf,
+                           compute_us=(time.perf_counter() - start) * 1e6)

@@ -66,7 +66,7 @@ class StepStatus(str, enum.Enum):
     STALE_HUMAN_DATA = "stale_human_data"
 
 
-@dataclass(slots=True)
+@dataclass(slots=True, kw_only=True)
 class ScalingStep:
     """One cycle's result. alpha: path speed scaling in [0, 1]; safe_alpha: the largest alpha the hard
     rows allow; beta: replan request; s: path parameter after the step; q_command, qd_command: joint
@@ -195,8 +195,9 @@ class ScalingLayer:
         traj = self.trajectory
         if traj is None:
             q_hold = np.zeros(self.robot.nq) if q_measured is None else np.asarray(q_measured, dtype=float)
-            return ScalingStep(0.0, 0.0, False, 0.0, 0.0, q_hold, np.zeros(self.robot.nq), StepStatus.NO_TRAJECTORY,
-                               "none", -1, math.inf, math.inf, 0.0)
+            return ScalingStep(alpha=0.0, safe_alpha=0.0, beta=False, s=0.0, sdot=0.0, q_command=q_hold,
+                               qd_command=np.zeros(self.robot.nq), status=StepStatus.NO_TRAJECTORY, method="none",
+                               trajectory_version=-1, min_separation=math.inf, min_margin=math.inf, compute_us=0.0)
         q_nom, dq, ddq = traj.sample(self.s)
         q_kin = q_nom if q_measured is None else np.asarray(q_measured, dtype=float)
         running = self.s < traj.duration
@@ -225,5 +226,7 @@ class ScalingLayer:
         self.sdot = alpha if running else 0.0
         self.s = min(self.s + self.sdot * self.params.period, traj.duration)
         q_c, dq_c, _ = traj.sample(self.s)
-        return ScalingStep(alpha, safe_alpha, self.beta, self.s, self.sdot, q_c, dq_c * self.sdot, status, method,
-                           traj.version, min_sep, min_margin, (time.perf_counter() - start) * 1e6)
+        return ScalingStep(alpha=alpha, safe_alpha=safe_alpha, beta=self.beta, s=self.s, sdot=self.sdot, q_command=q_c,
+                           qd_command=dq_c * self.sdot, status=status, method=method, trajectory_version=traj.version,
+                           min_separation=min_sep, min_margin=min_margin,
+                           compute_us=(time.perf_counter() - start) * 1e6)
