@@ -64,6 +64,7 @@ class ReplanOptions:
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
     lead: float = 0.1
     min_gain: float = 0.10
+    min_saving: float = 0.25
     rest_speed: float = 0.02
     patience: float = 1.5
     rrt_budget: float = 0.2
@@ -300,4 +301,5 @@ class Replanner:
             stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
             s_branch = min(old.duration, s_now + self.options.lead + stopping)
             result = self.replan(old, s_now, q_goal, humans, "beta", s_branch, waited)
-        return keep_or_replace(result, baseline, self.options.min_gain, started, "replan request")
+        gain = min(self.options.min_gain, self.options.min_saving / max(baseline, 1e-9))
+        return keep_or_replace(result, baseline, gain, started, "replan request")
