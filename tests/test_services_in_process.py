@@ -36,11 +36,16 @@ def joint_state(q, enabled: bool = True) -> JointState:
 
 
 # ---------------------------------------------------------------------------------------------- scaler
-def test_the_scaler_follows_a_fresh_trajectory_and_publishes_a_command_and_a_status_each_tick():
+def scaler_at_start() -> tuple[FakeShell, Scaler, object]:
+    """A scaler on a fake shell, told that the robot stands at q_s and follows commands."""
     shell = FakeShell("scaler")
     scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, CONFIG.scaling))
-    keys = shell.keys
-    shell.deliver(keys.joint_state, joint_state(Q_START))
+    shell.deliver(shell.keys.joint_state, joint_state(Q_START))
+    return shell, scaler, shell.keys
+
+
+def test_the_scaler_follows_a_fresh_trajectory_and_publishes_a_command_and_a_status_each_tick():
+    shell, scaler, keys = scaler_at_start()
     traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
     shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
     now = time.monotonic()
@@ -56,10 +61,7 @@ def test_the_scaler_follows_a_fresh_trajectory_and_publishes_a_command_and_a_sta
 
 
 def test_the_scaler_stops_the_robot_on_stale_human_data():
-    shell = FakeShell("scaler")
-    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, CONFIG.scaling))
-    keys = shell.keys
-    shell.deliver(keys.joint_state, joint_state(Q_START))
+    shell, scaler, keys = scaler_at_start()
     traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
     shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
     now = time.monotonic()
@@ -71,10 +73,7 @@ def test_the_scaler_stops_the_robot_on_stale_human_data():
 
 
 def test_the_scaler_refuses_a_merge_into_a_trajectory_it_does_not_follow_and_drops_garbage():
-    shell = FakeShell("scaler")
-    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, CONFIG.scaling))
-    keys = shell.keys
-    shell.deliver(keys.joint_state, joint_state(Q_START))
+    shell, scaler, keys = scaler_at_start()
     traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=5)
     shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "beta", 0.4, base_version=3))
     shell.deliver(keys.trajectory, b"\xc1 not msgpack")
