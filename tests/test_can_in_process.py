@@ -1,0 +1,111 @@
+"""The robot driver and the PRBT emulator in one process on python-can's `virtual` bus (no namespace, no
+kernel CAN): the driver's CANopen master brings the emulated drives up over SDO and NMT, the Driver class
+(on a fake Zenoh shell) enables them, follows commands and publishes joint states. The same classes run
+as processes over udp_multicast in the HIL tests."""
+
+from __future__ import annotations
+
+import random
+import threading
+import time
+
+import canopen
+import numpy as np
+import pytest
+
+from evidence.scenarios import Q_START
+from hwsim.emulator import EmulatedNode, build_limits
+from services.robot_driver import CanMaster, Driver
+from shared.config import CellConfig
+from shared.drives.bus import open_bus
+from shared.drives.driver_core import DriverCore
+from shared.drives.prbt import NODE_IDS, PERIOD
+from shared.robot.model import default_robot
+from shared.safety.latency import DriveLagMeter, LatencyMeter
+from shared.wire.messages import JointCommand, JointState, SafetyEvent
+from tests.fake_shell import FakeShell
+
+
+@pytest.fixture
+def drives():
+    """Six emulated drives and the driver's master on one virtual channel; the SYNC handler as hwsim's."""
+    channel = f"hrc-test-{random.randrange(1 << 30)}"
+    emulator = canopen.Network(open_bus("virtual", channel))
+    emulator.connect()
+    nodes = [EmulatedNode(emulator, nid, lim, float(q), random.Random(0))
+             for nid, lim, q in zip(NODE_IDS, build_limits(PERIOD), Q_START)]
+    emulator.subscribe(0x80, lambda can_id, data, ts: [n.on_sync(time.monotonic()) for n in nodes])
+    master = CanMaster(open_bus("virtual", channel))
+    try:
+        master.bring_up(timeout=5.0)
+        yield master, nodes
+    finally:
+        master.shutdown()
+        emulator.disconnect()
+
+
+def sync_and_wait(driver: Driver, answered: threading.Event) -> None:
+    """One SYNC period of the driver (on the clock its command handler stamps commands with), then wait
+    until every drive has answered that SYNC."""
+    answered.clear()
+    driver.cycle(time.monotonic())
+    assert answered.wait(2.0), "the drives did not answer the SYNC"
+
+
+def test_bring_up_reads_identity_and_sets_interpolated_position_mode(drives):
+    master, nodes = drives
+    assert [i["node"] for i in master.identity] == list(NODE_IDS)
+    assert all(n.drive.mode == 7 for n in nodes)          # 0x6060 written over SDO, checked on 0x6061
+    assert all(n.node.nmt.state == "OPERATIONAL" for n in nodes)
+
+
+def test_the_driver_enables_the_drives_and_follows_commands(drives):
+    master, nodes = drives
+    shell = FakeShell("robot_driver")
+    config = CellConfig()
+    driver = Driver(master, DriverCore(default_robot().limits, PERIOD), shell, PERIOD,
+                    LatencyMeter(config.ssm.reaction_time), DriveLagMeter(config.ssm.drive_lag))
+    answered = threading.Event()
+    publish = driver.publish_state
+    master.on_complete = lambda q, qd: (publish(q, qd), answered.set())
+    q = Q_START.copy()
+    for k in range(40):                      # hold q_s: the core walks the drives to operation enabled
+        shell.deliver(shell.keys.command, JointCommand(q=q, qd=np.zeros(6), trajectory_version=1, s=0.0,
+                                                       stamp=time.monotonic()))
+        sync_and_wait(driver, answered)
+    assert driver.core.mode.value == "running"
+    states = shell.published(shell.keys.joint_state, JointState)
+    assert states[-1].enabled and np.allclose(states[-1].q, Q_START, atol=1e-3)
+    for k in range(40, 140):                 # joint 1 at 0.5 rad/s for one second
+        q = q.copy()
+        q[0] -= 0.5 * PERIOD
+        shell.deliver(shell.keys.command, JointCommand(q=q, qd=np.array([-0.5, 0, 0, 0, 0, 0]), trajectory_version=1,
+                                                       s=0.0, stamp=time.monotonic()))
+        sync_and_wait(driver, answered)
+    last = shell.published(shell.keys.joint_state, JointState)[-1]
+    assert last.q[0] == pytest.approx(Q_START[0] - 0.5, abs=0.02)        # one period behind at most
+    assert not [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
+    assert nodes[0].drive.position == pytest.approx(last.q[0], abs=1e-3)
+
+
+def test_a_drive_fault_stops_the_driver_with_the_emcy(drives):
+    master, nodes = drives
+    shell = FakeShell("robot_driver")
+    config = CellConfig()
+    driver = Driver(master, DriverCore(default_robot().limits, PERIOD), shell, PERIOD,
+                    LatencyMeter(config.ssm.reaction_time), DriveLagMeter(config.ssm.drive_lag))
+    answered = threading.Event()
+    master.on_complete = lambda q, qd: answered.set()
+    for k in range(40):
+        shell.deliver(shell.keys.command, JointCommand(q=Q_START, qd=np.zeros(6), trajectory_version=1, s=0.0,
+                                                       stamp=time.monotonic()))
+        sync_and_wait(driver, answered)
+    assert driver.core.mode.value == "running"
+    master.nodes[2].sdo[0x2F00][4].raw = 1   # the fault injection of node 5 (joint 3)
+    for k in range(40, 45):
+        shell.deliver(shell.keys.command, JointCommand(q=Q_START, qd=np.zeros(6), trajectory_version=1, s=0.0,
+                                                       stamp=time.monotonic()))
+        sync_and_wait(driver, answered)
+    stops = [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
+    assert stops and stops[0].event in ("emcy", "drive_fault") and "joint 3" in stops[0].text
+    assert driver.core.mode.value == "stopped"
