@@ -11,7 +11,7 @@ from services.planner import PlannerService
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
-from shared.planning.decision import ReplanFailed, ReplanResult
+from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
 from shared.planning.loop import PlanningInputs, PlanningLoop
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.replanner import Replanner, ReplanOptions
@@ -169,3 +169,24 @@ def test_the_planner_service_drops_bad_bytes_and_goes_on(replanner):
     assert shell.bad_messages == 2 and service.goal is None
     service.work_once(0.0)
     assert shell.published(shell.keys.trajectory, TrajectoryMsg) == []
+
+
+# ------------------------------------------------------------------------------ the keep-or-replace rule
+def _result(predicted: float) -> ReplanResult:
+    return ReplanResult(OLD, 0.5, "beta", 0.0, predicted)
+
+
+def test_a_replan_is_kept_only_when_predicted_faster_by_the_required_gain_and_says_both_times():
+    kept = keep_or_replace(_result(3.0), 3.5, 0.10, 0.0, "replan request")
+    assert kept.detail.endswith("predicted 3.00 s instead of 3.50 s") and kept.baseline == 3.5
+    with pytest.raises(ReplanFailed, match=r"predicted 3.40 s, not 10 % faster than the old 3.50 s"):
+        keep_or_replace(_result(3.4), 3.5, 0.10, 0.0, "replan request")
+
+
+def test_a_fixed_saving_is_enough_once_the_predicted_wait_is_long():
+    assert required_gain(2.0, 0.10, 0.25) == pytest.approx(0.10)            # short: 10 % (0.2 s) it is
+    assert required_gain(5.0, 0.10, 0.25) == pytest.approx(0.05)            # long: 0.25 s is enough
+    gain = required_gain(3.37, 0.10, 0.25)
+    assert keep_or_replace(_result(3.10), 3.37, gain, 0.0, "replan request").predicted == 3.10
+    with pytest.raises(ReplanFailed):
+        keep_or_replace(_result(3.10), 3.37, 0.10, 0.0, "replan request")   # what min_gain alone refused

@@ -35,7 +35,7 @@ import numpy as np
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory, polyline_trajectory, straight_line_trajectory
 from shared.planning.collision import CollisionModel
-from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace
+from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
 from shared.planning.horizon import HorizonOptions, horizon_check, people_passing
 from shared.planning.merge import merge
 from shared.planning.ompl_planner import JointPlanner, PlanningError
@@ -50,7 +50,8 @@ class ReplanOptions:
     """lookback: nominal seconds of old path kept ahead of the branch point as room to slow down (and
     tried further back when a turn is too sharp); lead: nominal seconds ahead of the current s that the
     junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
-    beta replan must save (a blocked horizon needs only to be faster); rest_speed (rad/s): below it the
+    beta replan must save (a blocked horizon needs only to be faster), or min_saving (s) where that is
+    less (``required_gain``); rest_speed (rad/s): below it the
     robot counts as at rest for a replan; patience (s): how long people in the way are expected to stay
     before the robot has waited at all; a prediction assumes they stay patience + the time already held
     (0 is pure ski rental: never worse than twice the better choice, however long the person stays; a
@@ -301,5 +302,5 @@ class Replanner:
             stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
             s_branch = min(old.duration, s_now + self.options.lead + stopping)
             result = self.replan(old, s_now, q_goal, humans, "beta", s_branch, waited)
-        gain = min(self.options.min_gain, self.options.min_saving / max(baseline, 1e-9))
+        gain = required_gain(baseline, self.options.min_gain, self.options.min_saving)
         return keep_or_replace(result, baseline, gain, started, "replan request")
