@@ -25,12 +25,13 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from collections import Counter, deque
+from collections import Counter
 
 import numpy as np
 
 from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
 from shared.robot.model import default_robot
+from shared.safety.latency import DelayHistogram
 from shared.safety.monitor import Backlog, HumanHistory, ReactionWindow, SafetyMonitor
 from shared.wire.convert import humans_from_msg
 from shared.wire.messages import HumanState, JointState, MonitorReport, SafetyEvent, encode
@@ -49,7 +50,7 @@ class MonitorService:
         self.backlog = backlog or Backlog()
         self.checks = self.violations = self.unchecked = 0
         self.unchecked_why: Counter[str] = Counter()
-        self.lags: deque[float] = deque(maxlen=100_000)    # s: measurement -> checked, the whole run (16 min)
+        self.lags = DelayHistogram()         # s: measurement -> checked, the whole run
         self.behind = False
         self.min_margin = np.inf
         self.min_separation = np.inf
@@ -84,7 +85,7 @@ class MonitorService:
                                                [r[3] for r in ready])
             done = time.monotonic()
             for (stamp, *_), result in zip(ready, results):
-                self.lags.append(done - stamp)
+                self.lags.add(done - stamp)
                 self.checks += 1
                 self.min_margin = min(self.min_margin, result.min_margin)
                 self.min_separation = min(self.min_separation, result.min_separation)
@@ -120,8 +121,7 @@ class MonitorService:
             self.summary()
 
     def summary(self) -> None:
-        lags = np.fromiter(self.lags, float)
-        p99, worst = (float(np.percentile(lags, 99)), float(lags.max())) if lags.size else (0.0, 0.0)
+        p99, worst = self.lags.percentile(99), self.lags.largest
         why = ", ".join(f"{n} {kind}" for kind, n in self.unchecked_why.most_common())
         text = (f"{self.checks} checks, {self.violations} violations, {self.unchecked} unchecked"
                 f"{f' ({why})' if why else ''}, smallest margin "

@@ -2,8 +2,10 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from shared.safety.latency import LatencyMeter
+from shared.safety.latency import DelayHistogram, LatencyMeter
 
 
 def test_reports_what_was_added_since_the_last_drain():
@@ -82,3 +84,23 @@ def test_drive_lag_meter_measures_the_lag_of_moving_joints_only():
     verdict = meter.check()
     assert verdict.event == "drive_lag_exceeded" and verdict.severity == "warning"
     assert meter.report()[2].max() == 0.0                          # the report drained
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.0, 2.0), min_size=1, max_size=400), st.sampled_from([50.0, 90.0, 99.0, 100.0]))
+def test_the_delay_histogram_gives_the_percentile_to_one_bin(delays, q):
+    hist = DelayHistogram(resolution=0.001, limit=10.0)
+    for d in delays:
+        hist.add(d)
+    exact = float(np.percentile(delays, q, method="inverted_cdf"))
+    assert exact - 1e-12 <= hist.percentile(q) <= exact + 0.001 + 1e-12
+    assert hist.largest == max(delays) and hist.total == len(delays)
+
+
+def test_the_delay_histogram_keeps_a_delay_beyond_its_range_and_is_zero_when_empty():
+    hist = DelayHistogram(resolution=0.001, limit=1.0)
+    assert hist.percentile(99) == 0.0
+    hist.add(0.002)
+    hist.add(30.0)                          # a monitor 30 s behind: counted, reported as the largest
+    assert hist.percentile(100) == 30.0 and hist.largest == 30.0
+    assert hist.percentile(50) == pytest.approx(0.003)

@@ -162,3 +162,35 @@ class DriveLagMeter:
                                    f"tracking margin assumes: raise it, or find why the drives fall behind"),
             ("drive_lag_ok", f"drive lag p99 {worst * 1e3:.1f} ms is within ssm.drive_lag {self.bound * 1e3:.0f} ms "
                              f"again"))
+
+
+class DelayHistogram:
+    """Delays (s) over a whole run in fixed bins, so a percentile costs the same after an hour as after a
+    second (the monitor reports its lag p99 every second; a list of every lag grew with the run). Bins
+    of `resolution` s up to `limit` s; a delay beyond the limit counts in the last bin, and the largest
+    delay is kept exactly."""
+
+    def __init__(self, resolution: float = 0.0005, limit: float = 10.0) -> None:
+        if not (resolution > 0 and limit > resolution):
+            raise ValueError(f"need 0 < resolution < limit, got {resolution} and {limit}")
+        self.resolution = resolution
+        self.counts = np.zeros(int(np.ceil(limit / resolution)) + 1, dtype=np.int64)
+        self.largest = 0.0
+        self.total = 0
+
+    def add(self, delay: float) -> None:
+        delay = max(0.0, float(delay))
+        self.counts[min(int(delay / self.resolution), self.counts.size - 1)] += 1
+        self.largest = max(self.largest, delay)
+        self.total += 1
+
+    def percentile(self, q: float) -> float:
+        """The q-th percentile (0-100), to one bin (its upper edge; never above the largest delay); 0 when
+        empty."""
+        if self.total == 0:
+            return 0.0
+        rank = int(np.ceil(q / 100.0 * self.total))
+        k = int(np.searchsorted(np.cumsum(self.counts), max(rank, 1)))
+        if k >= self.counts.size - 1:                 # beyond the range: the largest is all there is to say
+            return self.largest
+        return min((k + 1) * self.resolution, self.largest)
