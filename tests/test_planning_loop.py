@@ -12,7 +12,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
-from shared.planning.loop import PlanningInputs, PlanningLoop
+from shared.planning.loop import PlanningInputs, PlanningLoop, StillClock
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import load_scene
@@ -52,6 +52,7 @@ class RecordingReplanner:
 
     def on_beta(self, old, s, goal, humans, speed, waited):
         self.calls.append("beta")
+        self.waited = waited
         if self.beta_fails:
             raise ReplanFailed("not 10 % faster")
         return self._result("beta")
@@ -190,3 +191,40 @@ def test_a_fixed_saving_is_enough_once_the_predicted_wait_is_long():
     assert keep_or_replace(_result(3.10), 3.37, gain, 0.0, "replan request").predicted == 3.10
     with pytest.raises(ReplanFailed):
         keep_or_replace(_result(3.10), 3.37, 0.10, 0.0, "replan request")   # what min_gain alone refused
+
+
+# ------------------------------------------------------------------------------ people standing still
+def people(velocity: float, known: bool = True, count: int = 1) -> HumanCapsules:
+    seg = np.tile([[[-0.8, 0.0, 0.9], [-0.8, 0.0, 1.5]]], (count, 1, 1))
+    return HumanCapsules.from_arrays(seg, [0.2] * count, np.full((count, 2, 3), velocity / np.sqrt(3.0)),
+                                     [known] * count)
+
+
+def test_the_still_clock_counts_while_everyone_stands_and_starts_again_on_any_change():
+    clock = StillClock(speed=0.1)
+    for t in (0.0, 0.5, 1.0):
+        clock.update(t, people(0.02))
+    assert clock.waited(1.0) == pytest.approx(1.0 - 0.5)   # still from the second sample (the first sets the count)
+    clock.update(1.5, people(0.5))                          # someone moves
+    assert clock.waited(1.5) == 0.0
+    for t, who in ((2.0, people(0.0)), (2.5, people(0.0)), (3.0, people(0.0, count=2))):
+        clock.update(t, who)
+    assert clock.waited(3.0) == 0.0                         # someone came in
+    clock.update(3.5, people(0.0, count=2))
+    clock.update(4.0, people(0.0, known=False, count=2))   # a velocity the tracker does not know
+    assert clock.waited(4.0) == 0.0
+    clock.update(4.5, None)
+    assert clock.waited(4.5) == 0.0
+
+
+def test_the_predictions_assume_standing_people_stay_at_least_as_long_as_they_have_stood():
+    loop = PlanningLoop(RecordingReplanner(), still_speed=0.1)
+    for k in range(30):                      # 3 s of a person standing in the cell
+        loop.step(0.1 * k, inputs(humans=people(0.0), human_sample=k))
+    loop.step(3.0, inputs(humans=people(0.0), human_sample=30, beta=True, waited=0.4))
+    assert loop.replanner.waited == pytest.approx(2.9)      # stood 2.9 s, held only 0.4 s
+    walker = PlanningLoop(RecordingReplanner(), still_speed=0.1)
+    for k in range(30):
+        walker.step(0.1 * k, inputs(humans=people(1.0), human_sample=k))
+    walker.step(3.0, inputs(humans=people(1.0), human_sample=30, beta=True, waited=0.4))
+    assert walker.replanner.waited == pytest.approx(0.4)

@@ -11,6 +11,10 @@ how long it has been held) and takes at most one action, in this order:
    path ahead is blocked and the way round is predicted faster; after a refused one, the horizon is left
    alone for half a beta cooldown (a blocked horizon is not hammered every sample).
 
+Every prediction assumes the people stay at least as long as they have stood still (``StillClock``) or
+the robot has been held, whichever is longer, on top of the replanner's patience: someone who has stood
+in the way for three seconds is gone round sooner than someone who has just stopped.
+
 The outcome (``PlanningOutcome``) says what was done and what came of it: a trajectory to publish, or why
 none. Pure apart from the Replanner's own wall-clock budgets: no I/O, the clock is the caller's `now`
 (the service passes the monotonic clock, the simulation its simulated one).
@@ -18,7 +22,7 @@ none. Pure apart from the Replanner's own wall-clock budgets: no I/O, the clock 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -67,20 +71,53 @@ class PlanningOutcome:
     searches: int = 0
 
 
+class StillClock:
+    """How long the people have stood still (s): the same number of capsules, every one with a known
+    velocity below `speed` (m/s) at both ends. Anyone moving, appearing or leaving, or a velocity the
+    tracker does not know, starts it again. Someone who has stood for a while is likely to stand a while
+    longer, so the predictions assume the people stay at least this long on top of their patience."""
+
+    def __init__(self, speed: float = 0.1) -> None:
+        self.speed = speed
+        self.since: float | None = None
+        self.count = -1
+
+    def update(self, now: float, humans: HumanCapsules | None) -> None:
+        count = -1 if humans is None else humans.count
+        still = (count > 0 and count == self.count and bool(humans.velocity_known.all())
+                 and float(np.linalg.norm(humans.velocities, axis=2).max()) < self.speed)
+        self.count = count
+        if not still:
+            self.since = None
+        elif self.since is None:
+            self.since = now
+
+    def waited(self, now: float) -> float:
+        return 0.0 if self.since is None else max(0.0, now - self.since)
+
+
 class PlanningLoop:
-    """The cadence above around one Replanner. beta_replans False: the paper's ablation (beta ignored)."""
+    """The cadence above around one Replanner. beta_replans False: the paper's ablation (beta ignored).
+    still_speed: below it people count as standing (StillClock; None: not used)."""
 
     def __init__(self, replanner: Replanner, horizon_period: float = 0.02, beta_cooldown: float = 0.5,
-                 beta_replans: bool = True) -> None:
+                 beta_replans: bool = True, still_speed: float | None = 0.1) -> None:
         self.replanner = replanner
         self.horizon_period, self.beta_cooldown, self.beta_replans = horizon_period, beta_cooldown, beta_replans
         self.next_beta = self.next_horizon = -np.inf
         self.last_sample: int | None = None
+        self.still = StillClock(still_speed) if still_speed is not None else None
+        self.last_still_sample: int | None = None
 
     def step(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
         """At most one planning action for this moment (see the module docstring); None when none is due."""
+        if self.still is not None and inputs.human_sample != self.last_still_sample:
+            self.last_still_sample = inputs.human_sample
+            self.still.update(now, inputs.humans)
         if inputs.goal is None or inputs.q is None:
             return None
+        if self.still is not None:
+            inputs = replace(inputs, waited=max(inputs.waited, self.still.waited(now)))
         searches = self.replanner.searches
         if inputs.new_goal:
             return self._goal(inputs, searches)
