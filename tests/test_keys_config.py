@@ -66,3 +66,21 @@ def test_the_shipped_supervisord_conf_is_the_program_table():
     assert shipped == supervisord_conf(), "regenerate it: python -m tools.programs > deploy/supervisord.conf"
     for program in PROGRAMS:
         assert f"[program:{program.name}]" in shipped and f"-m {program.module} " in shipped
+
+
+def test_every_program_accepts_the_arguments_the_table_gives_it():
+    """Each program's own --help against tools.programs: a flag the table passes that the program does not
+    take would stop it at start-up (`hrc demo --config` once gave tracker_ingest a --config it refuses)."""
+    import subprocess
+    import sys
+
+    for program in PROGRAMS:
+        argv = program.argv(interface="udp_multicast", channel="239.0.0.1", prefix="p", listen="tcp/127.0.0.1:1",
+                            connect="tcp/127.0.0.1:2", config="cell.yaml")
+        flags = {a for a in argv if a.startswith("--")}
+        out = subprocess.run([sys.executable, "-m", program.module, "--help"], capture_output=True, text=True,
+                             timeout=60, cwd=Path(__file__).resolve().parents[1])
+        assert out.returncode == 0, out.stderr
+        missing = {f for f in flags if f not in out.stdout}
+        assert not missing, (program.name, missing)
+        assert ("--config" in out.stdout) == program.reads_config, program.name

@@ -106,12 +106,12 @@ class CellProcesses:
         self._wait_line(emulator.name, emulator.ready, 30.0)
         for name in self.services:
             program = BY_NAME[name]
-            extra = ["--log-level", "WARNING"] + (["--config", str(self.config)] if self.config else [])
+            extra = ["--log-level", "WARNING"]
             if name == "planner" and self.planner_seed is not None:
                 extra += ["--seed", str(self.planner_seed)]
             listen = self.endpoint if program.hub else f"tcp/127.0.0.1:{free_port()}"
             self._spawn(name, program.argv(interface=self.interface, channel=self.channel, prefix=self.prefix,
-                                           listen=listen, connect=self.endpoint,
+                                           listen=listen, connect=self.endpoint, config=self.config,
                                            extra=extra + self.extra_args.get(name, [])))
         keys = KeySpace(self.prefix)
         deadline = time.monotonic() + timeout

@@ -24,19 +24,23 @@ class Program:
     on_can: bool = False           # takes --interface (and --channel)
     on_zenoh: bool = True          # takes --prefix, --listen and, unless it is the hub, --connect
     hub: bool = False              # the endpoint every other peer connects to
+    reads_config: bool = True      # takes --config (the cell configuration YAML)
     niceness: int = 0              # outside the control path: yields the CPU to the safety chain
     priority: int = 30             # supervisord's start order (lower first)
     startsecs: int = 1             # supervisord counts a start as good after this long
     ready: str = ""
 
     def argv(self, *, interface: str, channel: str | None = None, prefix: str = "", listen: str = "",
-             connect: str = "", extra: tuple[str, ...] | list[str] = ()) -> list[str]:
-        """The arguments after `python -m`: the module and what this program needs to join the cell."""
+             connect: str = "", config: str | None = None, extra: tuple[str, ...] | list[str] = ()) -> list[str]:
+        """The arguments after `python -m`: the module and what this program needs to join the cell (the
+        configuration file only to the programs that read one)."""
         args = [self.module]
         if self.on_can:
             args += ["--interface", interface] + (["--channel", channel] if channel else [])
         if self.on_zenoh:
             args += ["--prefix", prefix, "--listen", listen] + ([] if self.hub else ["--connect", connect])
+        if config is not None and self.reads_config:
+            args += ["--config", str(config)]
         return args + list(extra)
 
 
@@ -45,10 +49,11 @@ class Program:
 # watchdog (found by hrc faults on a 2-core VM). The safety chain itself asks for SCHED_FIFO at start-up
 # (shared.scheduling).
 PROGRAMS: tuple[Program, ...] = (
-    Program("hwsim", "hwsim", on_can=True, on_zenoh=False, priority=10, ready="hwsim: PRBT emulator"),
+    Program("hwsim", "hwsim", on_can=True, on_zenoh=False, reads_config=False, priority=10,
+            ready="hwsim: PRBT emulator"),
     Program("robot_driver", "services.robot_driver", on_can=True, hub=True, priority=20, startsecs=3,
             ready="robot_driver: drives up"),
-    Program("tracker_ingest", "services.tracker_ingest", ready="tracker_ingest:"),
+    Program("tracker_ingest", "services.tracker_ingest", reads_config=False, ready="tracker_ingest:"),
     Program("scaler", "services.scaler", ready="scaler:"),
     Program("planner", "services.planner", niceness=10, ready="planner:"),
     Program("safety_monitor", "services.safety_monitor", niceness=5, ready="safety_monitor:"),
