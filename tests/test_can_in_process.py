@@ -59,8 +59,18 @@ def test_bring_up_reads_identity_and_sets_interpolated_position_mode(drives):
     assert all(n.node.nmt.state == "OPERATIONAL" for n in nodes)
 
 
-def test_the_driver_enables_the_drives_and_follows_commands(drives):
-    master, nodes = drives
+def hold(shell: FakeShell, driver: Driver, answered: threading.Event, q: np.ndarray, cycles: int,
+         qd: np.ndarray | None = None) -> None:
+    """`cycles` SYNC periods, each with a command to q (velocity qd, default zero)."""
+    for _ in range(cycles):
+        shell.deliver(shell.keys.command, JointCommand(q=q, qd=np.zeros(6) if qd is None else qd,
+                                                       trajectory_version=1, s=0.0, stamp=time.monotonic()))
+        sync_and_wait(driver, answered)
+
+
+def enabled_driver(master: CanMaster) -> tuple[FakeShell, Driver, threading.Event]:
+    """The Driver class on a fake shell, its joint states published from the CAN thread as in the service,
+    held at q_s until the core has walked the drives to operation enabled."""
     shell = FakeShell("robot_driver")
     config = CellConfig()
     driver = Driver(master, DriverCore(default_robot().limits, PERIOD), shell, PERIOD,
@@ -68,20 +78,21 @@ def test_the_driver_enables_the_drives_and_follows_commands(drives):
     answered = threading.Event()
     publish = driver.publish_state
     master.on_complete = lambda q, qd: (publish(q, qd), answered.set())
-    q = Q_START.copy()
-    for k in range(40):                      # hold q_s: the core walks the drives to operation enabled
-        shell.deliver(shell.keys.command, JointCommand(q=q, qd=np.zeros(6), trajectory_version=1, s=0.0,
-                                                       stamp=time.monotonic()))
-        sync_and_wait(driver, answered)
+    hold(shell, driver, answered, Q_START, 40)
     assert driver.core.mode.value == "running"
+    return shell, driver, answered
+
+
+def test_the_driver_enables_the_drives_and_follows_commands(drives):
+    master, nodes = drives
+    shell, driver, answered = enabled_driver(master)
     states = shell.published(shell.keys.joint_state, JointState)
     assert states[-1].enabled and np.allclose(states[-1].q, Q_START, atol=1e-3)
-    for k in range(40, 140):                 # joint 1 at 0.5 rad/s for one second
+    q = Q_START.copy()
+    for _ in range(100):                     # joint 1 at 0.5 rad/s for one second
         q = q.copy()
         q[0] -= 0.5 * PERIOD
-        shell.deliver(shell.keys.command, JointCommand(q=q, qd=np.array([-0.5, 0, 0, 0, 0, 0]), trajectory_version=1,
-                                                       s=0.0, stamp=time.monotonic()))
-        sync_and_wait(driver, answered)
+        hold(shell, driver, answered, q, 1, qd=np.array([-0.5, 0, 0, 0, 0, 0]))
     last = shell.published(shell.keys.joint_state, JointState)[-1]
     assert last.q[0] == pytest.approx(Q_START[0] - 0.5, abs=0.02)        # one period behind at most
     assert not [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
@@ -90,22 +101,9 @@ def test_the_driver_enables_the_drives_and_follows_commands(drives):
 
 def test_a_drive_fault_stops_the_driver_with_the_emcy(drives):
     master, nodes = drives
-    shell = FakeShell("robot_driver")
-    config = CellConfig()
-    driver = Driver(master, DriverCore(default_robot().limits, PERIOD), shell, PERIOD,
-                    LatencyMeter(config.ssm.reaction_time), DriveLagMeter(config.ssm.drive_lag))
-    answered = threading.Event()
-    master.on_complete = lambda q, qd: answered.set()
-    for k in range(40):
-        shell.deliver(shell.keys.command, JointCommand(q=Q_START, qd=np.zeros(6), trajectory_version=1, s=0.0,
-                                                       stamp=time.monotonic()))
-        sync_and_wait(driver, answered)
-    assert driver.core.mode.value == "running"
+    shell, driver, answered = enabled_driver(master)
     master.nodes[2].sdo[0x2F00][4].raw = 1   # the fault injection of node 5 (joint 3)
-    for k in range(40, 45):
-        shell.deliver(shell.keys.command, JointCommand(q=Q_START, qd=np.zeros(6), trajectory_version=1, s=0.0,
-                                                       stamp=time.monotonic()))
-        sync_and_wait(driver, answered)
+    hold(shell, driver, answered, Q_START, 5)
     stops = [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
     assert stops and stops[0].event in ("emcy", "drive_fault") and "joint 3" in stops[0].text
     assert driver.core.mode.value == "stopped"
