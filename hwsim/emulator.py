@@ -39,7 +39,6 @@ from shared.scheduling import realtime
 
 log = logging.getLogger("hwsim")
 WATCHDOG_POLL = 0.005        # s: how often the drives look for a missing SYNC between SYNCs
-REPORTED = {0x6041, 0x6061, 0x6064, 0x606C, 0x606B, 0x6062, 0x60F4}   # answered live (_on_sdo_read)
 
 
 class EmulatedNode:
@@ -172,10 +171,8 @@ class EmulatedNode:
 
     def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
         """An SDO read of a reported value answers the drive's value now (None: the object dictionary's)."""
-        if index in REPORTED and subindex == 0:
-            with self.lock:
-                return self._reported()[(index, subindex)]
-        return None
+        with self.lock:
+            return self._reported().get((index, subindex))
 
     def on_sync(self, now: float) -> None:
         if self._lost():

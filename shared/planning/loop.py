@@ -28,7 +28,7 @@ import numpy as np
 
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
-from shared.planning.decision import ReplanFailed, ReplanResult
+from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
 from shared.planning.ompl_planner import PlanningError
 from shared.planning.replanner import Replanner
 from shared.planning.timing import TimingError
@@ -79,21 +79,18 @@ class StillClock:
 
     def __init__(self, speed: float = 0.1) -> None:
         self.speed = speed
-        self.since: float | None = None
         self.count = -1
+        self.clock = HoldClock()           # the same timing as the robot's hold, fed "standing" instead of beta
 
     def update(self, now: float, humans: HumanCapsules | None) -> None:
         count = -1 if humans is None else humans.count
         still = (count > 0 and count == self.count and bool(humans.velocity_known.all())
                  and float(np.linalg.norm(humans.velocities, axis=2).max()) < self.speed)
         self.count = count
-        if not still:
-            self.since = None
-        elif self.since is None:
-            self.since = now
+        self.clock.update(now, still)
 
     def waited(self, now: float) -> float:
-        return 0.0 if self.since is None else max(0.0, now - self.since)
+        return self.clock.waited(now)
 
 
 class PlanningLoop:
@@ -118,20 +115,23 @@ class PlanningLoop:
             return None
         if self.still is not None:
             inputs = replace(inputs, waited=max(inputs.waited, self.still.waited(now)))
-        searches = self.replanner.searches
+        before = self.replanner.searches
+        outcome = self._act(now, inputs)
+        return None if outcome is None else replace(outcome, searches=self.replanner.searches - before)
+
+    def _act(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
         if inputs.new_goal:
-            return self._goal(inputs, searches)
+            return self._goal(inputs)
         if inputs.following is None:
             return None
         trajectory, s = inputs.following
         if self.beta_replans and inputs.beta and now >= self.next_beta:
             self.next_beta = now + self.beta_cooldown
             try:
-                result = self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans, inputs.speed,
-                                                inputs.waited)
+                return PlanningOutcome("beta", self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans,
+                                                                      inputs.speed, inputs.waited))
             except ReplanFailed as exc:
-                return PlanningOutcome("beta", refused=str(exc), searches=self.replanner.searches - searches)
-            return PlanningOutcome("beta", result, searches=self.replanner.searches - searches)
+                return PlanningOutcome("beta", refused=str(exc))
         if inputs.human_sample != self.last_sample and now >= self.next_horizon:
             self.last_sample = inputs.human_sample
             self.next_horizon = now + self.horizon_period
@@ -140,22 +140,18 @@ class PlanningLoop:
                                                    inputs.waited)
             except ReplanFailed as exc:
                 self.next_horizon = now + self.beta_cooldown / 2
-                return PlanningOutcome("horizon", refused=str(exc), searches=self.replanner.searches - searches)
-            if result is None:
-                return None
-            return PlanningOutcome("horizon", result, searches=self.replanner.searches - searches)
+                return PlanningOutcome("horizon", refused=str(exc))
+            return None if result is None else PlanningOutcome("horizon", result)
         return None
 
-    def _goal(self, inputs: PlanningInputs, searches: int) -> PlanningOutcome:
+    def _goal(self, inputs: PlanningInputs) -> PlanningOutcome:
         try:
             if inputs.following is None:
                 trajectory = self.replanner.plan_goal(inputs.q, inputs.goal, inputs.humans, inputs.version,
                                                       inputs.waited)
-                result = ReplanResult(trajectory, 0.0, "goal", 0.0, from_rest=True)
-            else:
-                old, s = inputs.following
-                result = self.replanner.replan(old, s, inputs.goal, inputs.humans, "goal", waited=inputs.waited)
+                return PlanningOutcome("goal", ReplanResult(trajectory, 0.0, "goal", 0.0, from_rest=True))
+            old, s = inputs.following
+            return PlanningOutcome("goal", self.replanner.replan(old, s, inputs.goal, inputs.humans, "goal",
+                                                                 waited=inputs.waited))
         except (PlanningError, TimingError, ReplanFailed) as exc:
-            return PlanningOutcome("goal", refused=f"{type(exc).__name__}: {exc}",
-                                   searches=self.replanner.searches - searches)
-        return PlanningOutcome("goal", result, searches=self.replanner.searches - searches)
+            return PlanningOutcome("goal", refused=f"{type(exc).__name__}: {exc}")
