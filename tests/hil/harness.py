@@ -288,8 +288,8 @@ def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...],
     t0 = time.monotonic()
     cell.nodes[node_id].sdo[0x2F00][sub].raw = 1
     detected = cell.hold_until(lambda s: not s.enabled, within + 0.5)
+    time.sleep(0.3)       # the stop event travels apart from the joint state that showed the stop: wait for it
     events = [(t - t0, e.event) for t, e in cell.events_since(t0) if e.severity == "stop"]
-    time.sleep(0.3)
     state = cell.latest()
     if sub != 4:
         cell.nodes[node_id].sdo[0x2F00][sub].raw = 0
