@@ -5,7 +5,7 @@ Thin shell around ``shared.drives.driver_core.DriverCore``:
   producer 100 ms (0x1017), identity (0x1018) and firmware (0x100A) over SDO, mode 7 (0x6060, checked on
   0x6061), interpolation period (0x60C2:1), following error window and time-out (0x6065, 0x6066, from
   shared.drives.prbt), the PDO layout written with canopen's PDO configuration
-  (invalidate, map, transmission type, validate), NMT start;
+  (invalidate, map, transmission type, validate; TPDO2, the following error, every 10th SYNC), NMT start;
 * a cycle thread at the SYNC period (default 10 ms; deadline sleeping, not asyncio's millisecond
   timers): the core's controlwords and setpoints go out as RPDO1 on every node, then SYNC; the drives'
   TPDOs come back and, as soon as every drive has answered the SYNC, the joint state is published on
@@ -16,7 +16,7 @@ Thin shell around ``shared.drives.driver_core.DriverCore``:
 * every first command computed from a new human sample closes a latency chain (sample into
   tracker_ingest -> target frame on the bus, see shared.safety.latency), and every SYNC answer measures how far
   the joints run behind the setpoints sent (the drive lag) and reads the drives' following error
-  (0x60F4, TPDO2): once a second the chains go out as a LatencyReport on <prefix>/diag/latency and the
+  (0x60F4, TPDO2, 10 Hz): once a second the chains go out as a LatencyReport on <prefix>/diag/latency and the
   drive figures as a DriveLagReport on <prefix>/diag/drive_lag, with a warning event when the whole
   chain (sample -> frame p99 + drive lag p99) exceeds the configured T_r or the lag exceeds ssm.drive_lag;
 * asyncio main: Zenoh subscriptions (joint commands, stop / recover requests), liveliness token,
@@ -48,7 +48,17 @@ from shared.core.errors import HrcError
 from shared.drives.bus import BusError, describe, open_bus
 from shared.drives.driver_core import COMMAND_TIMEOUT, DriverCore, Feedback
 from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
-from shared.drives.prbt import EDS_PATH, FOLLOWING_TIMEOUT, FOLLOWING_WINDOW, MODE_IP, NODE_IDS, PERIOD, to_counts, to_rad
+from shared.drives.prbt import (
+    DIAGNOSTIC_EVERY,
+    EDS_PATH,
+    FOLLOWING_TIMEOUT,
+    FOLLOWING_WINDOW,
+    MODE_IP,
+    NODE_IDS,
+    PERIOD,
+    to_counts,
+    to_rad,
+)
 from shared.robot.model import default_robot
 from shared.safety.latency import DriveLagMeter, LatencyMeter
 from shared.scheduling import realtime
@@ -85,6 +95,7 @@ class CanMaster:
         self._rpdo1: list[PdoLayout] = []                 # per node, its RPDO1 layout
         self._rpdo1_values: list[dict] = []               # per node, the values its next RPDO1 carries
         self._fresh: set[int] = set()
+        self._fresh_error = False          # a following error arrived since following_errors() last asked
         self._since_sync: dict[int, bytes] = {}       # node -> the RPDO1 data sent to it since the last SYNC
         self.on_complete = None            # called (from the CAN thread) once every drive answered a SYNC
         self.completed = False             # set with each complete answer; the cycle clears it
@@ -105,6 +116,7 @@ class CanMaster:
                 raise HrcError(f"node {node.id} did not take interpolated position mode")
             node.tpdo.read(from_od=True)
             node.rpdo.read(from_od=True)
+            node.tpdo[2].trans_type = DIAGNOSTIC_EVERY        # the following error at 10 Hz (prbt.DIAGNOSTIC_EVERY)
             node.tpdo.save()
             node.rpdo.save()
             for n in (1, 2, 3):
@@ -155,6 +167,7 @@ class CanMaster:
                     fb.velocity = to_rad(int(value))
                 elif index == 0x60F4:
                     fb.following_error = to_rad(int(value))
+                    self._fresh_error = True
             if len(self._fresh) == len(self.nodes):
                 self._fresh.clear()
                 complete = self.completed = True
@@ -173,9 +186,13 @@ class CanMaster:
                 self.feedback_raw[k].emcy = entry.code
         log.warning("node %d EMCY 0x%04X", self.nodes[k].id, entry.code)
 
-    def following_errors(self) -> np.ndarray:
-        """The drives' last reported following errors (rad, 0x60F4)."""
+    def following_errors(self) -> np.ndarray | None:
+        """The drives' last reported following errors (rad, 0x60F4), or None when none arrived since the
+        last call (TPDO2 comes every DIAGNOSTIC_EVERY SYNCs: a value is counted once, not ten times)."""
         with self.lock:
+            if not self._fresh_error:
+                return None
+            self._fresh_error = False
             return np.array([fb.following_error for fb in self.feedback_raw])
 
     def feedback(self, now: float) -> list[Feedback]:

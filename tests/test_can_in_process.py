@@ -19,10 +19,10 @@ from services.robot_driver import CanMaster, Driver
 from shared.config import CellConfig
 from shared.drives.bus import open_bus
 from shared.drives.driver_core import DriverCore
-from shared.drives.prbt import NODE_IDS, PERIOD
+from shared.drives.prbt import DIAGNOSTIC_EVERY, NODE_IDS, PERIOD
 from shared.robot.model import default_robot
 from shared.safety.latency import DriveLagMeter, LatencyMeter
-from shared.wire.messages import JointCommand, JointState, SafetyEvent
+from shared.wire.messages import DriveLagReport, JointCommand, JointState, SafetyEvent
 from tests.fake_shell import FakeShell
 
 
@@ -107,3 +107,20 @@ def test_a_drive_fault_stops_the_driver_with_the_emcy(drives):
     stops = [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
     assert stops and stops[0].event in ("emcy", "drive_fault") and "joint 3" in stops[0].text
     assert driver.core.mode.value == "stopped"
+
+
+def test_the_following_error_comes_every_tenth_sync_and_is_counted_once(drives):
+    """TPDO2 (0x60F4) at DIAGNOSTIC_EVERY SYNCs, as the driver configured it over SDO: the drives send it
+    only then, and the master hands each value to the lag meter once (None between)."""
+    master, nodes = drives
+    assert all(n.every[2] == DIAGNOSTIC_EVERY for n in nodes)
+    assert all(n.every[1] == 1 and n.every[3] == 1 for n in nodes)     # state and position every SYNC
+    shell, driver, answered = enabled_driver(master)
+    fresh = []
+    for _ in range(3 * DIAGNOSTIC_EVERY):
+        hold(shell, driver, answered, Q_START, 1)
+        fresh.append(master.following_errors() is not None)
+    assert sum(fresh) == 3, fresh
+    driver._report_latency()
+    report = shell.published(shell.keys.drive_lag, DriveLagReport)[-1]
+    assert report.following_error.shape == (6,) and np.all(np.isfinite(report.following_error))
