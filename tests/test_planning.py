@@ -257,3 +257,26 @@ def test_a_new_goal_takes_the_direct_line_unless_the_searched_path_is_predicted_
     assert not np.allclose(chosen.sample(1.0)[0], OLD.sample(1.0)[0])
     assert stays.predicted_time(chosen, 0.0, STANDING) < stays.predicted_time(OLD, 0.0, STANDING)
     assert_trajectory_feasible(chosen, STANDING)
+
+
+def test_a_search_starts_from_the_paths_the_last_ones_found_to_the_same_goal():
+    """The search's budget is small; the winners of the last searches to this goal are seeds of the next,
+    so a replan keeps what was found while the situation stays. A search with no random candidates of its
+    own finds the remembered way round the arm; after forget() it has only the direct line and RRT-Connect."""
+    from shared.planning.path_search import SearchOptions
+    options = ReplanOptions(seed=3)
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), SsmParameters(), options=options)
+    first = replanner.path(Q_START, Q_GOAL, ARM_ACROSS)
+    assert len(first) > 2 and len(replanner.remembered) == 1
+    bare = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), SsmParameters(),
+                     options=ReplanOptions(seed=3, search=SearchOptions(candidates=0, refinements=0, escape_directions=0)))
+    bare.remembered = list(replanner.remembered)
+    recalled = bare.path(Q_START, Q_GOAL, ARM_ACROSS)
+    assert np.allclose(recalled, first)                       # the remembered path, from the same start
+    assert bare.searches == 1                                 # found without RRT-Connect
+    bare.forget()
+    assert bare.remembered == []
+    bare.path(Q_START, Q_GOAL, ARM_ACROSS)
+    assert bare.searches == 3                                 # nothing free among its seeds: RRT-Connect seeded it
+    elsewhere = bare._recalled(Q_START, Q_START)              # paths to another goal are no seeds
+    assert elsewhere == []

@@ -35,6 +35,9 @@ class RecordingReplanner:
         self.searches = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
 
+    def forget(self) -> None:
+        self.forgotten = getattr(self, "forgotten", 0) + 1
+
     def _result(self, reason: str) -> ReplanResult:
         self.searches += 1
         return ReplanResult(OLD, 0.5, reason, 0.0)
@@ -85,6 +88,7 @@ def test_a_new_goal_comes_first_from_rest_or_merged_into_the_followed_trajectory
     merged = loop.step(0.0, inputs(new_goal=True, beta=True))
     assert merged.action == "goal" and not merged.result.from_rest
     assert loop.replanner.calls == ["plan_goal v4", "replan"]
+    assert loop.replanner.forgotten == 3        # a new loop and each new goal start with no remembered paths
 
 
 def test_a_goal_that_cannot_be_planned_is_refused_with_the_reason():

@@ -100,6 +100,7 @@ class PlanningLoop:
     def __init__(self, replanner: Replanner, horizon_period: float = 0.02, beta_cooldown: float = 0.5,
                  beta_replans: bool = True, still_speed: float | None = 0.1) -> None:
         self.replanner = replanner
+        replanner.forget()                 # a new run: no paths remembered from another one
         self.horizon_period, self.beta_cooldown, self.beta_replans = horizon_period, beta_cooldown, beta_replans
         self.next_beta = self.next_horizon = -np.inf
         self.last_sample: int | None = None
@@ -145,6 +146,7 @@ class PlanningLoop:
         return None
 
     def _goal(self, inputs: PlanningInputs) -> PlanningOutcome:
+        self.replanner.forget()
         try:
             if inputs.following is None:
                 trajectory = self.replanner.plan_goal(inputs.q, inputs.goal, inputs.humans, inputs.version,

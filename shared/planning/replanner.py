@@ -44,6 +44,8 @@ from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
 from shared.planning.timing import TimingError, parameterize
 from shared.safety.parameters import SsmParameters
 
+REMEMBERED = 4          # searched paths to the current goal kept as seeds of the next searches
+
 
 @dataclass(frozen=True)
 class ReplanOptions:
@@ -90,6 +92,25 @@ class Replanner:
         self.cost = SsmTimeCost(collision.robot, ssm, options.cost)
         self.search = PathSearch(collision, self.cost, options.search)
         self.searches = 0          # path searches run (the simulation charges planning time by them)
+        self.remembered: list[np.ndarray] = []     # the latest searches' winners to the current goal (K, 6)
+
+    def forget(self) -> None:
+        """Drop the remembered paths (a new goal, or a new run: the same inputs give the same plans)."""
+        self.remembered = []
+
+    def _recalled(self, q_from: np.ndarray, q_goal: np.ndarray) -> list[np.ndarray]:
+        """Seeds from the remembered paths to this goal: from q_from on to each of their later waypoints,
+        then along them. A search has a small budget; one that starts from what the last ones found keeps
+        improving while the situation stays, instead of drawing its luck anew at every replan."""
+        out = []
+        for w in self.remembered:
+            if np.allclose(w[-1], q_goal, atol=1e-9):
+                out += [np.vstack([q_from, w[i:]]) for i in range(1, len(w) - 1)]
+        return out
+
+    def _remember(self, waypoints: np.ndarray) -> None:
+        self.remembered = [w for w in self.remembered[-(REMEMBERED - 1):]
+                           if np.allclose(w[-1], waypoints[-1], atol=1e-9)] + [waypoints]
 
     # ------------------------------------------------------------------------------------ predictions
     def stay(self, waited: float) -> float:
@@ -120,13 +141,16 @@ class Replanner:
         rng = self._rng(q_from, q_goal)
         stay = self.stay(waited)
         self.searches += 1
-        found = self.search.search(q_from, q_goal, humans, rng, stay, (direct,), from_rest, inflation)
+        found = self.search.search(q_from, q_goal, humans, rng, stay, (direct, *self._recalled(q_from, q_goal)),
+                                   from_rest, inflation)
         if found is None:
             rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=self.options.rrt_budget)
             self.searches += 1
             found = self.search.search(q_from, q_goal, humans, rng, stay, (rrt,), from_rest, inflation)
             if found is None:                               # out of time before reaching it: it is free
                 return rrt
+        if len(found.waypoints) > 2:
+            self._remember(found.waypoints)
         return found.waypoints
 
     def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
