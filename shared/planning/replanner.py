@@ -109,8 +109,10 @@ class Replanner:
         return out
 
     def _remember(self, waypoints: np.ndarray) -> None:
-        self.remembered = [w for w in self.remembered[-(REMEMBERED - 1):]
-                           if np.allclose(w[-1], waypoints[-1], atol=1e-9)] + [waypoints]
+        """Keep a search's winner (the newest REMEMBERED to its goal, each once)."""
+        kept = [w for w in self.remembered if np.allclose(w[-1], waypoints[-1], atol=1e-9)
+                and not (w.shape == waypoints.shape and np.array_equal(w, waypoints))]
+        self.remembered = kept[-(REMEMBERED - 1):] + [waypoints]
 
     # ------------------------------------------------------------------------------------ predictions
     def stay(self, waited: float) -> float:
