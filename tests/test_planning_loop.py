@@ -33,10 +33,11 @@ class RecordingReplanner:
     def __init__(self, horizon=None, beta_fails: bool = False, horizon_fails: bool = False) -> None:
         self.calls: list[str] = []
         self.searches = 0
+        self.forgotten = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
 
     def forget(self) -> None:
-        self.forgotten = getattr(self, "forgotten", 0) + 1
+        self.forgotten += 1
 
     def _result(self, reason: str) -> ReplanResult:
         self.searches += 1

@@ -31,12 +31,12 @@ PERIOD = 0.01                                    # s: SYNC and interpolation per
 MODE_IP = 7                                      # interpolated position mode (0x6060)
 
 FOLLOWING_WINDOW = 0.05                          # rad (0x6065, in counts on the bus)
+FOLLOWING_TIMEOUT = 0.05                         # s (0x6066, in ms on the bus)
 # TPDO2 (position demand 0x6062, following error 0x60F4) every this many SYNCs (its transmission type,
 # 0x1801:2): the driver only reports the following error (the drive itself watches it against 0x6065),
-# so 10 Hz is enough, and the bus carries 12 TPDOs a SYNC instead of 18 (a third less work for every
-# process on it, and for a real 1 Mbit/s bus)
+# so 10 Hz is enough, and the bus carries 12.6 TPDOs a SYNC instead of 18: at 1 Mbit/s its load falls
+# from about 25 % to about 19 % (the processes' CPU did not change measurably: a frame costs microseconds)
 DIAGNOSTIC_EVERY = 10
-FOLLOWING_TIMEOUT = 0.05                         # s (0x6066, in ms on the bus)
 
 # EMCY error codes (CiA 301 / CiA 402) the drive sends; 0x0000 announces a fault reset
 EMCY_RESET = 0x0000
