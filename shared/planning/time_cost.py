@@ -41,20 +41,25 @@ from shared.scaling.problem import _NO_ROWS, _upper_bound
 class TimeCostOptions:
     """spacing (rad): the largest joint step between the samples along a path's straight segments;
     trajectory_step (s): nominal time between the samples of a trajectory; alpha_floor: the least alpha a
-    sample is charged with; extrapolation (s): how far people are moved on along their tracked velocities."""
+    sample is charged with; extrapolation (s): how far people are moved on along their tracked velocities;
+    wait_step (s): how long the prediction waits at a slow sample before it looks again at the people moved on."""
 
     spacing: float = 0.05
     trajectory_step: float = 0.05
     alpha_floor: float = 0.02
     extrapolation: float = 1.0
+    wait_step: float = 0.1
 
 
 @numba.njit(cache=True)
 def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
                     human_vel, human_known, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
-                    floor):
+                    floor, wait_step):
     """Sum of dts[k] / alpha_k along the samples, the people moved on by the time already predicted; from
-    `stay` on (within a sample too) at full speed."""
+    `stay` on (within a sample too) at full speed. A sample that would take longer than wait_step is
+    waited at in steps of wait_step, each with the people moved on by then (up to extrapolation): someone
+    walking away clears the robot's way after a moment, not after the whole stretch their position of
+    now would give (a sample at the alpha floor stands for 50 times its nominal time)."""
     n_links = radii.shape[0]
     n_h = human_seg.shape[0]
     moved = np.empty_like(human_seg)
@@ -63,11 +68,6 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
         if n_h == 0 or total >= stay:
             total += dts[k]
             continue
-        shift = min(total, extrapolation)
-        for j in range(n_h):
-            for e in range(2):
-                for c in range(3):
-                    moved[j, e, c] = human_seg[j, e, c] + (shift * human_vel[j, e, c] if human_known[j] else 0.0)
         points, jac = _chain_points_and_jacobians(qs[k], placement, parent, local, joint, ancestry)
         vel = np.zeros((points.shape[0], 3))
         for p in range(points.shape[0]):
@@ -76,15 +76,26 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
                 for j in range(dqs.shape[1]):
                     acc += jac[p, r, j] * dqs[k, j]
                 vel[p, r] = acc
-        _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii, vel.reshape(n_links, 2, 3),
-                                                    moved, human_rad, human_vel, human_known, horizon, fixed,
-                                                    near_d, v_near, v_far)
-        alpha = max(_upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin), floor)
-        if total + dts[k] / alpha <= stay:
-            total += dts[k] / alpha
-        else:                      # the people leave during this sample: the rest of it at full speed
-            done = (stay - total) * alpha / dts[k]
-            total = stay + (1.0 - done) * dts[k]
+        left = 1.0                 # the fraction of this sample still to travel
+        while left > 0.0:
+            if total >= stay:      # the people have left: the rest at full speed
+                total += left * dts[k]
+                break
+            shift = min(total, extrapolation)
+            for j in range(n_h):
+                for e in range(2):
+                    for c in range(3):
+                        moved[j, e, c] = human_seg[j, e, c] + (shift * human_vel[j, e, c] if human_known[j] else 0.0)
+            _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
+                                                        vel.reshape(n_links, 2, 3), moved, human_rad, human_vel,
+                                                        human_known, horizon, fixed, near_d, v_near, v_far)
+            alpha = max(_upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin), floor)
+            need = left * dts[k] / alpha
+            step = min(need, stay - total)
+            if shift < extrapolation:          # the people still move in the prediction: look again soon
+                step = min(step, wait_step)
+            total += step
+            left = 0.0 if step >= need else left - step * alpha / dts[k]
     return total
 
 
@@ -172,7 +183,7 @@ class SsmTimeCost:
                                 humans.radii, humans.velocities, humans.velocity_known, ssm.horizon,
                                 ssm.fixed_distance, ssm.human_near_distance, ssm.human_speed_near,
                                 ssm.human_speed_far, ssm.tracking_margin,
-                                o.extrapolation if moving else 0.0, float(stay), o.alpha_floor)
+                                o.extrapolation if moving else 0.0, float(stay), o.alpha_floor, o.wait_step)
         return float(total) + samples.overhead
 
     def path_time(self, waypoints: np.ndarray, humans: HumanCapsules | None, stay: float = np.inf,
