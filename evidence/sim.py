@@ -167,6 +167,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     pending_leg = False               # a shuttle ended: the next one waits for its plan
     busy_until = -1.0                 # charge_planning: the planner is computing until then
     speed_now = 0.0                   # the robot's commanded joint speed after the last step (rad/s)
+    ssm_held = False                  # that speed was the SSM's bound (or braking), not a ramp below it
     waiting: tuple | None = None      # (ready at, PlanningOutcome, compute ms)
 
     def log_replan(event: ReplanEvent) -> None:
@@ -188,9 +189,10 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         """One turn of the planner's loop on what the scaler last reported; its result is taken at once, or
         when its charged time has passed."""
         nonlocal busy_until, waiting
-        following = None if pending_leg or layer.s >= layer.trajectory.duration else (layer.trajectory, layer.s)
+        following = None if pending_leg or layer.pending is not None or layer.s >= layer.trajectory.duration \
+            else (layer.trajectory, layer.s)       # a plan the scaler is stopping for: nothing to follow yet
         inputs = PlanningInputs(ends[(leg + 1) % 2], pending_leg, layer.trajectory.sample(layer.s)[0], humans, k,
-                                following, speed_now, beta, held.waited(t), layer.trajectory.version + 1)
+                                following, speed_now, beta, held.waited(t), layer.trajectory.version + 1, ssm_held)
         started = time.perf_counter()
         outcome = loop.step(t, inputs)
         elapsed = time.perf_counter() - started
@@ -216,6 +218,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             planning_turn(t, k, humans)
         step = layer.step(humans, 0.0)
         speed_now = float(np.abs(step.qd_command).max())
+        ssm_held = step.safe_alpha <= step.alpha + 1e-6
         if step.beta and not beta:
             result.beta_requests += 1
         beta = step.beta

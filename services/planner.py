@@ -38,6 +38,7 @@ from shared.wire.convert import humans_from_msg, trajectory_to_msg
 from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
+TAKE_WAIT = 1.0      # s: a trajectory the scaler has not taken by then was refused or dropped (it logs why)
 
 
 class PlannerService:
@@ -56,7 +57,9 @@ class PlannerService:
         self.status: ScalerStatus | None = None
         self.highest_seen = 0              # the highest trajectory version the scaler reported following
         self.held = HoldClock()            # how long the scaler has been asking for a replan (s)
-        self.trajectory: Trajectory | None = None
+        self.trajectory: Trajectory | None = None       # the newest published
+        self.published: dict[int, Trajectory] = {}      # the last few, by version: the scaler may still follow one
+        self.published_at = -float("inf")
         self.goal_id = 0
         self.seq = 0
         self.traj_pub = shell.session.declare_publisher(shell.keys.trajectory)
@@ -100,6 +103,8 @@ class PlannerService:
     def _publish(self, traj: Trajectory, reason: str, junction: float, base_version: int, ms: float,
                  detail: str = "") -> None:
         self.trajectory = traj
+        self.published = {v: t for v, t in self.published.items() if v >= traj.version - 8}
+        self.published[traj.version], self.published_at = traj, time.monotonic()
         self.seq += 1
         self.traj_pub.put(encode(trajectory_to_msg(traj, self.goal_id, reason, junction, base_version,
                                                    seq=self.seq, stamp=time.monotonic())))
@@ -108,11 +113,16 @@ class PlannerService:
 
     # ------------------------------------------------------------------------------------- work
     def _following(self) -> tuple[Trajectory, float] | None:
-        """The trajectory the scaler follows and where it is on it, if it is ours and not finished."""
+        """The trajectory the scaler follows and where it is on it, if it is ours and not finished. While the
+        newest is on its way (or the scaler is bringing the robot to rest for it), none; once the scaler has
+        refused or dropped it (TAKE_WAIT without taking it), the one it still follows."""
         st = self.status
-        if self.trajectory is None or st is None or st.trajectory_version != self.trajectory.version:
+        if self.trajectory is None or st is None:
             return None
-        return (self.trajectory, st.s) if st.s < self.trajectory.duration - 1e-6 else None
+        trajectory = self.published.get(st.trajectory_version)
+        if trajectory is None or (trajectory is not self.trajectory and time.monotonic() < self.published_at + TAKE_WAIT):
+            return None
+        return (trajectory, st.s) if st.s < trajectory.duration - 1e-6 else None
 
     def work_once(self, now: float) -> None:
         """One turn of the planning loop on the latest inputs; its outcome published (a trajectory, or an
@@ -129,7 +139,8 @@ class PlannerService:
             # above every version the scaler has reported: a restarted planner must not publish an old number
             version = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen) + 1
             inputs = PlanningInputs(goal.q, new_goal, q, humans, self.human_seq, following, speed,
-                                    status is not None and status.beta, self.held.waited(now), version)
+                                    status is not None and status.beta, self.held.waited(now), version,
+                                    status is not None and status.safe_alpha <= status.alpha + 1e-6)
         if new_goal:
             self.goal_id = goal.goal_id
         started = time.perf_counter()

@@ -77,8 +77,9 @@ class Scaler:
     def _take_pending(self) -> None:
         msg, self.pending = self.pending, None
         fresh = msg.base_version == -1
-        if not fresh and msg.base_version != self.version:
-            why = f"merged into version {msg.base_version}, not the followed {self.version}"
+        followed = self.layer.trajectory.version if self.layer.trajectory is not None else -1
+        if not fresh and msg.base_version != followed:       # (not self.version: a plan it stops for is not followed yet)
+            why = f"merged into version {msg.base_version}, not the followed {followed}"
         elif fresh and self.joint_q is None:
             why = "the robot's position is not known yet"
         else:
@@ -105,6 +106,9 @@ class Scaler:
         if self.layer.trajectory is None:
             return
         step = self.layer.step(humans, age if humans is not None else np.inf)
+        if self.layer.dropped is not None:
+            self.shell.log.warning("trajectory dropped: %s", self.layer.dropped)
+            self.layer.dropped = None
         self.seq += 1
         fresh = np.isfinite(stamp) and stamp != self.reported_stamp      # first command from this sample
         if fresh:

@@ -177,6 +177,34 @@ def test_keep_or_replace_compares_both_trajectories_under_the_same_stay():
     assert "instead of" in shipped.on_beta(OLD, 0.3, Q_GOAL, STANDING, waited=0.0).detail
 
 
+def test_a_crawling_robot_held_by_the_ssm_is_stopped_a_little_ahead_and_planned_for_from_rest():
+    """A robot the SSM holds to a crawl (a tenth of its nominal speed here) can stop within millimetres: its
+    plan starts from rest just ahead on its path, where the scaling layer brings it to rest, and may leave
+    in any direction; a merge would have to leave at the old nominal speed. A robot merely speeding up
+    again (not held) is merged into as before."""
+    from shared.scaling.layer import ScalingLayer
+
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    crawl = 0.1 * float(np.abs(OLD.sample(0.3)[1]).max())
+    stop = replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, speed_now=crawl, waited=2.0, held=True)
+    assert stop.from_rest and 0.3 < stop.junction < 0.35 and "from rest" in stop.detail
+    assert np.allclose(stop.trajectory.positions[0], OLD.sample(stop.junction)[0])
+    assert not stop.trajectory.velocities[0].any()
+    assert stop.predicted < stop.baseline
+    merged = replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, speed_now=crawl, waited=2.0, held=False)
+    assert not merged.from_rest and merged.junction >= 0.3 + replanner.options.lead
+    # the scaling layer takes it where the robot comes to rest, without a jump
+    layer = ScalingLayer(ROBOT, SsmParameters())
+    layer.set_trajectory(OLD)
+    layer.s, layer.sdot = 0.3, 0.1
+    assert layer.take(stop.trajectory, True, 0.0, OLD.sample(0.3)[0], 1e-3) is None
+    for _ in range(200):
+        step = layer.step(STANDING, 0.0)
+        if layer.trajectory is stop.trajectory:
+            break
+    assert layer.trajectory is stop.trajectory and np.allclose(step.q_command, OLD.sample(stop.junction)[0])
+
+
 def test_trajectory_message_roundtrip_gives_the_same_law():
     result = merged_round(0.0, ARM_ACROSS)
     msg = decode(encode(trajectory_to_msg(result.trajectory, goal_id=4, reason="horizon", junction=result.junction,

@@ -54,15 +54,16 @@ class RecordingReplanner:
         self.calls.append("replan")
         return self._result(reason)
 
-    def on_beta(self, old, s, goal, humans, speed, waited):
+    def on_beta(self, old, s, goal, humans, speed, waited, held):
         self.calls.append("beta")
-        self.waited = waited
+        self.waited, self.held = waited, held
         if self.beta_fails:
             raise ReplanFailed("not 10 % faster")
         return self._result("beta")
 
-    def on_horizon(self, old, s, goal, humans, speed, waited):
+    def on_horizon(self, old, s, goal, humans, speed, waited, held):
         self.calls.append("horizon")
+        self.held = held
         if self.horizon_fails:
             raise ReplanFailed("blocked, no way round")
         return self._result("horizon") if self.horizon else None
@@ -103,7 +104,9 @@ def test_beta_is_answered_at_most_once_a_cooldown_and_before_the_horizon():
     assert loop.step(0.0, inputs(beta=True, human_sample=1)).action == "beta"
     assert loop.step(0.1, inputs(beta=True, human_sample=1)).action == "horizon"   # beta cools down
     assert loop.step(0.2, inputs(beta=True, human_sample=1)) is None               # same sample: nothing
-    assert loop.step(0.5, inputs(beta=True, human_sample=1)).action == "beta"
+    assert loop.replanner.held is False
+    assert loop.step(0.5, inputs(beta=True, human_sample=1, held=True)).action == "beta"
+    assert loop.replanner.held is True          # whether the SSM holds the robot's speed goes to the replanner
     assert loop.replanner.calls == ["beta", "horizon", "beta"]
 
 

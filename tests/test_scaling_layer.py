@@ -149,8 +149,49 @@ def test_one_rule_takes_a_new_trajectory_without_a_jump():
     assert layer.take(merged, False, junction=0.5, q_here=None, start_tolerance=0.02) is None
     assert layer.trajectory is merged and (layer.s, layer.sdot) == (0.3, 0.8)      # same s, same speed
     assert "already passed" in layer.take(old, False, junction=0.1, q_here=None, start_tolerance=0.02)
+    elsewhere = straight_line_trajectory(np.array([0.3, 0, 0, 0, 0, 0]), a, lim.velocity, lim.acceleration, version=3)
+    assert "not at its start" in layer.take(elsewhere, True, 0.0, q_here=a, start_tolerance=0.02)
+    assert layer.trajectory is merged and layer.pending is None
     fresh = straight_line_trajectory(b, a, lim.velocity, lim.acceleration, version=3)
-    assert layer.take(fresh, True, 0.0, q_here=a, start_tolerance=0.02) == "the robot is not at its start"
-    assert layer.trajectory is merged
     assert layer.take(fresh, True, 0.0, q_here=b + 0.01, start_tolerance=0.02) is None
     assert layer.trajectory is fresh and (layer.s, layer.sdot) == (0.0, 0.0)      # from rest, at its start
+
+
+def test_a_plan_from_rest_ahead_of_a_crawling_robot_is_taken_where_the_robot_stops():
+    """A plan for a crawling robot starts a few millimetres ahead on its path (shared.planning.replanner's
+    stop plan): the layer brings the robot to rest exactly there, never braking harder than the drives,
+    then follows the plan from rest; a robot too fast to stop there keeps its path and the plan is
+    dropped, saying why."""
+    from shared.core.trajectory import straight_line_trajectory
+
+    lim = ROBOT.limits
+    old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
+    lay = ScalingLayer(ROBOT, SsmParameters(), ScalingParameters())
+    lay.set_trajectory(old)
+    lay.s, lay.sdot = 1.0, 0.2                               # crawling in the middle of the shuttle
+    stop_at = 1.04
+    back = straight_line_trajectory(old.sample(stop_at)[0], Q_START, lim.velocity, lim.acceleration, version=2)
+    assert lay.take(back, True, 0.0, q_here=old.sample(1.0)[0], start_tolerance=1e-3) is None
+    assert lay.trajectory is old and lay.pending is not None
+    velocity = old.sample(lay.s)[1] * lay.sdot
+    methods = []
+    for _ in range(100):
+        step = lay.step(NOBODY, 0.0)
+        if step.trajectory_version == 2:
+            break
+        methods.append(step.method)
+        assert step.s <= stop_at + 1e-9
+        assert np.abs(step.qd_command - velocity).max() <= lim.monitor_acceleration.max() * 0.01 + 1e-9
+        velocity = step.qd_command
+    assert methods[-1].endswith("+stopping")                # nobody near: only the stop slows it
+    assert step.trajectory_version == 2 and (lay.s, lay.sdot) == (0.0, 0.0)
+    assert np.abs(step.q_command - old.sample(stop_at)[0]).max() < 1e-9 and np.abs(velocity).max() < 0.06
+    later = [lay.step(NOBODY, 0.0) for _ in range(20)]
+    assert later[-1].trajectory_version == 2 and lay.s > 0.0           # on its way back, from rest
+
+    lay.set_trajectory(old)
+    lay.s, lay.sdot = 1.02, 1.0                              # at full speed: it cannot stop in 0.02 s of path
+    assert lay.take(back, True, 0.0, q_here=old.sample(1.02)[0], start_tolerance=1e-3) is None
+    steps = [lay.step(NOBODY, 0.0) for _ in range(3)]
+    assert all(st.trajectory_version == 1 for st in steps) and lay.pending is None
+    assert "could not stop" in lay.dropped

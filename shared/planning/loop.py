@@ -56,6 +56,7 @@ class PlanningInputs:
     beta: bool
     waited: float
     version: int
+    held: bool = False
 
 
 @dataclass(frozen=True)
@@ -130,7 +131,7 @@ class PlanningLoop:
             self.next_beta = now + self.beta_cooldown
             try:
                 return PlanningOutcome("beta", self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans,
-                                                                      inputs.speed, inputs.waited))
+                                                                      inputs.speed, inputs.waited, inputs.held))
             except ReplanFailed as exc:
                 return PlanningOutcome("beta", refused=str(exc))
         if inputs.human_sample != self.last_sample and now >= self.next_horizon:
@@ -138,7 +139,7 @@ class PlanningLoop:
             self.next_horizon = now + self.horizon_period
             try:
                 result = self.replanner.on_horizon(trajectory, s, inputs.goal, inputs.humans, inputs.speed,
-                                                   inputs.waited)
+                                                   inputs.waited, inputs.held)
             except ReplanFailed as exc:
                 self.next_horizon = now + self.beta_cooldown / 2
                 return PlanningOutcome("horizon", refused=str(exc))

@@ -28,7 +28,7 @@ splice of a merge (Alg. 2, ``shared.planning.merge``), the keep-or-replace rule
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -54,7 +54,10 @@ class ReplanOptions:
     junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
     beta replan must save (a blocked horizon needs only to be faster), or min_saving (s) where that is
     less (``required_gain``); rest_speed (rad/s): below it the
-    robot counts as at rest for a replan; patience (s): how long people in the way are expected to stay
+    robot counts as at rest for a replan; crawl: below this fraction of its nominal speed a moving robot
+    gets a plan from rest a little ahead, where the scaler stops it (``_stop_plan``), instead of a merge;
+    stop_lead (s): the time that stop allows the plan to be delivered in (the robot crawls on meanwhile);
+    patience (s): how long people in the way are expected to stay
     before the robot has waited at all; a prediction assumes they stay patience + the time already held
     (0 is pure ski rental: never worse than twice the better choice, however long the person stays; a
     cell where people are known to stay at a station may set more); rrt_budget (s): RRT-Connect's time
@@ -69,6 +72,8 @@ class ReplanOptions:
     min_gain: float = 0.10
     min_saving: float = 0.25
     rest_speed: float = 0.02
+    crawl: float = 0.25
+    stop_lead: float = 0.15
     patience: float = 1.5
     rrt_budget: float = 0.2
     worth_searching: float = 0.25
@@ -271,19 +276,61 @@ class Replanner:
         return ReplanResult(traj, s_now, reason, time.perf_counter() - started,
                             self.predicted_time(traj, 0.0, humans, waited), from_rest=True)
 
-    def _baseline(self, old: Trajectory, s_now: float, humans: HumanCapsules | None, waited: float,
-                  at_rest: bool) -> float:
-        """The old trajectory's predicted time from s_now, like the new one's: a robot at rest must first
-        get back to the old nominal speed (v / 2a more than the prediction at that speed), as a new
-        trajectory from rest has to."""
-        baseline = self.predicted_time(old, s_now, humans, waited)
+    def _stop_plan(self, old: Trajectory, s_now: float, rate: float, q_goal: np.ndarray,
+                   humans: HumanCapsules | None, reason: str, waited: float) -> ReplanResult:
+        """For a robot crawling at `rate` of its nominal path speed: a plan from rest at the point of its
+        path where the scaler brings it to rest (``ScalingLayer.take``), allowing stop_lead for the plan to
+        arrive and half the joints' deceleration for the stop. A merge would have to leave its junction at
+        the old *nominal* velocity and so keep a nominal stopping distance of old path, into the person's
+        slowdown that makes the robot crawl; a crawling robot can stop in a few millimetres and then leave
+        in any direction. The prediction counts the crawl to that point. Raises ReplanFailed."""
+        started = time.perf_counter()
+        v_nominal = np.abs(old.sample(float(s_now))[1])
+        stopping = rate * float(np.max(v_nominal / (0.5 * self.limits.acceleration)))     # s of the robot's time
+        s_stop = min(old.duration, s_now + rate * (self.options.stop_lead + stopping))
+        result = self._rest_plan(old, s_stop, q_goal, humans, reason, waited)
+        return replace(result, junction=s_stop, plan_s=time.perf_counter() - started,
+                       predicted=result.predicted + self.options.stop_lead + stopping)
+
+    def _rate(self, old: Trajectory, s_now: float, speed_now: float | None) -> float:
+        """The robot's path speed as a fraction of the nominal one at s_now (1 when unknown, or where the
+        nominal trajectory itself stands)."""
+        nominal = float(np.max(np.abs(old.sample(float(s_now))[1])))
+        if speed_now is None or nominal < 1e-6:
+            return 1.0
+        return min(1.0, max(0.0, speed_now / nominal))
+
+    def _start(self, old: Trajectory, s_now: float, speed_now: float | None, q_goal: np.ndarray,
+               humans: HumanCapsules | None, reason: str, waited: float,
+               held: bool) -> tuple[ReplanResult | None, float]:
+        """Where a new trajectory starts, by the robot's state: at rest, from rest where it stands; crawling
+        (below `crawl` of its nominal speed, and held there by the SSM: not speeding up again), from rest
+        where the scaler stops it. Returns (that plan, the old trajectory's prediction from the
+        same state), or (None, the baseline) for a robot moving near its nominal speed (a merge, the
+        caller's; both sides then in nominal time)."""
+        at_rest = speed_now is not None and speed_now < self.options.rest_speed
+        rate = 0.0 if at_rest else self._rate(old, s_now, speed_now)
         if at_rest:
+            return (self._rest_plan(old, s_now, q_goal, humans, reason, waited),
+                    self._baseline(old, s_now, humans, waited, 0.0))
+        if held and rate < self.options.crawl:
+            return (self._stop_plan(old, s_now, rate, q_goal, humans, reason, waited),
+                    self._baseline(old, s_now, humans, waited, rate))
+        return None, self._baseline(old, s_now, humans, waited, 1.0)
+
+    def _baseline(self, old: Trajectory, s_now: float, humans: HumanCapsules | None, waited: float,
+                  rate: float) -> float:
+        """The old trajectory's predicted time from s_now, like the new one's: a robot below its nominal
+        speed (rate, a fraction of it; 0 at rest) must first get back to it, (1 - rate) v / 2a more than the
+        prediction at that speed, as a new trajectory from rest has to."""
+        baseline = self.predicted_time(old, s_now, humans, waited)
+        if rate < 1.0:
             v = np.abs(old.sample(float(s_now))[1])
-            baseline += float(np.max(v / (2.0 * self.limits.acceleration)))
+            baseline += (1.0 - rate) * float(np.max(v / (2.0 * self.limits.acceleration)))
         return baseline
 
     def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-                   speed_now: float | None = None, waited: float = 0.0) -> ReplanResult | None:
+                   speed_now: float | None = None, waited: float = 0.0, held: bool = False) -> ReplanResult | None:
         """Alg. 1 + 2: None when the horizon is clear, or when the people in the way are passing
         (``passing``); else a new trajectory branching at the last feasible horizon configuration, kept
         only when predicted to reach the goal sooner than the old one (ReplanFailed saying why, with both
@@ -297,11 +344,8 @@ class Replanner:
         if check.first_infeasible in (None, 0) or people_passing(old, s_now, check, humans, self.collision):
             return None
         blocked = float(check.s[check.first_infeasible])
-        at_rest = speed_now is not None and speed_now < self.options.rest_speed
-        baseline = self._baseline(old, s_now, humans, waited, at_rest)
-        if at_rest:
-            result = self._rest_plan(old, s_now, q_goal, humans, "horizon", waited)
-        else:
+        result, baseline = self._start(old, s_now, speed_now, q_goal, humans, "horizon", waited, held)
+        if result is None:
             s_branch = check.last_feasible_s
             if s_branch is None or s_branch < s_now + self.options.lead:
                 s_branch = min(old.duration, s_now + self.options.lead)
@@ -309,7 +353,7 @@ class Replanner:
         return keep_or_replace(result, baseline, 0.0, started, f"path blocked at s={blocked:.2f}")
 
     def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-                speed_now: float | None = None, waited: float = 0.0) -> ReplanResult:
+                speed_now: float | None = None, waited: float = 0.0, held: bool = False) -> ReplanResult:
         """A replan that is worth it (min_gain), or ReplanFailed saying why the old trajectory stays.
 
         speed_now: the robot's actual joint speed (rad/s, max over joints; None: moving at the nominal
@@ -319,11 +363,8 @@ class Replanner:
         is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
         new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time)."""
         started = time.perf_counter()
-        at_rest = speed_now is not None and speed_now < self.options.rest_speed
-        baseline = self._baseline(old, s_now, humans, waited, at_rest)
-        if at_rest:
-            result = self._rest_plan(old, s_now, q_goal, humans, "beta", waited)
-        else:
+        result, baseline = self._start(old, s_now, speed_now, q_goal, humans, "beta", waited, held)
+        if result is None:
             v_now = old.sample(float(s_now))[1]
             stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
             s_branch = min(old.duration, s_now + self.options.lead + stopping)

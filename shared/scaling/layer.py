@@ -56,6 +56,9 @@ def _path_deceleration(dq_ds, d2q_ds2, sdot, acceleration):
     return max(best, 0.0)
 
 
+STOP_REACH = 0.5          # nominal s: how far ahead a plan for a crawling robot may start (``ScalingLayer.take``)
+
+
 class StepStatus(str, enum.Enum):
     """What a step did. Every status but RUNNING and FINISHED means the robot was told to stop."""
 
@@ -102,6 +105,8 @@ class ScalingLayer:
         self.s = 0.0
         self.sdot = 0.0
         self.beta = False
+        self.pending: tuple[Trajectory, float] | None = None   # a plan from rest that starts ahead, at that s
+        self.dropped: str | None = None      # why the last pending plan was dropped (the service logs it)
 
     def warm_up(self) -> None:
         """Run every compiled path once (kinematics, SSM rows, solvers, verification, sampling), so that a
@@ -121,18 +126,21 @@ class ScalingLayer:
         self.trajectory = trajectory
         self.s = float(min(max(s, 0.0), trajectory.duration))
         self.beta = False
+        self.pending = None
 
     def take(self, trajectory: Trajectory, from_rest: bool, junction: float, q_here: np.ndarray | None,
              start_tolerance: float) -> str | None:
         """The one rule for taking a new trajectory without a jump (the scaler service and the simulation):
-        one planned from rest (a fresh plan) only while the robot is at its start (within start_tolerance,
-        rad), from s = 0 at rest; a merged one only while the follower has not passed its junction, at
-        the same s and path speed (q_here is not needed then). None when taken, else why not."""
+        one planned from rest (a fresh plan) while the robot is at its start (within start_tolerance, rad),
+        from s = 0 at rest, or, when its start lies a little ahead on the path the robot is moving along
+        (a plan for a crawling robot), once the robot has stopped there (``_stop_for``); a merged one only
+        while the follower has not passed its junction, at the same s and path speed (q_here is not needed
+        then). None when taken (or pending that stop), else why not."""
         if from_rest:
             if q_here is None:
                 return "the robot's position is not known"
             if np.abs(trajectory.positions[0] - np.asarray(q_here)).max() > start_tolerance:
-                return "the robot is not at its start"
+                return self._stop_for(trajectory, start_tolerance)
             self.set_trajectory(trajectory, 0.0)
             self.sdot = 0.0
             return None
@@ -140,6 +148,47 @@ class ScalingLayer:
             return f"junction {junction:.3f} already passed (s = {self.s:.3f})"
         self.set_trajectory(trajectory, self.s)
         return None
+
+    def _stop_for(self, trajectory: Trajectory, tolerance: float) -> str | None:
+        """A plan from rest whose start lies ahead on the path being followed (within STOP_REACH nominal
+        seconds and tolerance, rad): pending. The steps then bring the robot to rest exactly there
+        (``_stop_cap``) and switch to it. None when pending, else why it cannot be taken."""
+        if self.trajectory is None or self.sdot <= 0.0:
+            return "the robot is not at its start"
+        start = trajectory.positions[0]
+        grid = np.linspace(self.s, min(self.trajectory.duration, self.s + STOP_REACH), 101)
+        for _ in range(2):                      # a coarse scan, then around its best point
+            gap = np.abs(self.trajectory.sample(grid)[0] - start).max(axis=1)
+            k = int(np.argmin(gap))
+            best, grid = float(grid[k]), np.linspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], 21)
+        if gap[k] > tolerance:
+            return "the robot is not at its start, nor moving towards it"
+        self.pending, self.dropped = (trajectory, best), None
+        return None
+
+    def _stop_cap(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
+        """The path speed that brings the robot to rest at the pending plan's start: sqrt(2 d r) for the
+        remaining r (nominal s) at half the joints' deceleration d along the path (inf: none pending)."""
+        if self.pending is None:
+            return math.inf
+        deceleration = _path_deceleration(np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
+                                          self.sdot, self.robot.limits.acceleration)
+        return math.sqrt(max(0.0, 2.0 * 0.5 * deceleration * (self.pending[1] - self.s)))
+
+    def _advance(self, traj: Trajectory, can_stop: bool) -> None:
+        """s moves on by sdot T; at a pending plan's start the robot comes to rest and the plan is taken, or,
+        when the drives could not stop it within this period (can_stop False: the braking floor is above
+        0), the plan is dropped, saying why."""
+        s_next = min(self.s + self.sdot * self.params.period, traj.duration)
+        if self.pending is not None and s_next >= self.pending[1] - 1e-9:
+            plan, s_stop = self.pending
+            if not can_stop:
+                self.pending, self.dropped = None, f"could not stop at s={s_stop:.3f} for plan {plan.version}"
+            else:
+                self.set_trajectory(plan, 0.0)
+                self.sdot = 0.0
+                return
+        self.s = s_next
 
     def hold(self, q: np.ndarray, version: int = -1) -> None:
         """Stand still at q (a one-knot-interval trajectory of zero motion)."""
@@ -216,6 +265,9 @@ class ScalingLayer:
                 safe_alpha = min(safe_alpha, alpha)
             if rows.ssm is not None:
                 min_sep, min_margin = rows.ssm.closest(alpha)
+        cap = self._stop_cap(dq, ddq)
+        if cap < alpha:
+            alpha, method = cap, method + "+stopping"
         floor = self.braking_floor(dq, ddq) if running else 0.0
         if floor > alpha:
             alpha, method = floor, method + "+braking"
@@ -224,7 +276,8 @@ class ScalingLayer:
         elif status is not StepStatus.RUNNING or safe_alpha >= self.params.alpha_release:
             self.beta = False
         self.sdot = alpha if running else 0.0
-        self.s = min(self.s + self.sdot * self.params.period, traj.duration)
+        self._advance(traj, self.braking_floor(dq, ddq) == 0.0)    # at rest within the next period
+        traj = self.trajectory
         q_c, dq_c, _ = traj.sample(self.s)
         return ScalingStep(alpha=alpha, safe_alpha=safe_alpha, beta=self.beta, s=self.s, sdot=self.sdot, q_command=q_c,
                            qd_command=dq_c * self.sdot, status=status, method=method, trajectory_version=traj.version,
