@@ -3,7 +3,8 @@ it prints figures).
 
 * SYNC jitter: |interval - period| of the SYNC frames as seen on the bus;
 * command to frame: a joint command published on Zenoh until the RPDO1 frame carrying that setpoint is
-  on the bus (the driver forwards a command at once while running; the drives latch it at the next SYNC);
+  on the bus (its kernel receive stamp; the driver forwards a command at once while running; the drives
+  latch it at the next SYNC);
 * state to Zenoh: the TPDO3 frame with a new position until the joint state with that position arrives;
 * following at 0.95 of the velocity limit (the HIL harness's fast_following: joint 1 on a trapezoid at
   1.49 rad/s, 3 rad/s^2): the lag of the measured joint behind the driver's setpoints (the driver's own
@@ -52,11 +53,16 @@ def measure(interface: str, channel: str | None, seconds: float) -> dict:
     tpdo: dict[int, list[float]] = {}       # position counts -> times TPDO3 of node 3 carried it
     lock = threading.Lock()
 
+    # a frame is timed by its kernel receive stamp (CLOCK_REALTIME, as the SYNC jitter is), brought onto the
+    # monotonic clock the command was timed on: when it was on the bus, not when this process's listener
+    # thread got round to it (under load that wake-up was most of the measured p99)
+    realtime_ahead = time.time() - time.monotonic()
+
     def on_rpdo(can_id, data, ts):
         if len(data) == 8:
             counts = int.from_bytes(data[4:8], "little", signed=True)
             with lock:
-                frames.setdefault(counts, []).append(time.monotonic())
+                frames.setdefault(counts, []).append(ts - realtime_ahead)
 
     def on_tpdo(can_id, data, ts):
         if len(data) >= 4:
