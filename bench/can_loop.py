@@ -10,8 +10,9 @@ it prints figures).
   1.49 rad/s, 3 rad/s^2): the lag of the measured joint behind the driver's setpoints (the driver's own
   DriveLagReport, p99 per second) and the drives' largest following error (0x60F4), and any EMCY.
 
-udp_multicast runs inside a private network namespace: the script re-runs itself under `unshare -rn`
-when it is not in one. Last line: one JSON object.
+udp_multicast runs inside a private network namespace: the script re-runs itself under `unshare -n`
+(`-rn` when not root) when it is not in one, as `hrc demo` and `hrc up` run the cell, so the driver and
+the emulator get the SCHED_FIFO they get there (a user namespace would take it away). Last line: one JSON object.
 
     python bench/can_loop.py [--seconds 10] [--interface socketcan --channel vcan0]
 """
@@ -42,6 +43,11 @@ def pct(values, p):
 
 def measure(interface: str, channel: str | None, seconds: float) -> dict:
     import harness  # the HIL harness's process management, reused
+
+    from shared.scheduling import realtime
+    # this process plays the scaler (it sends the commands and takes the joint states): it runs as the
+    # scaler does in the cell, so what is measured is the loop, not this process waiting behind a busy CPU
+    scheduling = realtime("scaler")
 
     if interface == "udp_multicast":
         for cmd in (["ip", "link", "set", "lo", "up"], ["ip", "link", "set", "lo", "multicast", "on"],
@@ -107,7 +113,7 @@ def measure(interface: str, channel: str | None, seconds: float) -> dict:
         following = harness.fast_following(cell)
     finally:
         cell.stop()
-    return {"bench": "can_loop", "transport": f"{interface}:{channel or ''}",
+    return {"bench": "can_loop", "transport": f"{interface}:{channel or ''}", "bench_scheduling": scheduling,
             "sync_jitter_ms": {"p50": pct(jitter, 50), "p99": pct(jitter, 99), "max": round(float(jitter.max()), 3)},
             "command_to_frame_ms": {"p50": pct(cmd, 50), "p99": pct(cmd, 99)},
             "state_to_zenoh_ms": {"p50": pct(lat, 50), "p99": pct(lat, 99)},
@@ -125,8 +131,12 @@ def main() -> int:
     args = parser.parse_args()
     sys.setswitchinterval(0.0005)       # the measuring threads should not wait 5 ms for the GIL either
     if args.interface == "udp_multicast" and not in_private_namespace():
-        return subprocess.call(["unshare", "-rn", sys.executable, __file__, *sys.argv[1:]])
+        from tools.cell import unshare_flags
+
+        # as the cell runs: root keeps SCHED_FIFO (no user namespace)
+        return subprocess.call(["unshare", unshare_flags(), sys.executable, __file__, *sys.argv[1:]])
     result = measure(args.interface, args.channel, args.seconds)
+    print(f"this process (in the scaler's place): {result['bench_scheduling']}")
     print(f"SYNC jitter: p50 {result['sync_jitter_ms']['p50']} ms, p99 {result['sync_jitter_ms']['p99']} ms, "
           f"max {result['sync_jitter_ms']['max']} ms ({result['samples']['syncs']} periods)")
     print(f"command to frame: p50 {result['command_to_frame_ms']['p50']} ms, p99 {result['command_to_frame_ms']['p99']} ms")

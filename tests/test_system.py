@@ -10,6 +10,7 @@ import pytest
 
 from tests.test_hil import run_harness
 from tests.util import require_namespace
+from tools.cell import unshare_flags
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
 
@@ -22,7 +23,7 @@ SCENARIOS = ["system_goal", "system_stale_humans", "system_near_human", "garbage
 @pytest.fixture(scope="module")
 def results():
     require_namespace("the scaler core is covered by tests/test_scaling_layer.py")
-    return run_harness(["unshare", "-rn"], ["--interface", "udp_multicast", "--with-tracker", "--scenarios", *SCENARIOS])
+    return run_harness(["unshare", unshare_flags()], ["--interface", "udp_multicast", "--with-tracker", "--scenarios", *SCENARIOS])
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)

@@ -2,7 +2,7 @@
 driven and observed from here over Zenoh (commands, joint states, safety events) and CAN (fault
 injection by SDO, EMCY frames, garbage frames). Prints one JSON object with the result of each scenario.
 
-Run it inside a private network namespace for udp_multicast (the tests do: unshare -rn), or with
+Run it inside a private network namespace for udp_multicast (the tests do: unshare -n as root, else -rn), or with
 --interface socketcan --channel vcan0 where the kernel has vcan. Every process it starts is its child,
 dies with it (PR_SET_PDEATHSIG) and is ended by PID at the end.
 """
