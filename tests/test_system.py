@@ -23,7 +23,8 @@ SCENARIOS = ["system_goal", "system_stale_humans", "system_near_human", "garbage
 @pytest.fixture(scope="module")
 def results():
     require_namespace("the scaler core is covered by tests/test_scaling_layer.py")
-    return run_harness(["unshare", unshare_flags()], ["--interface", "udp_multicast", "--with-tracker", "--scenarios", *SCENARIOS])
+    return run_harness(["unshare", unshare_flags()],
+                       ["--interface", "udp_multicast", "--with-tracker", "--scenarios", *SCENARIOS])
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)
