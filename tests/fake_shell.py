@@ -1,8 +1,9 @@
 """A service shell without Zenoh, for testing the service classes in-process.
 
 It is the real ``services.common.ServiceShell`` (its decoding, its dropping and counting of bad messages)
-over a fake session: publishers record what is put, subscriptions keep their callbacks, and a test
-delivers bytes to a key as Zenoh would.
+over a fake session: publishers record what is put, subscriptions keep their callbacks (or, with a ring
+handler, the newest sample, as Zenoh's RingChannel(1) does), and a test delivers bytes to a key as Zenoh
+would.
 """
 
 from __future__ import annotations
@@ -10,6 +11,8 @@ from __future__ import annotations
 import logging
 from collections import defaultdict
 from dataclasses import dataclass
+
+import zenoh
 
 from services.common import ServiceShell
 from shared.wire.keys import KeySpace
@@ -38,18 +41,37 @@ class _Publisher:
         self.sink.append(bytes(data))
 
 
+class _Ring:
+    """A subscriber with a ring of one: try_recv gives the newest sample once, then None."""
+
+    def __init__(self) -> None:
+        self.sample = None
+
+    def try_recv(self):
+        sample, self.sample = self.sample, None
+        return sample
+
+    def undeclare(self) -> None:
+        pass
+
+
 class FakeSession:
     """declare_publisher / declare_subscriber as zenoh.Session has them, in memory."""
 
     def __init__(self) -> None:
         self.sent: dict[str, list[bytes]] = defaultdict(list)
         self.callbacks: dict[str, list] = defaultdict(list)
+        self.rings: dict[str, list[_Ring]] = defaultdict(list)
 
     def declare_publisher(self, key: str) -> _Publisher:
         return _Publisher(self.sent[key])
 
-    def declare_subscriber(self, key: str, callback):
-        self.callbacks[key].append(callback)
+    def declare_subscriber(self, key: str, handler):
+        if isinstance(handler, zenoh.handlers.RingChannel):
+            ring = _Ring()
+            self.rings[key].append(ring)
+            return ring
+        self.callbacks[key].append(handler)
         return self
 
     def undeclare(self) -> None:
@@ -77,6 +99,8 @@ class FakeShell(ServiceShell):
         data = message if isinstance(message, bytes) else encode(message)
         for callback in self.session.callbacks[key]:
             callback(_Sample(key, _Payload(data)))
+        for ring in self.session.rings[key]:
+            ring.sample = _Sample(key, _Payload(data))
 
     def published(self, key: str, kind: type[Message]) -> list:
         """Every message put on key so far, decoded."""

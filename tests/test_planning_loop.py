@@ -3,11 +3,13 @@ service in-process on a fake shell: the same loop behind Zenoh."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from evidence.scenarios import Q_GOAL, Q_START
-from services.planner import PlannerService
+from services.planner import TAKE_WAIT, PlannerService
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
@@ -176,8 +178,35 @@ def test_the_planner_service_drops_bad_bytes_and_goes_on(replanner):
     shell.deliver(shell.keys.goal, b"\x93garbage")
     shell.deliver(shell.keys.goal, Goal(goal_id=1, name="bad", q=np.full(6, 0.0)).__class__.__name__.encode())
     assert shell.bad_messages == 2 and service.goal is None
+    shell.deliver(shell.keys.human_state, b"\x81\xa4kind\xa5human")        # kept by the ring, judged when taken
     service.work_once(0.0)
+    assert shell.bad_messages == 3 and service.humans is None
     assert shell.published(shell.keys.trajectory, TrajectoryMsg) == []
+
+
+def test_the_planner_goes_on_with_the_version_the_scaler_follows_when_a_plan_was_not_taken(replanner):
+    shell = FakeShell("planner")
+    service = PlannerService(shell, PlanningLoop(replanner))
+    keys = shell.keys
+    shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.zeros(6), drive_state="running", enabled=True,
+                                               fault=False))
+    shell.deliver(keys.goal, Goal(goal_id=1, name="q_g", q=Q_GOAL))
+    service.work_once(1.0)
+    first = shell.published(keys.trajectory, TrajectoryMsg)[-1]
+
+    def status(version: int) -> ScalerStatus:
+        return ScalerStatus(s=0.3, alpha=1.0, safe_alpha=1.0, beta=False, q_command=Q_START,
+                            trajectory_version=version, status="running", method="piqp", min_separation=None,
+                            min_margin=None, compute_us=50.0)
+
+    shell.deliver(keys.scaler_status, status(first.version))
+    service.work_once(1.1)
+    assert service._following(1.1)[0].version == first.version
+    service.trajectory = dataclasses.replace(service.trajectory, version=first.version + 1)   # a newer plan, sent
+    service.published[first.version + 1], service.published_at = service.trajectory, 1.2
+    assert service._following(1.5) is None                   # on its way: nothing to replan on yet
+    following = service._following(1.2 + TAKE_WAIT)         # not taken in time: the one still followed
+    assert following is not None and following[0].version == first.version
 
 
 # ------------------------------------------------------------------------------ the keep-or-replace rule
