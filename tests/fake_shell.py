@@ -2,8 +2,8 @@
 
 It is the real ``services.common.ServiceShell`` (its decoding, its dropping and counting of bad messages)
 over a fake session: publishers record what is put, subscriptions keep their callbacks (or, with a ring
-handler, the newest sample, as Zenoh's RingChannel(1) does), and a test delivers bytes to a key as Zenoh
-would.
+handler, the newest sample, as Zenoh's RingChannel(1) does; with a FIFO handler, every sample in order),
+and a test delivers bytes to a key as Zenoh would.
 """
 
 from __future__ import annotations
@@ -55,6 +55,19 @@ class _Ring:
         pass
 
 
+class _Fifo:
+    """A subscriber with a queue: try_recv gives the oldest sample not taken yet, then None."""
+
+    def __init__(self) -> None:
+        self.samples: list = []
+
+    def try_recv(self):
+        return self.samples.pop(0) if self.samples else None
+
+    def undeclare(self) -> None:
+        pass
+
+
 class FakeSession:
     """declare_publisher / declare_subscriber as zenoh.Session has them, in memory."""
 
@@ -62,6 +75,7 @@ class FakeSession:
         self.sent: dict[str, list[bytes]] = defaultdict(list)
         self.callbacks: dict[str, list] = defaultdict(list)
         self.rings: dict[str, list[_Ring]] = defaultdict(list)
+        self.fifos: dict[str, list[_Fifo]] = defaultdict(list)
 
     def declare_publisher(self, key: str) -> _Publisher:
         return _Publisher(self.sent[key])
@@ -71,6 +85,10 @@ class FakeSession:
             ring = _Ring()
             self.rings[key].append(ring)
             return ring
+        if isinstance(handler, zenoh.handlers.FifoChannel):
+            fifo = _Fifo()
+            self.fifos[key].append(fifo)
+            return fifo
         self.callbacks[key].append(handler)
         return self
 
@@ -101,6 +119,8 @@ class FakeShell(ServiceShell):
             callback(_Sample(key, _Payload(data)))
         for ring in self.session.rings[key]:
             ring.sample = _Sample(key, _Payload(data))
+        for fifo in self.session.fifos[key]:
+            fifo.samples.append(_Sample(key, _Payload(data)))
 
     def published(self, key: str, kind: type[Message]) -> list:
         """Every message put on key so far, decoded."""
