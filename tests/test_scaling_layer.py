@@ -153,6 +153,8 @@ def test_one_rule_takes_a_new_trajectory_without_a_jump():
     assert "not at its start" in layer.take(elsewhere, True, 0.0, q_here=a, start_tolerance=0.02)
     assert layer.trajectory is merged and layer.pending is None
     fresh = straight_line_trajectory(b, a, lim.velocity, lim.acceleration, version=3)
+    layer.set_trajectory(old, old.duration)
+    layer.sdot = 0.0                                                              # at rest at b
     assert layer.take(fresh, True, 0.0, q_here=b + 0.01, start_tolerance=0.02) is None
     assert layer.trajectory is fresh and (layer.s, layer.sdot) == (0.0, 0.0)      # from rest, at its start
 
@@ -188,6 +190,12 @@ def test_a_plan_from_rest_ahead_of_a_crawling_robot_is_taken_where_the_robot_sto
     assert np.abs(step.q_command - old.sample(stop_at)[0]).max() < 1e-9 and np.abs(velocity).max() < 0.06
     later = [lay.step(NOBODY, 0.0) for _ in range(20)]
     assert later[-1].trajectory_version == 2 and lay.s > 0.0           # on its way back, from rest
+    # a start ahead but within the tolerance of where the robot is: still reached by stopping, not jumped to
+    lay.set_trajectory(old)
+    lay.s, lay.sdot = 1.0, 0.2
+    near = straight_line_trajectory(old.sample(1.005)[0], Q_START, lim.velocity, lim.acceleration, version=3)
+    assert lay.take(near, True, 0.0, q_here=old.sample(1.0)[0], start_tolerance=0.02) is None
+    assert lay.trajectory is old and lay.pending[0] is near
 
     lay.set_trajectory(old)
     lay.s, lay.sdot = 1.02, 1.0                              # at full speed: it cannot stop in 0.02 s of path

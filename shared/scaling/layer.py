@@ -133,14 +133,17 @@ class ScalingLayer:
         """The one rule for taking a new trajectory without a jump (the scaler service and the simulation):
         one planned from rest (a fresh plan) while the robot is at its start (within start_tolerance, rad),
         from s = 0 at rest, or, when its start lies a little ahead on the path the robot is moving along
-        (a plan for a crawling robot), once the robot has stopped there (``_stop_for``); a merged one only
+        (a plan for a crawling robot), once the robot has stopped there (``_stop_for``; a moving robot is
+        always stopped at a start ahead, never jumped to it, however near it is); a merged one only
         while the follower has not passed its junction, at the same s and path speed (q_here is not needed
         then). None when taken (or pending that stop), else why not."""
         if from_rest:
             if q_here is None:
                 return "the robot's position is not known"
+            if self.sdot > 0.0 and self._stop_for(trajectory, start_tolerance) is None:
+                return None          # moving towards its start: stopped there first, even if it is near
             if np.abs(trajectory.positions[0] - np.asarray(q_here)).max() > start_tolerance:
-                return self._stop_for(trajectory, start_tolerance)
+                return "the robot is not at its start, nor moving towards it"
             self.set_trajectory(trajectory, 0.0)
             self.sdot = 0.0
             return None
@@ -154,7 +157,7 @@ class ScalingLayer:
         seconds and tolerance, rad): pending. The steps then bring the robot to rest exactly there
         (``_stop_cap``) and switch to it. None when pending, else why it cannot be taken."""
         if self.trajectory is None or self.sdot <= 0.0:
-            return "the robot is not at its start"
+            return "the robot is not moving towards its start"
         start = trajectory.positions[0]
         grid = np.linspace(self.s, min(self.trajectory.duration, self.s + STOP_REACH), 101)
         for _ in range(2):                      # a coarse scan, then around its best point
@@ -162,7 +165,7 @@ class ScalingLayer:
             k = int(np.argmin(gap))
             best, grid = float(grid[k]), np.linspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], 21)
         if gap[k] > tolerance:
-            return "the robot is not at its start, nor moving towards it"
+            return "its start is not ahead on the path"
         self.pending, self.dropped = (trajectory, best), None
         return None
 
