@@ -19,7 +19,9 @@ splice of a merge (Alg. 2, ``shared.planning.merge``), the keep-or-replace rule
   continuous at the junction; following the old geometry for a while gives toppra room to slow down
   before any turn. Junctions further back are tried when a turn is too sharp, then stop-and-go. The
   result gets the next version number; a follower anywhere before s_j continues at the same s. A robot
-  at rest gets a trajectory from rest where it stands instead (free to leave in any direction).
+  at rest gets a trajectory from rest where it stands instead (free to leave in any direction), and one
+  that the SSM holds to a crawl a trajectory from rest a few millimetres ahead, where the scaling layer
+  stops it (``ScalingLayer.take``).
 * ``Replanner.on_horizon`` (the path ahead is blocked) and ``Replanner.on_beta`` (the scaling layer
   asks: alpha too low) build such a trajectory and keep it only when predicted faster than the old one
   (a beta replan by at least ``min_gain``).
@@ -336,7 +338,8 @@ class Replanner:
         only when predicted to reach the goal sooner than the old one (ReplanFailed saying why, with both
         predicted times). speed_now: the robot's joint speed (rad/s); at rest, the new trajectory starts
         from rest where the robot stands (a merge in nominal time would have to leave at the old nominal
-        speed, which a stopped robot cannot). waited: as in predicted_time."""
+        speed, which a stopped robot cannot); crawling and held, from rest a little ahead (as on_beta).
+        waited: as in predicted_time."""
         started = time.perf_counter()
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
         # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
@@ -358,10 +361,13 @@ class Replanner:
 
         speed_now: the robot's actual joint speed (rad/s, max over joints; None: moving at the nominal
         speed). At rest (below rest_speed) the new trajectory starts at rest from where the robot is:
-        continuous in the actual velocity, and free to leave in any direction. Moving, the merge must be
+        continuous in the actual velocity, and free to leave in any direction. Crawling and held there by
+        the SSM (held; below `crawl` of the nominal speed), from rest a little ahead, where the scaling layer
+        stops it (``_stop_plan``). Moving, the merge must be
         continuous in nominal time, so the new part starts with the old nominal velocity: the branch point
         is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
-        new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time)."""
+        new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time).
+        held: the robot's speed is the SSM's bound (or it brakes), not a ramp below it."""
         started = time.perf_counter()
         result, baseline = self._start(old, s_now, speed_now, q_goal, humans, "beta", waited, held)
         if result is None:
