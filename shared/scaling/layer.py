@@ -20,7 +20,11 @@ Safety rules kept here:
   stop it sooner: the drive (or the driver's setpoint limiter) would brake at that rate anyway, then
   pull the robot back to where the command had stopped. While braking, a command can exceed the SSM
   bound; that is the braking the ISO formula allows for (T_s at a_max), and the step says so
-  (method '+braking').
+  (method '+braking');
+* a plan from rest whose start lies a little ahead on the path (the planner's stop plan for a robot the
+  SSM holds to a crawl) is reached by slowing down, never by a jump: the path speed is capped so that the
+  robot comes to rest exactly at that start (method '+stopping'; the cap only ever lowers alpha), and the
+  plan is taken there, at rest (``take``).
 """
 
 from __future__ import annotations
