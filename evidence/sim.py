@@ -31,7 +31,7 @@ from evidence.scenarios import ScriptedHuman
 from shared.config import CellConfig
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.decision import HoldClock
-from shared.planning.loop import PlanningInputs, PlanningLoop, PlanningOutcome
+from shared.planning.loop import PlanningInputs, PlanningLoop, PlanningOutcome, held_by_ssm
 from shared.planning.replanner import Replanner
 from shared.robot.model import RobotModel
 from shared.safety.monitor import MonitorResult, ReactionWindow, SafetyMonitor
@@ -218,7 +218,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             planning_turn(t, k, humans)
         step = layer.step(humans, 0.0)
         speed_now = float(np.abs(step.qd_command).max())
-        ssm_held = step.safe_alpha <= step.alpha + 1e-6
+        ssm_held = held_by_ssm(step.alpha, step.safe_alpha)
         if step.beta and not beta:
             result.beta_requests += 1
         beta = step.beta

@@ -28,7 +28,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock
-from shared.planning.loop import PlanningInputs, PlanningLoop
+from shared.planning.loop import PlanningInputs, PlanningLoop, held_by_ssm
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
@@ -62,7 +62,6 @@ class PlannerService:
         self.trajectory: Trajectory | None = None       # the newest published
         self.published: dict[int, Trajectory] = {}      # the last few, by version: the scaler may still follow one
         self.published_at = -float("inf")
-        self.now = -float("inf")                         # the time of the current turn (work_once)
         self.goal_id = 0
         self.seq = 0
         self.traj_pub = shell.session.declare_publisher(shell.keys.trajectory)
@@ -101,11 +100,11 @@ class PlannerService:
                                               seq=self.seq, stamp=time.monotonic())))
         self.shell.log.info("%s: %s", event, text)
 
-    def _publish(self, traj: Trajectory, reason: str, junction: float, base_version: int, ms: float,
+    def _publish(self, now: float, traj: Trajectory, reason: str, junction: float, base_version: int, ms: float,
                  detail: str = "") -> None:
         self.trajectory = traj
         self.published = {v: t for v, t in self.published.items() if v >= traj.version - 8}
-        self.published[traj.version], self.published_at = traj, self.now
+        self.published[traj.version], self.published_at = traj, now
         self.seq += 1
         self.traj_pub.put(encode(trajectory_to_msg(traj, self.goal_id, reason, junction, base_version,
                                                    seq=self.seq, stamp=time.monotonic())))
@@ -128,7 +127,6 @@ class PlannerService:
     def work_once(self, now: float) -> None:
         """One turn of the planning loop on the latest inputs; its outcome published (a trajectory, or an
         event saying why there is none)."""
-        self.now = now
         self.poll(now)
         with self.lock:
             goal, new_goal, humans, q, status = self.goal, self.new_goal, self.humans, self.q, self.status
@@ -143,7 +141,7 @@ class PlannerService:
             version = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen) + 1
             inputs = PlanningInputs(goal.q, new_goal, q, humans, self.human_seq, following, speed,
                                     status is not None and status.beta, self.held.waited(now), version,
-                                    status is not None and status.safe_alpha <= status.alpha + 1e-6)
+                                    status is not None and held_by_ssm(status.alpha, status.safe_alpha))
         if new_goal:
             self.goal_id = goal.goal_id
         started = time.perf_counter()
@@ -158,9 +156,10 @@ class PlannerService:
             return
         result = outcome.result
         if result.from_rest:
-            self._publish(result.trajectory, result.reason, 0.0, -1, ms, result.detail)
+            self._publish(now, result.trajectory, result.reason, 0.0, -1, ms, result.detail)
         else:
-            self._publish(result.trajectory, result.reason, result.junction, following[0].version, ms, result.detail)
+            self._publish(now, result.trajectory, result.reason, result.junction, following[0].version, ms,
+                          result.detail)
 
     def run(self, stop: threading.Event) -> None:
         while not stop.is_set():

@@ -145,14 +145,20 @@ def replanner() -> Replanner:
                      options=ReplanOptions(seed=5))
 
 
-def test_the_planner_service_plans_a_goal_and_answers_beta_through_the_loop(replanner):
+def planner_given_a_goal(replanner, goal_id: int) -> tuple[FakeShell, PlannerService]:
+    """A planner service in-process that knows where the robot is and has taken its turn on a goal (t = 1 s)."""
     shell = FakeShell("planner")
     service = PlannerService(shell, PlanningLoop(replanner))
-    keys = shell.keys
-    shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.zeros(6), drive_state="running", enabled=True,
-                                               fault=False))
-    shell.deliver(keys.goal, Goal(goal_id=7, name="q_g", q=Q_GOAL))
+    shell.deliver(shell.keys.joint_state, JointState(q=Q_START, qd=np.zeros(6), drive_state="running", enabled=True,
+                                                     fault=False))
+    shell.deliver(shell.keys.goal, Goal(goal_id=goal_id, name="q_g", q=Q_GOAL))
     service.work_once(1.0)
+    return shell, service
+
+
+def test_the_planner_service_plans_a_goal_and_answers_beta_through_the_loop(replanner):
+    shell, service = planner_given_a_goal(replanner, 7)
+    keys = shell.keys
     sent = shell.published(keys.trajectory, TrajectoryMsg)
     assert len(sent) == 1 and sent[0].goal_id == 7 and sent[0].base_version == -1 and sent[0].reason == "goal"
     assert np.allclose(sent[0].positions[0], Q_START) and np.allclose(sent[0].positions[-1], Q_GOAL)
@@ -185,13 +191,8 @@ def test_the_planner_service_drops_bad_bytes_and_goes_on(replanner):
 
 
 def test_the_planner_goes_on_with_the_version_the_scaler_follows_when_a_plan_was_not_taken(replanner):
-    shell = FakeShell("planner")
-    service = PlannerService(shell, PlanningLoop(replanner))
+    shell, service = planner_given_a_goal(replanner, 1)
     keys = shell.keys
-    shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.zeros(6), drive_state="running", enabled=True,
-                                               fault=False))
-    shell.deliver(keys.goal, Goal(goal_id=1, name="q_g", q=Q_GOAL))
-    service.work_once(1.0)
     first = shell.published(keys.trajectory, TrajectoryMsg)[-1]
 
     def status(version: int) -> ScalerStatus:

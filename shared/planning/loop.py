@@ -59,6 +59,12 @@ class PlanningInputs:
     held: bool = False
 
 
+def held_by_ssm(alpha: float, safe_alpha: float) -> bool:
+    """PlanningInputs.held from a scaling step or the scaler's status: the path speed alpha is the SSM's
+    bound safe_alpha (or above it, braking), not an acceleration ramp below it."""
+    return safe_alpha <= alpha + 1e-6
+
+
 @dataclass(frozen=True)
 class PlanningOutcome:
     """One action of the loop. action: 'goal', 'beta' or 'horizon'. result: the new trajectory (a goal from

@@ -182,14 +182,14 @@ class ScalingLayer:
                                           self.sdot, self.robot.limits.acceleration)
         return math.sqrt(max(0.0, 2.0 * 0.5 * deceleration * (self.pending[1] - self.s)))
 
-    def _advance(self, traj: Trajectory, can_stop: bool) -> None:
+    def _advance(self, traj: Trajectory, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> None:
         """s moves on by sdot T; at a pending plan's start the robot comes to rest and the plan is taken, or,
-        when the drives could not stop it within this period (can_stop False: the braking floor is above
-        0), the plan is dropped, saying why."""
+        when the drives could not stop it within this period (the braking floor at the new path speed is
+        above 0), the plan is dropped, saying why."""
         s_next = min(self.s + self.sdot * self.params.period, traj.duration)
         if self.pending is not None and s_next >= self.pending[1] - 1e-9:
             plan, s_stop = self.pending
-            if not can_stop:
+            if self.braking_floor(dq_ds, d2q_ds2) > 0.0:
                 self.pending, self.dropped = None, f"could not stop at s={s_stop:.3f} for plan {plan.version}"
             else:
                 self.set_trajectory(plan, 0.0)
@@ -283,7 +283,7 @@ class ScalingLayer:
         elif status is not StepStatus.RUNNING or safe_alpha >= self.params.alpha_release:
             self.beta = False
         self.sdot = alpha if running else 0.0
-        self._advance(traj, self.braking_floor(dq, ddq) == 0.0)    # at rest within the next period
+        self._advance(traj, dq, ddq)
         traj = self.trajectory
         q_c, dq_c, _ = traj.sample(self.s)
         return ScalingStep(alpha=alpha, safe_alpha=safe_alpha, beta=self.beta, s=self.s, sdot=self.sdot, q_command=q_c,
