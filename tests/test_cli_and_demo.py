@@ -83,5 +83,9 @@ def test_the_paper_phases_with_both_layers():
         assert re.search(r"predicted \d+\.\d\d s, not .*faster than the old \d+\.\d\d s", refused.detail) \
             or "Error" in refused.detail or "merge" in refused.detail, refused.detail
     assert min(r.step.min_separation for r in result.records) >= 0.0
+    # phase 4: the person leans in so far that q_s itself is out of reach while they stay (a link would end
+    # inside the separation at which the SSM allows no approach): every refusal there says so
+    phase4 = [e for e in result.replans if not e.ok and 18.3 <= e.t <= 22.5]
+    assert phase4 and all("the goal is blocked while the person stays" in e.detail for e in phase4), phase4
     # pure ski rental (no patience): never slower than the scaling layer alone
     assert both_layers(ReplanOptions(patience=0.0)).progress >= scaling_only.progress - 1e-9

@@ -269,7 +269,7 @@ def _demo_processes(args: argparse.Namespace, human) -> int:
             server.stop()
     print(json.dumps({k: v for k, v in summary.items() if k not in ("replan_stall_ms", "replans")}
                      | {"replans": len(summary["replans"]), "replan_stall_ms": {
-                         k: summary["replan_stall_ms"][k] for k in ("median", "max")}}))
+                         k: summary["replan_stall_ms"][k] for k in ("median", "max", "goal_blocked")}}))
     print(f"hrc demo: report in {args.out}/ (summary.json, trace.csv, figures: {', '.join(summary['figures'])})")
     if summary["violations"] is None:
         print("hrc demo: error: no summary from the safety monitor", file=sys.stderr)

@@ -85,6 +85,16 @@ def replan_stalls(statuses: list[ScalerStatus], t0: float = 0.0) -> list[dict]:
     return stalls
 
 
+def mark_blocked_goals(stalls: list[dict], events: list, t0: float = 0.0) -> None:
+    """Flag each stall in which the planner refused a replan because the goal itself was out of reach
+    while the people stayed (shared.planning.blocked): a wait that no path could have shortened."""
+    refusals = [e.stamp - t0 for e in events if e.source == "planner" and e.event == "replan_refused"
+                and "the goal is blocked" in e.text]
+    for stall in stalls:
+        end = stall["t"] + stall["stall_ms"] / 1e3
+        stall["goal_blocked"] = any(stall["t"] - 1e-6 <= t <= end + 1e-6 for t in refusals)
+
+
 def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dict[str, np.ndarray]:
     """At every measured joint state, with the human state of its moment (shared.safety.monitor.HumanHistory.pair,
     the monitor service's own pairing; a state measured before any human sample is not checked, as the
@@ -155,6 +165,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
     violation_events = [e for e in rec.events if e.source == "safety_monitor" and e.event == "ssm_violation"]
     violations = int(summaries[-1].value) if summaries else None
     stalls = replan_stalls(st, rec.t0)
+    mark_blocked_goals(stalls, rec.events, rec.t0)
     replans = []
     for e in rec.events:
         if e.source != "planner" or not (e.event.startswith("trajectory_") or e.event == "replan_refused"):
@@ -187,6 +198,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "replans": replans,
         "replan_stall_ms": {"median": round(float(np.median(stall_values)), 1) if stall_values.size else None,
                             "max": round(float(stall_values.max()), 1) if stall_values.size else None,
+                            "goal_blocked": sum(s["goal_blocked"] for s in stalls),
                             "episodes": stalls},
         "min_margin_m": round(float(series["margin"][finite].min()) * horizon, 4) if finite.any() else None,
         "min_margin_m_s": round(float(series["margin"][finite].min()), 4) if finite.any() else None,

@@ -16,8 +16,9 @@ the robot has been held, whichever is longer, on top of the replanner's patience
 in the way for three seconds is gone round sooner than someone who has just stopped.
 
 The outcome (``PlanningOutcome``) says what was done and what came of it: a trajectory to publish, or why
-none. Pure apart from the Replanner's own wall-clock budgets: no I/O, the clock is the caller's `now`
-(the service passes the monotonic clock, the simulation its simulated one).
+none; a refused replan also says when the goal itself is out of reach while the people stay
+(``shared.planning.blocked``). Pure apart from the Replanner's own wall-clock budgets: no I/O, the clock
+is the caller's `now` (the service passes the monotonic clock, the simulation its simulated one).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import numpy as np
 
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
+from shared.planning.blocked import goal_block
 from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
 from shared.planning.ompl_planner import PlanningError
 from shared.planning.replanner import Replanner
@@ -139,7 +141,7 @@ class PlanningLoop:
                 return PlanningOutcome("beta", self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans,
                                                                       inputs.speed, inputs.waited, inputs.held))
             except ReplanFailed as exc:
-                return PlanningOutcome("beta", refused=str(exc))
+                return PlanningOutcome("beta", refused=self._why(str(exc), inputs))
         if inputs.human_sample != self.last_sample and now >= self.next_horizon:
             self.last_sample = inputs.human_sample
             self.next_horizon = now + self.horizon_period
@@ -148,9 +150,17 @@ class PlanningLoop:
                                                    inputs.waited, inputs.held)
             except ReplanFailed as exc:
                 self.next_horizon = now + self.beta_cooldown / 2
-                return PlanningOutcome("horizon", refused=str(exc))
+                return PlanningOutcome("horizon", refused=self._why(str(exc), inputs))
             return None if result is None else PlanningOutcome("horizon", result)
         return None
+
+    def _why(self, refused: str, inputs: PlanningInputs) -> str:
+        """A refusal's reason, and where the goal itself is out of reach while the people stay
+        (``goal_block``), that too: then no path, old or new, gets there before they move."""
+        if inputs.humans is None:
+            return refused
+        block = goal_block(self.replanner.collision.robot, self.replanner.ssm, inputs.q, inputs.goal, inputs.humans)
+        return refused if block is None else f"{refused}; {block.describe()}"
 
     def _goal(self, inputs: PlanningInputs) -> PlanningOutcome:
         self.replanner.forget()

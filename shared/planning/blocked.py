@@ -1,0 +1,66 @@
+"""A goal that no motion within the SSM can reach while the people stay where they are (pure).
+
+Inside a certain separation from a person the ISO/TS 15066 limit, less the scaling layer's tracking
+margin, is zero or negative: there a robot link may not approach that person at all, only move away
+(``shared.safety.ssm``). That separation, the *no-approach distance*, is
+
+    d0 = v_h (T_s + T_r) + C + Z_d + Z_r + a_max T_s^2 / 2 + tracking_margin (T_s + T_r)
+
+(0.32 m for a person standing still with the default parameters). The scaling layer bounds how fast a link
+closes the distance to a capsule (the end-point speed it limits bounds the closest points' speed), so
+while that person stays, the separation of a link from them cannot shrink below d0 or, where it already is
+below, below what it is now. A goal at which some link would be closer to a person than both d0 and its
+separation now is therefore out of reach until the person moves: every path, old or new, ends in a wait.
+``goal_block`` says so, naming the link and the numbers; the planning loop adds it to the reason a replan
+is refused, and the demo's report to the stall it explains. A moving person gets the d0 of their tracked
+approach speed (larger), an untracked one that of the ISO 13855 speed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+from shared.robot.model import RobotModel
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import pair_ssm
+
+TOLERANCE = 1e-3   # m: a separation this much smaller counts as closer (a robot at its goal is not blocked)
+
+
+@dataclass(frozen=True)
+class GoalBlock:
+    """Why a goal is out of reach: at the goal, `link` would be `at_goal` m from human capsule `capsule`,
+    closer than the no-approach distance `no_approach` (m) and than its separation now, `now` (m)."""
+
+    link: str
+    capsule: int
+    at_goal: float
+    no_approach: float
+    now: float
+
+    def describe(self) -> str:
+        return (f"the goal is blocked while the person stays: there {self.link} would be {self.at_goal:.2f} m "
+                f"from human capsule {self.capsule}, inside the {self.no_approach:.2f} m at which the SSM "
+                f"allows no approach (it is {self.now:.2f} m now)")
+
+
+def goal_block(robot: RobotModel, ssm: SsmParameters, q_now: np.ndarray, q_goal: np.ndarray,
+               humans: HumanCapsules | None) -> GoalBlock | None:
+    """The pair that keeps q_goal out of reach from q_now while these people stay (the one the goal brings
+    closest, relative to its no-approach distance), or None when no pair does (see the module docstring)."""
+    if humans is None or humans.count == 0:
+        return None
+    still = np.zeros((len(robot.radii), 2, 3))
+    goal = pair_ssm(robot.capsule_segments(np.asarray(q_goal, dtype=float)), robot.radii, still, humans, ssm)
+    now = pair_ssm(robot.capsule_segments(np.asarray(q_now, dtype=float)), robot.radii, still, humans, ssm)
+    no_approach = goal.human_speed * ssm.horizon + ssm.fixed_distance + ssm.tracking_margin * ssm.horizon
+    blocked = (goal.distance < no_approach) & (goal.distance < now.distance - TOLERANCE)
+    if not blocked.any():
+        return None
+    depth = np.where(blocked, no_approach - goal.distance, -np.inf)
+    i, j = np.unravel_index(int(np.argmax(depth)), depth.shape)
+    return GoalBlock(robot.link_names[i], int(j), float(goal.distance[i, j]), float(no_approach[i, j]),
+                     float(now.distance[i, j]))

@@ -1,0 +1,104 @@
+"""A goal out of reach while the people stay (shared.planning.blocked), as the planning loop and the demo's
+report say it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from evidence.scenarios import IN_PATH, Q_GOAL, Q_START, Keyframe, ScriptedHuman, paper_phases
+from shared.core.humans import HumanCapsules
+from shared.planning.blocked import goal_block
+from shared.planning.collision import CollisionModel
+from shared.planning.loop import PlanningLoop
+from shared.planning.scene import Scene
+from shared.robot.model import default_robot
+from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import pair_ssm
+from shared.wire.messages import SafetyEvent
+from tests.test_planning_loop import RecordingReplanner, inputs
+from tools.report import mark_blocked_goals
+
+ROBOT, SSM = default_robot(), SsmParameters()
+Q_HELD = np.array([0.98, 0.22, 0.6, -0.22, 1.73, 0.12])    # where the paper's phase 4 holds the robot
+
+
+def standing(x: float, y: float, lean: float, velocity: float = 0.0, known: bool = True) -> HumanCapsules:
+    """A person reaching into the shuttle's path, standing still (or moving at `velocity` m/s along +x)."""
+    h = ScriptedHuman([Keyframe(0.0, x, y, 1.0, IN_PATH, lean=lean), Keyframe(1.0, x, y, 1.0, IN_PATH, lean=lean)])
+    at = h.at(0.5)
+    vel = np.zeros_like(at.velocities)
+    vel[..., 0] = velocity
+    return HumanCapsules(at.segments, at.radii, vel, np.full(at.radii.size, known))
+
+
+def separation(q: np.ndarray, humans: HumanCapsules) -> float:
+    return float(pair_ssm(ROBOT.capsule_segments(q), ROBOT.radii, np.zeros((len(ROBOT.radii), 2, 3)), humans,
+                          SSM).distance.min())
+
+
+def test_a_goal_inside_the_no_approach_distance_of_a_person_is_blocked_and_says_why():
+    person = standing(-0.9, 0.1, 1.0)                       # the paper's phase 4
+    block = goal_block(ROBOT, SSM, Q_HELD, Q_START, person)
+    assert block is not None and block.link == "prbt_link_2"
+    no_approach = SSM.fixed_distance + SSM.tracking_margin * SSM.horizon       # 0.316 m for a person standing
+    assert np.isclose(block.no_approach, no_approach) and 0.30 < no_approach < 0.33
+    assert block.at_goal < block.now and block.at_goal < no_approach
+    assert np.isclose(block.at_goal, separation(Q_START, person), atol=1e-9)
+    assert "0.21 m from human capsule 3, inside the 0.32 m" in block.describe()
+    assert goal_block(ROBOT, SSM, Q_HELD, Q_GOAL, person) is None           # the other end is clear of them
+
+
+def test_a_robot_at_its_goal_or_moving_away_from_the_person_is_not_blocked():
+    person = standing(-0.9, 0.1, 1.0)
+    assert goal_block(ROBOT, SSM, Q_START, Q_START, person) is None          # already there
+    # inside the no-approach distance, a goal the robot reaches by moving away (joint 1 turning it off) is
+    # not blocked; one that brings the upper arm 8 mm closer (joint 2 leaning in) is
+    away, closer = Q_START + [0.3, 0, 0, 0, 0, 0], Q_START + [0, 0.1, 0, 0, 0, 0]
+    assert separation(Q_START, person) < separation(away, person) < SSM.fixed_distance
+    assert goal_block(ROBOT, SSM, Q_START, away, person) is None
+    block = goal_block(ROBOT, SSM, Q_START, closer, person)
+    assert block is not None and block.link == "prbt_link_2" and block.now - block.at_goal > 0.005
+    assert goal_block(ROBOT, SSM, Q_HELD, Q_START, None) is None
+    assert goal_block(ROBOT, SSM, Q_HELD, Q_START, standing(-2.8, 0.0, 0.0)) is None      # far away
+
+
+def test_a_person_approaching_or_untracked_blocks_from_further_away():
+    # standing a step further back, leaning less: the goal 0.38 m from them, outside the 0.32 m
+    assert 0.35 < separation(Q_START, standing(-1.3, 0.0, 0.8)) < 0.4
+    assert goal_block(ROBOT, SSM, Q_HELD, Q_START, standing(-1.3, 0.0, 0.8)) is None
+    approaching = goal_block(ROBOT, SSM, Q_HELD, Q_START, standing(-1.3, 0.0, 0.8, velocity=0.5))
+    untracked = goal_block(ROBOT, SSM, Q_HELD, Q_START, standing(-1.3, 0.0, 0.8, known=False))
+    assert approaching is not None and approaching.no_approach > SSM.fixed_distance + 0.15
+    assert untracked is not None and np.isclose(
+        untracked.no_approach, SSM.human_speed_near * SSM.horizon + SSM.fixed_distance + SSM.tracking_margin * SSM.horizon)
+
+
+def test_a_refused_replan_says_when_the_goal_is_blocked():
+    replanner = RecordingReplanner(beta_fails=True, horizon_fails=True)
+    replanner.collision, replanner.ssm = CollisionModel(ROBOT, Scene(floor_z=0.0)), SSM
+    loop = PlanningLoop(replanner)
+    person = standing(-0.9, 0.1, 1.0)
+    blocked = loop.step(0.0, inputs(goal=Q_START, q=Q_HELD, humans=person, beta=True, human_sample=1))
+    assert blocked.action == "beta" and blocked.refused.startswith("not 10 % faster; the goal is blocked")
+    clear = loop.step(0.01, inputs(goal=Q_GOAL, q=Q_HELD, humans=person, human_sample=2))
+    assert clear.action == "horizon" and clear.refused == "blocked, no way round"
+
+
+def test_the_report_flags_the_stalls_that_a_blocked_goal_explains():
+    def refusal(t: float, text: str) -> SafetyEvent:
+        return SafetyEvent(source="planner", event="replan_refused", severity="info", text=text, stamp=100.0 + t)
+    stalls = [{"t": 1.0, "stall_ms": 500.0, "ended_by": "cleared"},
+              {"t": 3.0, "stall_ms": 4000.0, "ended_by": "cleared"}]
+    events = [refusal(1.2, "beta: replan request, kept the old trajectory: the new one predicted 2.0 s"),
+              refusal(5.0, "beta: kept the old trajectory; the goal is blocked while the person stays: ...")]
+    mark_blocked_goals(stalls, events, t0=100.0)
+    assert [s["goal_blocked"] for s in stalls] == [False, True]
+
+
+def test_the_paper_phase_4_goal_is_out_of_reach_of_every_path():
+    """Why no replan shortens the wait in the paper's phase 4 (see docs/architecture.md): the person leans
+    into the path so that the robot's upper arm at q_s would be 0.21 m from their forearm, under the 0.32 m
+    inside which the SSM forbids any approach; from 0.26 m (t = 20 s) every path to q_s must close in."""
+    person = paper_phases(6.0).at(20.0)
+    block = goal_block(ROBOT, SSM, Q_HELD, Q_START, person)
+    assert block is not None and block.at_goal < 0.25 < block.now
