@@ -27,6 +27,7 @@ from tests.fake_shell import FakeShell
 ROBOT = default_robot()
 LIM = ROBOT.limits
 OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=3)
+COLLISION = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
 
 
 class RecordingReplanner:
@@ -37,6 +38,7 @@ class RecordingReplanner:
         self.searches = 0
         self.forgotten = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
+        self.collision, self.ssm = COLLISION, SsmParameters()      # what the loop asks whether a goal is blocked
 
     def forget(self) -> None:
         self.forgotten += 1
@@ -164,9 +166,9 @@ def test_the_planner_service_plans_a_goal_and_answers_beta_through_the_loop(repl
     assert np.allclose(sent[0].positions[0], Q_START) and np.allclose(sent[0].positions[-1], Q_GOAL)
     events = shell.published(keys.safety_events, SafetyEvent)
     assert events[-1].event == "trajectory_goal" and events[-1].source == "planner"
-    # the scaler follows it and asks for a replan with a person's arm across the path
-    arm = HumanCapsules.from_arrays([[[-0.75, -0.15, 0.55], [-0.35, 0.15, 0.55]]], [0.05], np.zeros((1, 2, 3)),
-                                    [True])
+    # the scaler follows it and asks for a replan with a person's arm across the path (not so far in that
+    # the goal itself is out of reach: shared.planning.blocked, tests/test_blocked_goal.py)
+    arm = HumanCapsules.from_arrays([[[-0.85, -0.05, 0.5], [-0.4, 0.0, 0.5]]], [0.05], np.zeros((1, 2, 3)), [True])
     shell.deliver(keys.human_state, humans_to_msg(arm, True, 1.5))
     shell.deliver(keys.scaler_status, ScalerStatus(s=0.3, alpha=0.0, safe_alpha=0.0, beta=True, q_command=Q_START,
                                                    trajectory_version=sent[0].version, status="running",

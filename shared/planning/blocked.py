@@ -12,8 +12,10 @@ while that person stays, the separation of a link from them cannot shrink below 
 below, below what it is now. A goal at which some link would be closer to a person than both d0 and its
 separation now is therefore out of reach until the person moves: every path, old or new, ends in a wait.
 ``goal_block`` says so, naming the link and the numbers; the planning loop adds it to the reason a replan
-is refused, and the demo's report to the stall it explains. A moving person gets the d0 of their tracked
-approach speed (larger), an untracked one that of the ISO 13855 speed.
+is refused (and a replan request is not searched for), and the demo's report to the stall it explains.
+"Stay" is taken literally: a tracked person counts as standing where they are now (a walking one will be
+somewhere else soon, and is not a reason to stop searching); a capsule the tracker has no velocity for
+gets the ISO 13855 speed, as everywhere, so its d0 is larger.
 """
 
 from __future__ import annotations
@@ -54,8 +56,9 @@ def goal_block(robot: RobotModel, ssm: SsmParameters, q_now: np.ndarray, q_goal:
     if humans is None or humans.count == 0:
         return None
     still = np.zeros((len(robot.radii), 2, 3))
-    goal = pair_ssm(robot.capsule_segments(np.asarray(q_goal, dtype=float)), robot.radii, still, humans, ssm)
-    now = pair_ssm(robot.capsule_segments(np.asarray(q_now, dtype=float)), robot.radii, still, humans, ssm)
+    staying = HumanCapsules(humans.segments, humans.radii, np.zeros_like(humans.velocities), humans.velocity_known)
+    goal = pair_ssm(robot.capsule_segments(np.asarray(q_goal, dtype=float)), robot.radii, still, staying, ssm)
+    now = pair_ssm(robot.capsule_segments(np.asarray(q_now, dtype=float)), robot.radii, still, staying, ssm)
     no_approach = goal.human_speed * ssm.horizon + ssm.fixed_distance + ssm.tracking_margin * ssm.horizon
     blocked = (goal.distance < no_approach) & (goal.distance < now.distance - TOLERANCE)
     if not blocked.any():

@@ -6,7 +6,9 @@ how long it has been held) and takes at most one action, in this order:
 
 1. a new goal: from rest, ``Replanner.plan_goal`` (the direct line unless the searched path is predicted
    faster); while a trajectory is being followed, a merge into it (Alg. 2, reason 'goal');
-2. a replan request (beta raised), at most every ``beta_cooldown``: ``Replanner.on_beta``;
+2. a replan request (beta raised), at most every ``beta_cooldown``: ``Replanner.on_beta``, unless the goal
+   itself is out of reach while the people stay (``shared.planning.blocked``): every path then ends in the
+   same wait, and the refusal says so without a search;
 3. a new human sample, at most every ``horizon_period``: the horizon check (Alg. 1) and a merge when the
    path ahead is blocked and the way round is predicted faster; after a refused one, the horizon is left
    alone for half a beta cooldown (a blocked horizon is not hammered every sample).
@@ -29,7 +31,7 @@ import numpy as np
 
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
-from shared.planning.blocked import goal_block
+from shared.planning.blocked import GoalBlock, goal_block
 from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
 from shared.planning.ompl_planner import PlanningError
 from shared.planning.replanner import Replanner
@@ -137,6 +139,9 @@ class PlanningLoop:
         trajectory, s = inputs.following
         if self.beta_replans and inputs.beta and now >= self.next_beta:
             self.next_beta = now + self.beta_cooldown
+            block = self._block(inputs)
+            if block is not None:          # no path gets there before the people move: nothing to search
+                return PlanningOutcome("beta", refused=f"not searched: {block.describe()}")
             try:
                 return PlanningOutcome("beta", self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans,
                                                                       inputs.speed, inputs.waited, inputs.held))
@@ -154,12 +159,16 @@ class PlanningLoop:
             return None if result is None else PlanningOutcome("horizon", result)
         return None
 
+    def _block(self, inputs: PlanningInputs) -> GoalBlock | None:
+        """Why the goal is out of reach from where the robot is while the people stay, or None."""
+        if inputs.humans is None:
+            return None
+        return goal_block(self.replanner.collision.robot, self.replanner.ssm, inputs.q, inputs.goal, inputs.humans)
+
     def _why(self, refused: str, inputs: PlanningInputs) -> str:
         """A refusal's reason, and where the goal itself is out of reach while the people stay
         (``goal_block``), that too: then no path, old or new, gets there before they move."""
-        if inputs.humans is None:
-            return refused
-        block = goal_block(self.replanner.collision.robot, self.replanner.ssm, inputs.q, inputs.goal, inputs.humans)
+        block = self._block(inputs)
         return refused if block is None else f"{refused}; {block.describe()}"
 
     def _goal(self, inputs: PlanningInputs) -> PlanningOutcome:
