@@ -85,7 +85,7 @@ def replan_stalls(statuses: list[ScalerStatus], t0: float = 0.0) -> list[dict]:
     return stalls
 
 
-def mark_blocked_goals(stalls: list[dict], events: list, t0: float = 0.0) -> None:
+def mark_blocked_goals(stalls: list[dict], events: list[SafetyEvent], t0: float = 0.0) -> None:
     """Flag each stall in which the planner refused a replan because the goal itself was out of reach
     while the people stayed (shared.planning.blocked): a wait that no path could have shortened."""
     refusals = [e.stamp - t0 for e in events if e.source == "planner" and e.event == "replan_refused"
