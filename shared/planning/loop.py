@@ -145,8 +145,8 @@ class PlanningLoop:
             try:
                 return PlanningOutcome("beta", self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans,
                                                                       inputs.speed, inputs.waited, inputs.held))
-            except ReplanFailed as exc:
-                return PlanningOutcome("beta", refused=self._why(str(exc), inputs))
+            except ReplanFailed as exc:          # (the goal is not blocked: asked just above)
+                return PlanningOutcome("beta", refused=str(exc))
         if inputs.human_sample != self.last_sample and now >= self.next_horizon:
             self.last_sample = inputs.human_sample
             self.next_horizon = now + self.horizon_period
@@ -166,7 +166,7 @@ class PlanningLoop:
         return goal_block(self.replanner.collision.robot, self.replanner.ssm, inputs.q, inputs.goal, inputs.humans)
 
     def _why(self, refused: str, inputs: PlanningInputs) -> str:
-        """A refusal's reason, and where the goal itself is out of reach while the people stay
+        """A horizon refusal's reason, and where the goal itself is out of reach while the people stay
         (``goal_block``), that too: then no path, old or new, gets there before they move."""
         block = self._block(inputs)
         return refused if block is None else f"{refused}; {block.describe()}"
