@@ -120,14 +120,18 @@ class ServiceShell:
         self.session.close()
 
 
-class Latest:
-    """The newest message on a key, kept by Zenoh itself in a ring of one: no Python runs per message (a
-    callback costs its thread a wake-up, the GIL and a decode, 100-160 us a message here); the reader takes
-    the newest when it needs it. For inputs of which only the newest matters and that are read at a
-    cadence of their own (the planner's people, joints and scaler status)."""
+class _Inbox:
+    """A subscriber whose samples Zenoh keeps until a reader with a cadence of its own takes them: no
+    Python runs per message (a callback costs its thread a wake-up, the GIL and a decode, 100-160 us a
+    message here)."""
 
     def __init__(self, shell: ServiceShell, subscriber, kind: type[Message]) -> None:
         self.shell, self.subscriber, self.kind = shell, subscriber, kind
+
+
+class Latest(_Inbox):
+    """The newest message on a key, kept by Zenoh in a ring of one. For inputs of which only the newest
+    matters (the planner's people, joints and scaler status)."""
 
     def take(self) -> Message | None:
         """The newest valid message since the last take, else None (none came, or it was bad: logged)."""
@@ -135,10 +139,9 @@ class Latest:
         return None if sample is None else self.shell.decode(sample, self.kind)
 
 
-class Queue(Latest):
-    """Every message on a key, queued by Zenoh itself (a FIFO) and taken in bulk by a reader that runs at a
-    cadence of its own: no Python runs per message as it arrives. The capacity holds far more than a
-    reader that keeps its cadence ever leaves (10 000: 100 s of 100 Hz joint states)."""
+class Queue(_Inbox):
+    """Every message on a key, queued by Zenoh (a FIFO) and taken in bulk. The capacity holds far more
+    than a reader that keeps its cadence ever leaves (10 000: 100 s of 100 Hz joint states)."""
 
     def drain(self) -> list[Message]:
         """Every valid message since the last drain, oldest first (bad ones logged and counted)."""
