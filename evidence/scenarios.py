@@ -113,10 +113,10 @@ def paper_phases(period: float = 6.0) -> ScriptedHuman:
         Keyframe(p + 0.45 * p, -1.05, 0.0, 0.0, IN_PATH, "2 approaching"),
         Keyframe(p + 0.55 * p, -1.05, 0.0, 0.0, IN_PATH, "2 moving away"),
         Keyframe(2 * p, -2.0, 0.0, 0.0, IN_PATH, "3 arm in the path"),
-        Keyframe(2 * p + 0.3 * p, -1.05, 0.15, 1.0, IN_PATH, "3 arm in the path", lean=0.8),
-        Keyframe(3 * p, -1.05, 0.15, 1.0, IN_PATH, "4 very close", lean=0.8),
-        Keyframe(3 * p + 0.2 * p, -0.9, 0.1, 1.0, IN_PATH, "4 very close", lean=1.0),
-        Keyframe(3.8 * p, -0.9, 0.1, 1.0, IN_PATH, "leaving", lean=1.0),
+        Keyframe(2 * p + 0.3 * p, -1.2, 0.15, 1.0, IN_PATH, "3 arm in the path", lean=0.4),
+        Keyframe(3 * p, -1.2, 0.15, 1.0, IN_PATH, "4 very close", lean=0.4),
+        Keyframe(3 * p + 0.2 * p, -1.1, 0.0, 1.0, IN_PATH, "4 very close", lean=0.4),
+        Keyframe(3.8 * p, -1.1, 0.0, 1.0, IN_PATH, "leaving", lean=0.4),
         Keyframe(4 * p, -2.8, 0.0, 0.0, IN_PATH, "leaving"),
     ])
 

@@ -86,9 +86,19 @@ def test_the_paper_phases_with_both_layers():
             or re.fullmatch(r"not searched: the goal is blocked while the person stays: there \w+ would be \d\.\d\d m "
                             r"from human capsule \d+, inside the \d\.\d\d m .*", refused.detail), refused.detail
     assert min(r.step.min_separation for r in result.records) >= 0.0
-    # phase 4: the person leans in so far that q_s itself is out of reach while they stay (a link would end
-    # inside the separation at which the SSM allows no approach): every refusal there says so
-    phase4 = [e for e in result.replans if not e.ok and 18.3 <= e.t <= 22.5]
-    assert phase4 and all("the goal is blocked while the person stays" in e.detail for e in phase4), phase4
+    # the paper's story (Fig. 5): phase 3, the arm stays in the path from 13.8 s and the robot goes round it
+    # and completes a shuttle; phase 4, the person steps closer (to 19.2 s), alpha falls below alpha_min,
+    # and after the replan request a new plan takes the robot on to its goal before the person leaves (22.8 s)
+    def legs_between(run, start, end):
+        return sum(1 for a, b in zip(run.records, run.records[1:]) if b.shuttles > a.shuttles and start <= b.t < end)
+    assert any(13.8 <= t < 18.0 for t, _ in done) and legs_between(result, 13.8, 18.0) >= 1, done
+    assert any(18.0 <= t < 22.8 and reason == "beta" for t, reason in done), done
+    assert legs_between(result, 19.2, 22.8) >= 1
+    # without the replan requests (the paper's ablation) and with the scaling layer alone, the robot is held
+    # beside the arm until the person leaves
+    no_beta = run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0, beta_replans=False,
+                          replanner=Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm))
+    assert legs_between(no_beta, 13.8, 22.8) == 0 and legs_between(scaling_only, 13.8, 22.8) == 0
+    assert no_beta.violations == 0
     # pure ski rental (no patience): never slower than the scaling layer alone
     assert both_layers(ReplanOptions(patience=0.0)).progress >= scaling_only.progress - 1e-9

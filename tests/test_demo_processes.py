@@ -1,6 +1,7 @@
 """`hrc demo` on the real processes (emulator on udp_multicast in a private namespace, five services over
 Zenoh), the paper's 24 s: it ends with zero violations counted by the monitor, the planner goes round the
-arm in the path, and its report folder holds what docs/report-format.md promises."""
+arm in the path and, after the replan request, past the person very close, and its report folder holds what
+docs/report-format.md promises."""
 
 import csv
 import json
@@ -12,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from evidence.scenarios import Q_GOAL, Q_START
 from tests.util import require_namespace
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
@@ -40,18 +42,38 @@ def test_runs_to_the_end_with_zero_violations(report):
     assert summary["shuttles_completed"] >= 5                                # goal after goal reached
     assert summary["min_margin_m"] is not None and summary["min_separation_m"] > 0.05
     assert summary["latency"]["chains"] > 300 and summary["latency"]["sample_to_frame_ms"]["p99"] > 0
-    # the arm in the path (phase 3, from 12 s): the planner goes round it; every refusal says why, with
-    # the old and the new trajectory's predicted times (or the planning error, or the blocked goal)
-    taken = [e for e in summary["replans"] if e["ok"]]
-    assert any(e["t"] >= 12.0 for e in taken), summary["replans"]
+    # every refusal says why, with the old and the new trajectory's predicted times (or the planning error,
+    # or the blocked goal)
     for entry in summary["replans"]:
         assert entry["reason"] in ("horizon", "beta") and entry["compute_ms"] is not None
         assert entry["ok"] or re.search(r"predicted \d+\.\d\d s, not (\d+ % )?faster than the old \d+\.\d\d s",
                                         entry["detail"]) \
             or "Error" in entry["detail"] or "merge" in entry["detail"] \
             or "not searched: the goal is blocked while the person stays: there" in entry["detail"], entry
-    # phase 4: q_s is out of reach while the person leans in (shared.planning.blocked); the report says so
-    assert summary["replan_stall_ms"]["goal_blocked"] >= 1, summary["replan_stall_ms"]
+    # the paper's story. Phase 3 (the arm in the path from 13.8 s): the planner goes round it and the robot
+    # completes a shuttle while the arm stays. Phase 4 (the person closer from 19.2 s until 22.8 s): the robot
+    # is not held beside them until they leave: after the scaling layer's replan request a new plan takes it
+    # on, or (when its path gets through before a faster one is found) it reaches its goal. That the replan
+    # takes it to the goal before the person leaves is asserted on the simulated clock
+    # (tests/test_cli_and_demo.py): on the processes the moment of the replan varies with load.
+    with (out / "trace.csv").open() as f:
+        rows = [r for r in csv.DictReader(f) if r["q_meas_1"]]
+    arrivals, was_there = [], True
+    for r in rows:
+        there = min(max(abs(float(r[f"q_meas_{k + 1}"]) - end[k]) for k in range(6)) for end in (Q_START, Q_GOAL)) < 0.02
+        if there and not was_there:
+            arrivals.append(float(r["t"]))
+        was_there = there
+    taken = [e for e in summary["replans"] if e["ok"]]
+    phase3 = [e["t"] for e in taken if 13.8 <= e["t"] < 18.0]
+    assert phase3 and any(phase3[0] < t < 18.0 for t in arrivals), (summary["replans"], arrivals)
+    phase4 = [e for e in taken if 18.0 <= e["t"] < 22.8 and e["reason"] == "beta"]
+    moved_on = False
+    if phase4:
+        version = int(re.search(r"version (\d+)", phase4[0]["detail"]).group(1))
+        moved_on = sum(1 for r in rows if phase4[0]["t"] < float(r["t"]) < 22.8 and int(r["trajectory_version"]) == version
+                       and float(r["alpha"]) >= 0.5) >= 20              # 0.2 s at 100 Hz
+    assert moved_on or any(19.2 < t < 22.8 for t in arrivals), (summary["replans"], arrivals)
     assert "t=" in run.stdout and "alpha=" in run.stdout                     # progress while it ran
 
 
