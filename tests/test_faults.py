@@ -21,7 +21,7 @@ from shared.core.humans import HumanCapsules
 from shared.safety.monitor import SafetyMonitor
 from tests.util import free_port, require_namespace
 from tools.cell import cell_pid, run_dir
-from tools.faultcheck import FaultVerdict, moving_at, standstill_after, truth_violations
+from tools.faultcheck import FaultVerdict, moving_at, standstill_after, stop_timeline, truth_violations
 from tools.faults import FAULT_NAMES
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
@@ -93,6 +93,21 @@ def test_standstill_is_the_first_still_sample_after_the_injection():
     assert standstill_after(times, speeds, 0.2) == pytest.approx(0.22)
     assert standstill_after(times, np.ones_like(times), 0.2) is None
     assert moving_at(times, speeds, 0.3) and not moving_at(times, speeds, 0.5) and not moving_at(times, speeds, -1)
+
+
+def test_a_late_stop_comes_with_what_the_scaler_did_and_how_fast_the_robot_went():
+    times = np.arange(10.0, 11.0, 0.01)
+    speeds = np.where(times < 10.5, 1.2, 0.0)
+    statuses = [(10.02, "running", "piqp", 7, 1.0), (10.03, "running", "piqp", 7, 0.9),        # no change: one line
+                (10.06, "stale_human_data", "none+braking", 7, 0.8), (10.3, "running", "piqp", 8, 0.1),
+                (11.5, "running", "piqp", 9, 1.0)]                                           # after `until`
+    lines = stop_timeline(10.0, statuses, times, speeds, until=10.6)
+    assert lines[:3] == ["t+20ms scaler running piqp v7 alpha 1.00",
+                         "t+60ms scaler stale_human_data none+braking v7 alpha 0.80",
+                         "t+300ms scaler running piqp v8 alpha 0.10"]
+    assert lines[3].startswith("largest joint speed (ms: rad/s) 0:1.20 50:1.20")
+    assert lines[3].endswith("450:1.20 500:0.00 550:0.00 600:0.00")
+    assert len(lines) == 4
 
 
 def test_truth_check_finds_a_robot_that_does_not_slow_for_the_true_person(robot):

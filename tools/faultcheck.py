@@ -8,6 +8,8 @@ and records the measured joint states. Here:
   d_min) applied to the measured joint states against the *true* human (the scripted person the campaign
   sends, not the tracker's view of them), so a fault that blinds the tracker or the monitor itself is still
   judged;
+* ``stop_timeline``: what the scaler did and how fast the robot went after an injection, for a stop that
+  missed its bound (the verdict's notes carry it, so a failure on a busy machine can be read afterwards);
 * ``FaultVerdict``: the whole verdict for one fault, as the campaign prints it and the tests assert it.
 Times in seconds (one CLOCK_MONOTONIC for the host), speeds in rad/s.
 """
@@ -31,6 +33,26 @@ def standstill_after(times: np.ndarray, speeds: np.ndarray, t_inject: float, sti
     times, speeds = np.asarray(times, dtype=float), np.asarray(speeds, dtype=float)
     idx = np.flatnonzero((times >= t_inject) & (speeds < still))
     return float(times[idx[0]] - t_inject) if idx.size else None
+
+
+def stop_timeline(t_inject: float, statuses: list[tuple[float, str, str, int, float]], times: np.ndarray,
+                  speeds: np.ndarray, until: float) -> list[str]:
+    """What happened between an injection and `until` (s, same clock), for a stop that missed its bound:
+    each change of the scaler's (status, method, trajectory version) with its alpha, and the robot's
+    largest joint speed every 50 ms. statuses: (stamp, status, method, version, alpha). Times in ms after
+    the injection."""
+    lines, last = [], None
+    for stamp, status, method, version, alpha in statuses:
+        if t_inject <= stamp <= until and (status, method, version) != last:
+            lines.append(f"t+{(stamp - t_inject) * 1e3:.0f}ms scaler {status} {method} v{version} alpha {alpha:.2f}")
+            last = (status, method, version)
+    times, speeds = np.asarray(times, dtype=float), np.asarray(speeds, dtype=float)
+    marks = np.arange(t_inject, until + 1e-9, 0.05)
+    picks = np.searchsorted(times, marks)
+    shown = [f"{(m - t_inject) * 1e3:.0f}:{speeds[k]:.2f}" for m, k in zip(marks, picks) if k < times.size]
+    if shown:
+        lines.append("largest joint speed (ms: rad/s) " + " ".join(shown))
+    return lines
 
 
 def moving_at(times: np.ndarray, speeds: np.ndarray, t: float, still: float = STILL) -> bool:

@@ -45,7 +45,7 @@ from shared.wire.keys import KeySpace
 from shared.wire.messages import JointState, ScalerStatus
 from tools.actors import FeedFault, HumanFeed, Recorder, Shuttle
 from tools.cell import service_info
-from tools.faultcheck import FaultVerdict, moving_at, standstill_after, truth_violations
+from tools.faultcheck import FaultVerdict, moving_at, standstill_after, stop_timeline, truth_violations
 from tools.launch import free_port
 from tools.report import Recording
 
@@ -352,6 +352,11 @@ class Campaign:
         else:
             stop = standstill_after(times[during], speeds[during], t_inject)
             v.stop_s = None if stop is None else round(stop, 3)
+            if v.bound_s is not None and (v.stop_s is None or v.stop_s > v.bound_s):
+                with self.recorder.lock:
+                    rows = [(s.stamp, s.status, s.method, s.trajectory_version, s.alpha) for s in self.rec.statuses
+                            if s.stamp >= t_inject - 0.05]
+                v.notes += stop_timeline(t_inject, rows, times, speeds, t_inject + (v.stop_s or v.bound_s) + 0.1)
         if reactions:
             first = min(reactions)
             v.detected_s, v.detected_by = round(first[0], 3), first[1]
