@@ -289,7 +289,7 @@ class Replanner:
         started = time.perf_counter()
         v_nominal = np.abs(old.sample(float(s_now))[1])
         stopping = rate * float(np.max(v_nominal / (0.5 * self.limits.acceleration)))     # s of the robot's time
-        s_stop = min(old.duration, s_now + rate * (self.options.stop_lead + stopping))
+        s_stop = min(old.duration, s_now + rate * (self.options.stop_lead + 0.5 * stopping))   # a linear stop
         result = self._rest_plan(old, s_stop, q_goal, humans, reason, waited)
         return replace(result, junction=s_stop, plan_s=time.perf_counter() - started,
                        predicted=result.predicted + self.options.stop_lead + stopping)
