@@ -86,7 +86,7 @@ def test_the_paper_phases_with_both_layers():
             or re.fullmatch(r"not searched: the goal is blocked while the person stays: there \w+ would be \d\.\d\d m "
                             r"from human capsule \d+, inside the \d\.\d\d m .*", refused.detail), refused.detail
     assert min(r.step.min_separation for r in result.records) >= 0.0
-    # the paper's story (Fig. 5): phase 3, the arm stays in the path from 13.8 s and the robot goes round it
+    # the paper's story: phase 3, the arm stays in the path from 13.8 s and the robot goes round it
     # and completes a shuttle; phase 4, the person steps closer (to 19.2 s), alpha falls below alpha_min,
     # and after the replan request a new plan takes the robot on to its goal before the person leaves (22.8 s)
     def legs_between(run, start, end):
