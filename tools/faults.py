@@ -208,28 +208,27 @@ class Campaign:
         js = self.recorder.get(JointState)
         return float(np.abs(js.qd).max()) if js is not None and js.enabled else 0.0
 
-    def wait_moving(self, timeout: float = SETTLE) -> bool:
+    def wait_moving(self, timeout: float = SETTLE, person_beyond: float = 0.0) -> bool:
         """Wait until the robot moves at speed with most of a leg still ahead (so that a stop is the fault's
-        doing, not the end of the shuttle); False after timeout."""
+        doing, not the end of the shuttle) and, at the same moment, the scripted person is at least
+        `person_beyond` (m) from the robot's axis; False after timeout. (Waiting for the two one after the
+        other let the robot finish its leg while the person walked out: a fault injected into a robot at
+        rest judges nothing.)"""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             st, js = self.recorder.get(ScalerStatus), self.recorder.get(JointState)
             ahead = float(np.abs(js.q - self.shuttle.target).max()) if js is not None else 0.0
-            if self._speed() > MOVING and st is not None and st.alpha > 0.2 and ahead > AHEAD:
-                return True
-            time.sleep(0.01)
-        return False
-
-    def wait_person_beyond(self, distance: float, timeout: float = 3.0) -> bool:
-        """Wait until the scripted person is at least `distance` (m) from the robot's axis; False after
-        timeout (the person walks back and forth in 2 s)."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            ends = self.human.at(time.monotonic() - self.rec.t0).segments.reshape(-1, 3)
-            if float(np.linalg.norm(ends[:, :2], axis=1).min()) >= distance:
+            if self._speed() > MOVING and st is not None and st.alpha > 0.2 and ahead > AHEAD \
+                    and (person_beyond <= 0.0 or self._person_distance() >= person_beyond):
                 return True
             time.sleep(0.005)
         return False
+
+    def _person_distance(self) -> float:
+        """How far (m) the scripted person is from the robot's axis now (the person walks back and forth
+        in 2 s)."""
+        ends = self.human.at(time.monotonic() - self.rec.t0).segments.reshape(-1, 3)
+        return float(np.linalg.norm(ends[:, :2], axis=1).min())
 
     def _service_back(self, service: str, old_pid: int, killed: bool, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -259,9 +258,7 @@ class Campaign:
             raise ValueError(f"unknown fault {name!r}; known: {', '.join(FAULT_NAMES)}")
         exp = self.expect[name]
         verdict = FaultVerdict(name, exp.expect, exp.bound_s, exp.why)
-        verdict.moving_at_injection = self.wait_moving()
-        if name == "human_jump":
-            self.wait_person_beyond(JUMP_FROM)
+        verdict.moving_at_injection = self.wait_moving(person_beyond=JUMP_FROM if name == "human_jump" else 0.0)
         verdict.t_inject = round(time.monotonic() - self.rec.t0, 3)
         service = name.split("_", 1)[1] if name.startswith(("kill_", "freeze_")) else None
         old_pid = service_info(self.prefix, service)[0] if service else 0
