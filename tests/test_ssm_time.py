@@ -90,6 +90,23 @@ def test_people_stay_for_the_stay_and_move_on_along_their_velocities():
                                                                     moving=False)
 
 
+def test_a_robot_that_may_not_approach_a_person_who_stays_waits_until_they_go():
+    # the shuttle runs into the no-approach distance of a person reaching over it (bound 0) at s_in; a
+    # short move from rest that ends 10 ms of shuttle past s_in may not be finished while they stay: it
+    # waits until the stay ends, so every second more of stay is a second more of time. (Floored like a
+    # slow sample, its one zero-bound sample cost 50 times its 50 ms and no more: 6.12 s for a stay of 9 s
+    # or of 15 s, as fast as a move that could be finished.)
+    s = np.arange(0.0, OLD.duration, 0.01)
+    q, dq, _ = OLD.sample(s)
+    k = int(np.flatnonzero([ssm_alpha_bound(ROBOT, a, b, NEAR, SSM) == 0.0 for a, b in zip(q, dq)])[0])
+    into = straight_line_trajectory(q[k - 10], q[k + 1], LIM.velocity, LIM.acceleration)
+    t6, t9, t15 = (COST.trajectory_time(into, 0.0, NEAR, stay) for stay in (6.0, 9.0, 15.0))
+    assert t9 - t6 == pytest.approx(3.0, abs=1e-9) and t15 - t9 == pytest.approx(6.0, abs=1e-9)
+    assert 6.0 < t6 < 6.0 + into.duration          # the wait, then the rest at full speed
+    # with no end to the stay the floor still gives a finite figure to compare
+    assert np.isfinite(COST.trajectory_time(OLD, 0.0, NEAR)) and np.isfinite(COST.trajectory_time(into, 0.0, NEAR))
+
+
 def test_polyline_trajectory_stops_exactly_at_every_corner():
     via = (Q_START + Q_GOAL) / 2 + np.array([0.0, 0.5, -0.5, 0.0, 0.0, 0.0])
     traj = polyline_trajectory(np.vstack([Q_START, via, Q_GOAL]), LIM.velocity, LIM.acceleration, version=3)

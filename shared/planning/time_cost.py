@@ -16,7 +16,11 @@ full speed). At every sample the scaling layer's own SSM bound gives the largest
   Both candidates of a keep-or-replace decision get the same ``stay``: a person who stays long makes the
   blocked old path slow and is gone round; a person who passes (tracked velocity) clears the old path in
   the prediction and is waited for;
-* alpha is floored at ``alpha_floor``: a path through a person's slowdown is very slow, not infinitely.
+* alpha is floored at ``alpha_floor``: a path through a person's slowdown is very slow, not infinitely;
+  but where the bound is zero (a link inside a person's no-approach distance, approaching them) the robot
+  does not pass at all while they stay, and the sample is waited at until they move or the stay ends.
+  Floored there too, such a sample cost 50 times its nominal time and no more, so a plan that could not
+  start while a person stood beside it was predicted as fast as one that could, however long they stayed.
 
 The kernel runs compiled over all samples of a path (kinematics, the pairwise SSM and the bound in one
 loop; a few microseconds per sample). Pure: no I/O.
@@ -89,8 +93,14 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
             _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
                                                         vel.reshape(n_links, 2, 3), moved, human_rad, human_vel,
                                                         human_known, horizon, fixed, near_d, v_near, v_far)
-            alpha = max(_upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin), floor)
-            need = left * dts[k] / alpha
+            alpha = _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin)
+            if alpha <= 0.0 and stay < np.inf:
+                # inside a person's no-approach distance, approaching: the robot does not pass here while
+                # they stay (the floor would charge 50 samples' time for a wait that has no end)
+                alpha, need = 0.0, np.inf
+            else:
+                alpha = max(alpha, floor)
+                need = left * dts[k] / alpha
             step = min(need, stay - total)
             if shift < extrapolation:          # the people still move in the prediction: look again soon
                 step = min(step, wait_step)
