@@ -350,9 +350,7 @@ class Campaign:
             stop = standstill_after(times[during], speeds[during], t_inject)
             v.stop_s = None if stop is None else round(stop, 3)
             if v.bound_s is not None and (v.stop_s is None or v.stop_s > v.bound_s):
-                with self.recorder.lock:
-                    rows = [(s.stamp, s.status, s.method, s.trajectory_version, s.alpha) for s in self.rec.statuses
-                            if s.stamp >= t_inject - 0.05]
+                rows = [(s.stamp, s.status, s.method, s.trajectory_version, s.alpha) for s in statuses]
                 v.notes += stop_timeline(t_inject, rows, times, speeds, t_inject + (v.stop_s or v.bound_s) + 0.1)
         if reactions:
             first = min(reactions)
