@@ -7,8 +7,9 @@ goal: one turn of the planning loop, the same loop the simulation runs (a new go
 then the horizon check on a new human sample; see shared.planning.loop), telling it how long the scaler
 has been asking for a replan (HoldClock) and how fast the robot moves. Every published trajectory and
 every refusal is reported as an event on <prefix>/safety/events (source planner, severity info): why, and
-how long it took. The service bounds every path search by the wall clock (CELL_BUDGET; anytime: the best
-path found by then is used).
+how long it took. The service bounds every path search by the wall clock (CELL_BUDGET), and every planning
+action as a whole (ACTION_BUDGET: the searches stop in time for the rest of the action; anytime: the best path
+found by then is used).
 
     python -m services.planner --connect tcp/127.0.0.1:7447 [--scene deploy/scene.yaml] [--seed 1]
 """
@@ -30,7 +31,7 @@ from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock
 from shared.planning.loop import PlanningInputs, PlanningLoop, held_by_ssm
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
-from shared.planning.path_search import CELL_BUDGET, SearchOptions
+from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import Scene, load_scene
 from shared.planning.timing import TimingError
@@ -189,7 +190,8 @@ def main(argv: list[str] | None = None) -> int:
     collision = CollisionModel(default_robot(), scene, config.ssm.min_separation)
     # the wall clock bounds every search (anytime: the best path found by then is used); the simulation
     # bounds it by counts instead, for repeatable evidence
-    options = ReplanOptions(seed=args.seed or 0, search=SearchOptions(time_budget=CELL_BUDGET))
+    options = ReplanOptions(seed=args.seed or 0, search=SearchOptions(time_budget=CELL_BUDGET),
+                            action_budget=ACTION_BUDGET)
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
                           options=options)
     lim = collision.robot.limits

@@ -4,11 +4,12 @@ service in-process on a fake shell: the same loop behind Zenoh."""
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import numpy as np
 import pytest
 
-from evidence.scenarios import Q_GOAL, Q_START
+from evidence.scenarios import Q_GOAL, Q_START, body_segments
 from services.planner import TAKE_WAIT, PlannerService
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
@@ -16,6 +17,7 @@ from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
 from shared.planning.loop import PlanningInputs, PlanningLoop, StillClock
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
+from shared.planning.path_search import SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import load_scene
 from shared.robot.model import default_robot
@@ -39,6 +41,14 @@ class RecordingReplanner:
         self.forgotten = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
         self.collision, self.ssm = COLLISION, SsmParameters()      # what the loop asks whether a goal is blocked
+        self.open_actions = self.actions = 0
+
+    def begin(self) -> None:
+        self.open_actions += 1
+        self.actions += 1
+
+    def end(self) -> None:
+        self.open_actions -= 1
 
     def forget(self) -> None:
         self.forgotten += 1
@@ -114,6 +124,13 @@ def test_beta_is_answered_at_most_once_a_cooldown_and_before_the_horizon():
     assert loop.replanner.calls == ["beta", "horizon", "beta"]
 
 
+def test_every_action_is_one_budgeted_action_of_the_replanner_even_when_it_fails():
+    loop = PlanningLoop(RecordingReplanner(beta_fails=True))
+    assert loop.step(0.0, inputs(beta=True, human_sample=1)).refused == "not 10 % faster"
+    assert loop.step(0.0, inputs(goal=np.full(6, 99.0), new_goal=True, following=None)).result is None
+    assert loop.replanner.actions == 2 and loop.replanner.open_actions == 0      # begun and ended, each
+
+
 def test_without_beta_replans_the_request_is_ignored():
     loop = PlanningLoop(RecordingReplanner(), beta_replans=False)
     assert loop.step(0.0, inputs(beta=True, human_sample=1)) is None      # the horizon is clear
@@ -137,6 +154,35 @@ def test_a_finished_trajectory_is_not_replanned():
     loop = PlanningLoop(RecordingReplanner(horizon=True))
     assert loop.step(0.0, inputs(following=None, beta=True, human_sample=1)) is None
     assert loop.replanner.calls == []
+
+
+def test_an_action_budget_stops_the_searches_in_time_for_the_rest_of_the_action():
+    """The planner service's budget for a whole action: its searches stop at the deadline that leaves the
+    rest of the action its recent time (anytime: still a free path), and the replanner learns that time.
+    Without a budget (the simulation) the searches run their counts, whatever the clock."""
+    segments, radii = body_segments(-1.0, 0.0, 1.0, np.array([-0.4, 0.0, 0.8]))   # reaching over the shuttle
+    someone = HumanCapsules.from_arrays(segments, radii, np.zeros(segments.shape), np.ones(len(radii), bool))
+    direct = np.vstack([Q_START, Q_GOAL])
+
+    def search_in_an_action(budget):
+        replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+                              options=ReplanOptions(seed=5, action_budget=budget))
+        began = time.perf_counter()
+        replanner.begin()
+        deadline = replanner.search.deadline
+        found = replanner.search.search(Q_START, Q_GOAL, someone, np.random.default_rng(1), stay=5.0, seeds=(direct,))
+        assert replanner.search.spent > 0.0
+        replanner.end()
+        assert replanner.search.deadline is None                   # no deadline outlives its action
+        return replanner, None if deadline is None else deadline - began, found
+
+    unbounded, deadline, counted = search_in_an_action(None)
+    assert deadline is None and counted.costed >= SearchOptions().candidates and unbounded.finishing == 0.02
+    # 5 ms for the whole action, less than the first guess of the rest (20 ms): the deadline has passed
+    budgeted, deadline, cut = search_in_an_action(0.005)
+    assert deadline < 0.0
+    assert cut.costed < SearchOptions().candidates and budgeted.search.free(cut.waypoints, someone)
+    assert 0.0 <= budgeted.finishing < 0.02        # learnt from what the rest took (at most the budget)
 
 
 # ------------------------------------------------------------------------ the service, in-process

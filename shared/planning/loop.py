@@ -128,7 +128,11 @@ class PlanningLoop:
         if self.still is not None:
             inputs = replace(inputs, waited=max(inputs.waited, self.still.waited(now)))
         before = self.replanner.searches
-        outcome = self._act(now, inputs)
+        self.replanner.begin()
+        try:
+            outcome = self._act(now, inputs)
+        finally:
+            self.replanner.end()
         return None if outcome is None else replace(outcome, searches=self.replanner.searches - before)
 
     def _act(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:

@@ -35,6 +35,7 @@ from shared.planning.time_cost import SsmTimeCost
 from shared.scaling.problem import ssm_alpha_bound
 
 CELL_BUDGET = 0.08   # s of wall clock per search in the planner service (the simulation charges it per search)
+ACTION_BUDGET = 0.1  # s of wall clock for a whole planning action in the planner service (searches + the rest)
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,10 @@ class PathSearch:
         self.cost = cost
         self.options = options
         self.limits = collision.robot.limits
+        # perf_counter time by which the current planning action must have its path (None: no action budget);
+        # a search stops at the earlier of this and its own time_budget (set by Replanner.begin)
+        self.deadline: float | None = None
+        self.spent = 0.0                 # s of wall clock searched since the action began
 
     def free(self, waypoints: np.ndarray, humans: HumanCapsules | None, inflation: float = 0.0) -> bool:
         """Every segment collision-free (static scene and the people, the planner's margin + inflation)."""
@@ -126,9 +131,19 @@ class PathSearch:
         q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
         started = time.perf_counter()
         budget = self.options.time_budget
+        stop_at = min(started + budget if budget is not None else np.inf,
+                      self.deadline if self.deadline is not None else np.inf)
+        try:
+            return self._search(q_from, q_goal, humans, rng, stay, seeds, from_rest, inflation, stop_at)
+        finally:
+            self.spent += time.perf_counter() - started
 
+    def _search(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, rng: np.random.Generator,
+                stay: float, seeds: tuple[np.ndarray, ...], from_rest: bool, inflation: float,
+                stop_at: float) -> SearchResult | None:
+        """search, stopping at the perf_counter time stop_at (inf: bounded by the counts only)."""
         def out_of_time() -> bool:
-            return budget is not None and time.perf_counter() - started > budget
+            return time.perf_counter() > stop_at
 
         def cost(w: np.ndarray) -> float:
             return self.cost.path_time(w, humans, stay, from_rest=from_rest)

@@ -65,8 +65,10 @@ class ReplanOptions:
     cell where people are known to stay at a station may set more); rrt_budget (s): RRT-Connect's time
     when it has to seed the search; worth_searching (s): a new goal's direct line is taken without a
     search unless the people are predicted to slow it by more than this (the search itself takes up to
-    its budget while the robot waits for its plan); seed: the search's seed (each query gets its own stream, derived
-    from the seed and the query, so the same query gives the same path in any order); search, cost:
+    its budget while the robot waits for its plan); action_budget (s): wall clock for a whole planning
+    action, searches and the rest (None: none; the simulation bounds by counts), see ``begin``; seed: the
+    search's seed (each query gets its own stream, derived from the seed and the query, so the same query
+    gives the same path in any order); search, cost:
     the search's bounds and the time cost's sampling."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
@@ -79,6 +81,7 @@ class ReplanOptions:
     patience: float = 1.5
     rrt_budget: float = 0.2
     worth_searching: float = 0.25
+    action_budget: float | None = None
     seed: int = 0
     search: SearchOptions = SearchOptions()
     cost: TimeCostOptions = TimeCostOptions()
@@ -99,7 +102,30 @@ class Replanner:
         self.cost = SsmTimeCost(collision.robot, ssm, options.cost)
         self.search = PathSearch(collision, self.cost, options.search)
         self.searches = 0          # path searches run (the simulation charges planning time by them)
+        self.finishing = 0.02      # s: recent wall time of an action's work besides its searches (see begin)
+        self._began: float | None = None
         self.remembered: list[np.ndarray] = []     # the latest searches' winners to the current goal (K, 6)
+
+    def begin(self) -> None:
+        """One planning action starts (the planning loop calls it): with an action_budget, its searches stop
+        in time for the rest of the action (the timing, the merge, the predictions: ``finishing``, their
+        recent wall time) to end within the budget. Anytime: when time is up the best path found so far is
+        used. On a loaded machine the rest takes longer, and the searches get less of the budget: the plan
+        still comes when the budget says, not a preemption later. No-op without an action_budget."""
+        self.search.spent = 0.0
+        if self.options.action_budget is None:
+            self.search.deadline = self._began = None
+            return
+        self._began = time.perf_counter()
+        self.search.deadline = self._began + self.options.action_budget - self.finishing
+
+    def end(self) -> None:
+        """The action is done: learn how long its work besides the searches took (an exponential average
+        over the actions that searched)."""
+        if self._began is not None and self.search.spent > 0.0:
+            rest = max(0.0, time.perf_counter() - self._began - self.search.spent)
+            self.finishing += 0.3 * (min(rest, self.options.action_budget) - self.finishing)
+        self.search.deadline = self._began = None
 
     def forget(self) -> None:
         """Drop the remembered paths (a new goal, or a new run: the same inputs give the same plans)."""
@@ -153,7 +179,10 @@ class Replanner:
         found = self.search.search(q_from, q_goal, humans, rng, stay, (direct, *self._recalled(q_from, q_goal)),
                                    from_rest, inflation)
         if found is None:
-            rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=self.options.rrt_budget)
+            budget = self.options.rrt_budget
+            if self.search.deadline is not None:           # within the action's budget, but never nothing
+                budget = min(budget, max(0.02, self.search.deadline - time.perf_counter()))
+            rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=budget)
             self.searches += 1
             found = self.search.search(q_from, q_goal, humans, rng, stay, (rrt,), from_rest, inflation)
             if found is None:                               # out of time before reaching it: it is free
