@@ -2,8 +2,10 @@
 
 Every raw sample (<prefix>/human/raw, HumanRaw: capsules from motion capture, the CLI or a replay, up to
 240 Hz) is filtered and published at once as HumanState on <prefix>/human/state, stamped with its arrival
-time (the scaler measures the data's age from it). A 100 Hz check publishes an invalid state while no
-sample has arrived within the dropout bound, so a silent tracker is announced, not only noticed.
+time (the scaler measures the data's age from it). A watch publishes an invalid state every 10 ms while no
+sample has arrived within the dropout bound, so a silent tracker is announced, not only noticed. While
+samples come it sleeps until the moment the bound would pass (``next_check``), not a hundred times a second:
+a dropout is announced within a fraction of a millisecond of it, and the process is not woken for nothing.
 
     python -m services.tracker_ingest --connect tcp/127.0.0.1:7447
 """
@@ -14,11 +16,21 @@ import sys
 import threading
 import time
 
-from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
+from services.common import ServiceShell, open_service, serve, service_parser, setup_logging
 from shared.core.humans import HumanCapsules
 from shared.tracking.tracker import HumanTracker, TrackerParameters
 from shared.wire.convert import humans_to_msg
 from shared.wire.messages import HumanRaw, HumanState, SafetyEvent, encode
+
+INVALID_PERIOD = 0.01       # s: how often the invalid state is repeated while no sample comes
+LATE = 1e-4                 # s: the watch wakes this long after the dropout bound would pass
+
+
+def next_check(now: float, valid_until: float, period: float = INVALID_PERIOD) -> float:
+    """How long the dropout watch sleeps (s): just past the moment the track turns invalid while it is valid
+    (a sample that comes meanwhile moves that moment on, and the watch sleeps again), every period while it
+    is invalid."""
+    return valid_until - now + LATE if now <= valid_until else period
 
 
 class TrackerIngest:
@@ -58,6 +70,17 @@ class TrackerIngest:
                                                       text=text, seq=self.seq, stamp=now)))
                 (self.shell.log.warning if not valid else self.shell.log.info)(text)
 
+    def watch(self, stop: threading.Event) -> None:
+        """check() at the moments next_check says, until stopped. Python hands the GIL over every 0.5 ms
+        (as the services' paced loops set it): a sample's callback never waits 5 ms behind this thread."""
+        sys.setswitchinterval(0.0005)
+        while not stop.is_set():
+            now = time.monotonic()
+            self.check(now)
+            with self.lock:
+                valid_until = self.tracker.valid_until
+            stop.wait(next_check(time.monotonic(), valid_until))
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = service_parser("tracker_ingest", __doc__, config=False)
@@ -75,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=args.window, dropout=args.dropout)))
     return serve(shell, f"tracker_ingest: least-squares velocity over {args.window * 1000:.0f} ms, dropout "
                         f"{args.dropout * 1000:.0f} ms, keys {shell.keys.prefix}/",
-                 lambda stop: run_paced(0.01, service.check, stop))
+                 service.watch)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -5,14 +5,16 @@ run the same classes over Zenoh."""
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
+import pytest
 
 from evidence.scenarios import Q_GOAL, Q_START
 from services.safety_monitor import MonitorService
 from services.scaler import Scaler
-from services.tracker_ingest import TrackerIngest
+from services.tracker_ingest import INVALID_PERIOD, LATE, TrackerIngest, next_check
 from shared.config import CellConfig
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
@@ -105,6 +107,37 @@ def test_tracker_ingest_publishes_each_sample_with_velocities_and_announces_a_dr
     assert event.event == "tracker_dropout" and event.severity == "stop"
     shell.deliver(keys.human_raw, b"\x80")  # an empty map: not a message
     assert shell.bad_messages == 1
+
+
+def test_the_dropout_watch_sleeps_until_the_bound_would_pass_and_repeats_the_invalid_state_while_silent():
+    assert next_check(10.0, 10.03) == pytest.approx(0.03 + LATE)    # valid: just after the bound would pass
+    assert next_check(10.0, 9.99) == INVALID_PERIOD        # invalid: the invalid state again every period
+    assert next_check(10.0, -np.inf) == INVALID_PERIOD     # no sample yet
+    assert HumanTracker(TrackerParameters(dropout=0.05)).valid_until == -np.inf
+    shell = FakeShell("tracker_ingest")
+    service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=0.04, dropout=0.05)))
+    stop = threading.Event()
+    watch = threading.Thread(target=service.watch, args=(stop,), daemon=True)
+    watch.start()
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() < t0 + 0.3:                  # samples at 100 Hz: tracking
+            shell.deliver(shell.keys.human_raw, HumanRaw(source="test", sample_time=time.monotonic(),
+                                                         segments=np.array([[[-2.0, 0.0, 0.9], [-2.0, 0.0, 1.5]]]),
+                                                         radii=np.array([0.2])))
+            time.sleep(0.01)
+        silent = time.monotonic()
+        deadline = silent + 5.0                              # then silence: the watch must say so (waits on it)
+        while time.monotonic() < deadline and "tracker_dropout" not in [
+                e.event for e in shell.published(shell.keys.safety_events, SafetyEvent)]:
+            time.sleep(0.01)
+        events = [e.event for e in shell.published(shell.keys.safety_events, SafetyEvent)]
+        assert events[-1] == "tracker_dropout" and "tracker_ok" in events
+        assert not shell.published(shell.keys.human_state, HumanState)[-1].valid
+    finally:
+        stop.set()
+        watch.join(2.0)
+    assert not watch.is_alive()
 
 
 # ------------------------------------------------------------------------------------------ the monitor

@@ -93,3 +93,8 @@ class HumanTracker:
     def valid(self, now: float) -> bool:
         """False once no sample has arrived for longer than the dropout bound."""
         return now - self._last_arrival <= self.params.dropout
+
+    @property
+    def valid_until(self) -> float:
+        """The arrival time after which the track is invalid unless a sample comes (-inf before any)."""
+        return self._last_arrival + self.params.dropout
