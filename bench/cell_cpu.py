@@ -7,7 +7,9 @@ warm-up, each process's CPU time (user + system, /proc) is read at the start and
 window: its steady-state share of one core. Goals (the safety-chain issue): robot_driver + scaler +
 tracker_ingest + safety_monitor together <= 40 % of one core, the emulator <= 10 %, the planner idle when
 nothing needs planning. With people moving through the cell it also counts the drive faults (EMCY) and
-the driver's clamp warnings: a robot that trips its drives in ordinary work is not usable.
+the driver's clamp warnings: a robot that trips its drives in ordinary work is not usable. Each process's
+share is split by thread (the OS's thread names: zenoh's runtime threads rx/tx/net/acc, zenoh-callback,
+can-receive, can-cycle; 'python' is the main thread), so a hot spot is found before anything is tuned.
 
 udp_multicast runs inside a private network namespace: the script re-runs itself in one when needed.
 Last line: one JSON object.
@@ -60,10 +62,10 @@ def measure(seconds: float, warmup: float, seed: int) -> dict:
             before = None
             while (now := time.monotonic()) < t_start + seconds:
                 if before is None and now >= t_start:
-                    before, t_before = cell.cpu_seconds(), now
+                    before, t_before, threads_before = cell.cpu_seconds(), now, cell.thread_cpu_seconds()
                 shuttle.step(now)
                 time.sleep(0.02)
-            after, t_after = cell.cpu_seconds(), time.monotonic()
+            after, t_after, threads_after = cell.cpu_seconds(), time.monotonic(), cell.thread_cpu_seconds()
             shuttles, statuses = rec.shuttles, len(rec.statuses)
             faults = [e.text for e in rec.events if e.source == "robot_driver" and e.event in ("emcy", "drive_fault")]
             clamps = sum(e.event == "command_clamped" for e in rec.events)
@@ -76,8 +78,11 @@ def measure(seconds: float, warmup: float, seed: int) -> dict:
             session.close()
     span = t_after - t_before
     share = {name: round(100.0 * (after[name] - before[name]) / span, 1) for name in after if name in before}
+    threads = {name: {t: round(100.0 * (cpu - threads_before.get(name, {}).get(t, 0.0)) / span, 1)
+                      for t, cpu in sorted(per.items(), key=lambda kv: -kv[1])}
+               for name, per in threads_after.items()}
     return {"bench": "cell_cpu", "seconds": round(span, 1), "capsules": capsules, "can": interface,
-            "percent_of_core": share,
+            "percent_of_core": share, "threads": threads,
             "services_total": round(sum(share.get(n, 0.0) for n in SAFETY_CHAIN), 1),
             "emulator": share.get("hwsim"), "planner": share.get("planner"),
             "total": round(sum(share.values()), 1), "shuttles": shuttles, "drive_faults": faults,
@@ -98,7 +103,8 @@ def main() -> int:
         return code
     result = measure(args.seconds, args.warmup, args.seed)
     for name, pct in sorted(result["percent_of_core"].items(), key=lambda kv: -kv[1]):
-        print(f"{name:<16} {pct:5.1f} % of one core")
+        busiest = sorted(result["threads"].get(name, {}).items(), key=lambda kv: -kv[1])[:4]
+        print(f"{name:<16} {pct:5.1f} % of one core   ({', '.join(f'{t} {p}' for t, p in busiest if p > 0)})")
     print(f"safety chain (driver + scaler + tracker + monitor): {result['services_total']} % (goal <= 40); "
           f"emulator {result['emulator']} % (goal <= 10); all {result['total']} %; {result['capsules']} capsules, "
           f"{result['shuttles']} shuttles, control {result['control_rate_hz']} Hz; drive faults "

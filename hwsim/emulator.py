@@ -35,7 +35,7 @@ from shared.drives.bus import BusError, describe, open_bus
 from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
 from shared.drives.prbt import COUNTS_PER_RAD, EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register, to_counts
 from shared.robot.model import default_robot
-from shared.scheduling import realtime
+from shared.scheduling import name_callback_thread, realtime
 
 log = logging.getLogger("hwsim")
 WATCHDOG_POLL = 0.005        # s: how often the drives look for a missing SYNC between SYNCs
@@ -213,7 +213,13 @@ def run(interface: str, channel: str | None, start: np.ndarray, seed: int, stop:
     rng = random.Random(seed)
     nodes = [EmulatedNode(network, nid, lim, float(q), rng)
              for nid, lim, q in zip(NODE_IDS, build_limits(PERIOD), start)]
-    network.subscribe(0x80, lambda can_id, data, ts: [n.on_sync(time.monotonic()) for n in nodes])
+
+    def on_sync(can_id: int, data: bytes, timestamp: float) -> None:
+        name_callback_thread("can-receive")          # canopen's receive thread, in top -H and the CPU bench
+        for n in nodes:
+            n.on_sync(time.monotonic())
+
+    network.subscribe(0x80, on_sync)
     print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}, {scheduling}",
           flush=True)
     try:

@@ -17,7 +17,7 @@ from pathlib import Path
 import zenoh
 
 from shared.core.errors import MessageError
-from shared.scheduling import realtime
+from shared.scheduling import name_callback_thread, name_os_thread, realtime
 from shared.transport.pki import TlsIdentity
 from shared.transport.zenoh_session import open_session
 from shared.wire.keys import KeySpace
@@ -89,8 +89,10 @@ class ServiceShell:
             return None
 
     def subscribe(self, key: str, kind: type[Message], handler) -> None:
-        """Call handler(message) for every valid message on key."""
+        """Call handler(message) for every valid message on key (on zenoh-python's callback thread, named
+        'zenoh-callback' in the OS at its first message)."""
         def on_sample(sample):
+            name_callback_thread("zenoh-callback")
             msg = self.decode(sample, kind)
             if msg is not None:
                 handler(msg)
@@ -158,8 +160,10 @@ def run_paced(period: float, tick, stop: threading.Event) -> None:
     spinning (that would hold the GIL while a callback waits); an overrun re-syncs instead of bursting.
     Python hands the GIL over every 5 ms by default, which would let any callback thread delay a tick that
     long: the switch interval is set to 0.5 ms. The thread runs with its process's scheduling, which the
-    process took at start (``open_service``, or the driver's and emulator's own start-up)."""
+    process took at start (``open_service``, or the driver's and emulator's own start-up). A thread of its
+    own is named in the OS after its Python name (``name_os_thread``)."""
     sys.setswitchinterval(0.0005)
+    name_os_thread()
     deadline = time.monotonic()
     while not stop.is_set():
         deadline += period
@@ -177,8 +181,9 @@ def run_synced(period: float, tick, stop: threading.Event, ready: threading.Even
     state, one a SYNC), or after 1.5 periods without it (so the loop goes on when its feed stops). Locked
     to the robot's own clock, a loop never runs ahead of the drives: a SYNC that comes late delays its
     tick instead of leaving the robot a period behind the commands, which a trajectory at the velocity
-    limit can never make up. Switch interval and scheduling as run_paced."""
+    limit can never make up. Switch interval, scheduling and naming as run_paced."""
     sys.setswitchinterval(0.0005)
+    name_os_thread()
     while not stop.is_set():
         ready.wait(1.5 * period)
         ready.clear()

@@ -61,7 +61,7 @@ from shared.drives.prbt import (
 )
 from shared.robot.model import default_robot
 from shared.safety.latency import DriveLagMeter, LatencyMeter
-from shared.scheduling import realtime
+from shared.scheduling import name_callback_thread, realtime
 from shared.wire.messages import DriveLagReport, DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent, encode
 
 log = logging.getLogger("robot_driver")
@@ -149,6 +149,7 @@ class CanMaster:
             self.network.unsubscribe(0x700 + node.id, on_frame)
 
     def _on_tpdo(self, k: int, layout: PdoLayout, pdo_map) -> None:
+        name_callback_thread("can-receive")
         try:
             values = layout.unpack(pdo_map.data)
         except PdoLayoutError as exc:                  # a frame of the wrong length: no feedback from it

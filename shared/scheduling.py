@@ -9,7 +9,9 @@ deploy/supervisord.conf and in hrc demo's launcher).
 
 from __future__ import annotations
 
+import ctypes
 import os
+import threading
 
 # SCHED_FIFO priorities of the safety chain, highest first: the driver's SYNC cycle, the emulated drives,
 # the scaler, tracker_ingest. The planner and the safety monitor stay in the normal class (and niced): a
@@ -30,3 +32,32 @@ def realtime(name: str) -> str:
         return f"SCHED_FIFO {priority}"
     except (AttributeError, OSError) as exc:
         return f"normal scheduling (SCHED_FIFO {priority} refused: {getattr(exc, 'strerror', None) or exc})"
+
+
+_PR_SET_NAME = 15
+
+
+def name_os_thread(name: str | None = None) -> None:
+    """Give the calling thread its name in the operating system too (Linux: prctl PR_SET_NAME, 15
+    characters), so ``top -H``, py-spy and ``bench/cell_cpu.py`` tell the threads of a process apart
+    (Python keeps its thread names to itself). Never the main thread: its name is the process's in ps and
+    pgrep. Does nothing where the call is not available."""
+    if threading.current_thread() is threading.main_thread():
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_NAME, (name or threading.current_thread().name).encode()[:15], 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+_named = threading.local()          # per thread: whether it has its OS name yet
+
+
+def name_callback_thread(name: str) -> None:
+    """name_os_thread for a thread a library runs callbacks on (zenoh-python's, python-can's notifier):
+    called at the top of the callback, it names the thread at its first call and costs an attribute look-up
+    after that."""
+    if not getattr(_named, "done", False):
+        _named.done = True
+        name_os_thread(name)

@@ -135,6 +135,25 @@ class CellProcesses:
                 pass
         return out
 
+    def thread_cpu_seconds(self) -> dict[str, dict[str, float]]:
+        """Per live child, the CPU time (s) of its threads so far, by thread name (/proc/<pid>/task: the
+        names the OS knows: zenoh's runtime threads, the ones the services name, 'python' for the rest;
+        threads of the same name summed)."""
+        tick = os.sysconf("SC_CLK_TCK")
+        out: dict[str, dict[str, float]] = {}
+        for name, proc in self.procs.items():
+            threads: dict[str, float] = {}
+            for task in Path(f"/proc/{proc.pid}/task").glob("*"):
+                try:
+                    comm = (task / "comm").read_text().strip()
+                    fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+                    threads[comm] = threads.get(comm, 0.0) + (int(fields[11]) + int(fields[12])) / tick
+                except (OSError, IndexError, ValueError):        # a thread that ended meanwhile
+                    continue
+            if threads:
+                out[name] = threads
+        return out
+
     def alive(self) -> dict[str, bool]:
         return {name: proc.poll() is None for name, proc in self.procs.items()}
 

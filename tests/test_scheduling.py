@@ -1,0 +1,80 @@
+"""Scheduling and naming of the cell's threads (shared.scheduling), and the per-thread CPU the CPU bench reads."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+from shared.scheduling import name_callback_thread, name_os_thread
+from tools.launch import CellProcesses
+
+
+def os_name(native_id: int) -> str:
+    return Path(f"/proc/self/task/{native_id}/comm").read_text().strip()
+
+
+def test_a_thread_gets_its_name_in_the_os_and_the_main_thread_keeps_the_process_name():
+    main_name = os_name(threading.main_thread().native_id)
+    seen = {}
+
+    def worker():
+        name_os_thread()                              # its Python name
+        seen["plain"] = os_name(threading.get_native_id())
+        name_callback_thread("zenoh-callback")        # named at the first call ...
+        name_callback_thread("something-else")        # ... and left alone after it
+        seen["callback"] = os_name(threading.get_native_id())
+
+    thread = threading.Thread(target=worker, name="can-cycle-with-a-long-name")
+    thread.start()
+    thread.join()
+    assert seen == {"plain": "can-cycle-with-"[:15], "callback": "zenoh-callback"}
+    name_os_thread("renamed")                         # the main thread: ps and pgrep know the process by it
+    assert os_name(threading.main_thread().native_id) == main_name
+
+
+def test_realtime_says_what_it_applied_and_leaves_other_services_in_the_normal_class():
+    code = textwrap.dedent("""
+        import os
+        from shared.scheduling import realtime
+        print(realtime("planner"), os.sched_getscheduler(0) == os.SCHED_OTHER)
+        said = realtime("scaler")
+        print(said, os.sched_getscheduler(0) == (os.SCHED_FIFO if said.startswith("SCHED_FIFO") else os.SCHED_OTHER))
+    """)                                              # in a child: never this test process's own scheduling
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parents[1]).stdout.splitlines()
+    assert out[0] == "normal scheduling True"
+    assert out[1].endswith("True") and "SCHED_FIFO 50" in out[1]          # applied, or refused and said so
+
+
+def test_the_cpu_of_each_thread_of_a_child_is_read_by_its_os_name(tmp_path):
+    code = textwrap.dedent("""
+        import threading, time
+        from shared.scheduling import name_os_thread
+        def spin():
+            name_os_thread("busy-worker")
+            end = time.monotonic() + 4.0
+            while time.monotonic() < end:
+                pass
+        threading.Thread(target=spin, name="busy").start()
+        time.sleep(5)
+    """)
+    cell = CellProcesses(tmp_path, "test/threads", "virtual")
+    cell.procs["child"] = subprocess.Popen([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[1])
+    try:
+        deadline = time.monotonic() + 10.0
+        threads: dict[str, float] = {}
+        while time.monotonic() < deadline:               # until the worker has spun a while (it spins 4 s)
+            threads = cell.thread_cpu_seconds().get("child", {})
+            if threads.get("busy-worker", 0.0) >= 0.2:
+                break
+            time.sleep(0.1)
+        assert threads.get("busy-worker", 0.0) >= 0.2
+        assert threads["busy-worker"] > threads.get("python", 0.0)
+    finally:
+        cell.procs["child"].kill()
+        cell.procs["child"].wait()
+    assert cell.thread_cpu_seconds() == {}               # a child that has gone has no threads to read
