@@ -42,6 +42,9 @@ def test_runs_to_the_end_with_zero_violations(report):
     assert summary["shuttles_completed"] >= 5                                # goal after goal reached
     assert summary["min_margin_m"] is not None and summary["min_separation_m"] > 0.05
     assert summary["latency"]["chains"] > 300 and summary["latency"]["sample_to_frame_ms"]["p99"] > 0
+    cycle = summary["scaling_cycle"]                     # the scaler's own compute, every cycle accounted for
+    assert cycle["cycles"] > 1000 and sum(cycle["methods"].values()) == cycle["cycles"]
+    assert cycle["compute_us"]["p50"] > 0 and cycle["methods"].get("presolved", 0) > 0
     # every refusal says why, with the old and the new trajectory's predicted times (or the planning error,
     # or the blocked goal)
     for entry in summary["replans"]:

@@ -47,9 +47,13 @@ def test_piqp_and_closed_form_agree_and_respect_every_hard_row(cycle):
     rows = rows_for(*cycle)
     a_cf = solve(rows, WEIGHT, None)
     a_qp = solve(rows, WEIGHT, PIQP)
-    assert a_qp.method == "piqp"
+    binding = not np.all(rows.soft_coef * rows.upper <= rows.soft_bound)     # an acceleration row binds at upper
+    assert a_qp.method == ("piqp" if binding else "presolved") and a_cf.method in ("closed_form", "presolved")
     assert 0.0 <= a_cf.alpha <= 1.0 and 0.0 <= a_qp.alpha <= 1.0
     assert a_qp.alpha == pytest.approx(a_cf.alpha, abs=1e-6)
+    # the presolve is exact: the solvers themselves agree with it
+    assert PIQP.solve(rows) == pytest.approx(a_qp.alpha, abs=1e-6)
+    assert solve_closed_form(rows, WEIGHT) == pytest.approx(a_cf.alpha, abs=1e-9)
     for alpha in (a_cf.alpha, a_qp.alpha):
         assert np.all(rows.hard_coef * alpha <= rows.hard_bound + 1e-12)
     # and the SSM rows themselves: approach speed at alpha within max(limit, 0)
@@ -98,6 +102,8 @@ def test_a_failing_piqp_falls_back_to_the_closed_form():
     class Broken(PiqpScalingSolver):
         def solve(self, rows):
             return None
-    rows = rows_for(1.2, 1.0, HumanCapsules.empty())
+    rows = rows_for(1.2, 0.0, HumanCapsules.empty())          # ramping up from rest: the acceleration binds
     sol = solve(rows, WEIGHT, Broken(WEIGHT))
-    assert sol.method == "closed_form_fallback" and sol.alpha == pytest.approx(1.0)
+    assert sol.method == "closed_form_fallback" and sol.alpha == pytest.approx(3.49 * 0.01 / 1.57, rel=1e-9)
+    cruise = solve(rows_for(1.2, 1.0, HumanCapsules.empty()), WEIGHT, Broken(WEIGHT))
+    assert cruise.method == "presolved" and cruise.alpha == 1.0          # nothing binds: no solver needed

@@ -152,6 +152,19 @@ def drive_summary(rec: Recording) -> dict:
             "faults": faults}
 
 
+def scaling_cycle(statuses: list[ScalerStatus]) -> dict:
+    """The scaler's compute per control cycle as it ran in the cell (ScalerStatus.compute_us, us: the
+    scaling layer's step, where the issue's 100 us goal is judged), over the cycles that solved for a speed,
+    and how each was solved (see shared.scaling.problem.solve)."""
+    solved = [s for s in statuses if s.status == "running"]
+    compute = np.array([s.compute_us for s in solved])
+    methods: dict[str, int] = {}
+    for s in solved:
+        method = s.method.split("+")[0]
+        methods[method] = methods.get(method, 0) + 1
+    return {"cycles": len(solved), "compute_us": _percentiles(compute, 50, 99, scale=1.0), "methods": methods}
+
+
 def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict, dict]:
     """(summary, monitor series) of a recording. The violations are the monitor service's own count."""
     st = rec.statuses
@@ -209,6 +222,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "monitor": summaries[-1].text if summaries else "no monitor summary received",
         "latency": {"chains": int(s2f.size), "sample_to_frame_ms": _percentiles(s2f, 50, 99),
                     "processing_ms": _percentiles(proc, 50, 99)},
+        "scaling_cycle": scaling_cycle(st),
         "drives": drive_summary(rec),
         "monitor_check": monitor_summary(rec, series, violations),
         "exceedances_after_reaction_time": int(np.count_nonzero(series["late_excess"] > 0)),
