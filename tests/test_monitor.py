@@ -167,7 +167,8 @@ def test_the_batched_check_is_the_coal_check():
     """check_batch (numpy closest points, many states at once) against check (coal, one state): the same
     separations, margins and violations, penetrating pairs and untracked velocities included."""
     rng = np.random.default_rng(11)
-    people = [_random_person(rng, 10), _random_person(rng, 3), None, HumanCapsules.empty()]
+    # two different people of 10 capsules: states of different human states are checked in one batch
+    people = [_random_person(rng, 10), _random_person(rng, 3), None, HumanCapsules.empty(), _random_person(rng, 10)]
     n = 120
     qs = rng.uniform(ROBOT.limits.lower, ROBOT.limits.upper, (n, 6))
     qds = rng.uniform(-1.57, 1.57, (n, 6))

@@ -91,8 +91,10 @@ class SafetyMonitor:
     def check_batch(self, qs: np.ndarray, qds: np.ndarray,
                     humans: list[HumanCapsules | None]) -> list[MonitorResult]:
         """check() for many measured states (N, 6), each against its own human state, vectorised: states
-        that share a human state (the usual case: several joint states per tracker sample) are checked
-        together. The same results as check(), to rounding (tested)."""
+        whose human states have the same number of capsules are checked together (each against its own
+        people: joint states at 100 Hz and tracker samples at 120 Hz seldom share a sample, so grouping by
+        sample would check one state at a time, each paying the whole numpy overhead). The same results
+        as check(), to rounding (tested)."""
         qs = np.asarray(qs, dtype=float).reshape(-1, self.model.nq)
         qds = np.asarray(qds, dtype=float).reshape(-1, self.model.nq)
         results: list[MonitorResult | None] = [None] * qs.shape[0]
@@ -101,9 +103,9 @@ class SafetyMonitor:
             if h is None or h.count == 0:
                 results[k] = MonitorResult()
             else:
-                groups.setdefault(id(h), []).append(k)
+                groups.setdefault(h.count, []).append(k)
         for members in groups.values():
-            for k, r in zip(members, _batch(self, qs[members], qds[members], humans[members[0]])):
+            for k, r in zip(members, _batch(self, qs[members], qds[members], [humans[k] for k in members])):
                 results[k] = r
         return results
 
@@ -177,8 +179,10 @@ def _segment_closest(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndar
     return s, t
 
 
-def _batch(monitor: "SafetyMonitor", qs: np.ndarray, qds: np.ndarray, humans: HumanCapsules) -> list[MonitorResult]:
-    """check() for states (N, 6) against one human state, vectorised over states, links and capsules."""
+def _batch(monitor: "SafetyMonitor", qs: np.ndarray, qds: np.ndarray,
+           people: list[HumanCapsules]) -> list[MonitorResult]:
+    """check() for states (N, 6), each against its own human state (N of them, the same number of capsules
+    M), vectorised over states, links and capsules."""
     n, links = qs.shape[0], len(monitor._links)
     a_w, b_w = np.empty((n, links, 3)), np.empty((n, links, 3))
     origin, lin, ang = np.empty((n, links, 3)), np.empty((n, links, 3)), np.empty((n, links, 3))
@@ -192,26 +196,29 @@ def _batch(monitor: "SafetyMonitor", qs: np.ndarray, qds: np.ndarray, humans: Hu
             a_w[k, i], b_w[k, i], origin[k, i] = rot @ a_local + pos, rot @ b_local + pos, pos
             twist = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED) @ qds[k]
             lin[k, i], ang[k, i] = twist[:3], twist[3:]
-    ha, hb = humans.segments[:, 0], humans.segments[:, 1]                    # (M, 3)
-    shape = (n, links, humans.count, 3)
+    segments = np.stack([h.segments for h in people])                         # (N, M, 2, 3)
+    h_radii = np.stack([h.radii for h in people])                             # (N, M)
+    h_velocities = np.stack([h.velocities for h in people])                   # (N, M, 2, 3)
+    h_known = np.stack([h.velocity_known for h in people])                    # (N, M)
+    shape = (n, links, segments.shape[1], 3)
     p1, q1 = np.broadcast_to(a_w[:, :, None], shape), np.broadcast_to(b_w[:, :, None], shape)
-    p2, q2 = np.broadcast_to(ha[None, None], shape), np.broadcast_to(hb[None, None], shape)
+    p2, q2 = np.broadcast_to(segments[:, None, :, 0], shape), np.broadcast_to(segments[:, None, :, 1], shape)
     s, t = _segment_closest(p1, q1, p2, q2)
     on_robot = p1 + s[..., None] * (q1 - p1)
     on_human = p2 + t[..., None] * (q2 - p2)
     diff = on_human - on_robot
     centre = np.linalg.norm(diff, axis=-1)
-    radii = monitor._radii[None, :, None] + humans.radii[None, None, :]
+    radii = monitor._radii[None, :, None] + h_radii[:, None, :]
     d = centre - radii
     defined = centre > 1e-9
     normal = diff / np.where(defined, centre, 1.0)[..., None]
     p_robot = on_robot + monitor._radii[None, :, None, None] * normal                   # its surface point
     v_robot = lin[:, :, None] + np.cross(ang[:, :, None], p_robot - origin[:, :, None])
     approach = np.where(defined, np.einsum("...i,...i", normal, v_robot), np.linalg.norm(v_robot, axis=-1))
-    v_h_point = (1 - t)[..., None] * humans.velocities[None, None, :, 0] + t[..., None] * humans.velocities[None, None, :, 1]
+    v_h_point = (1 - t)[..., None] * h_velocities[:, None, :, 0] + t[..., None] * h_velocities[:, None, :, 1]
     v_h_known = np.where(defined, np.maximum(0.0, -np.einsum("...i,...i", normal, v_h_point)),
                          np.linalg.norm(v_h_point, axis=-1))
-    v_h = np.where(humans.velocity_known[None, None, :], v_h_known, default_human_speed(d, monitor.ssm))
+    v_h = np.where(h_known[:, None, :], v_h_known, default_human_speed(d, monitor.ssm))
     limit = velocity_limit(d, v_h, monitor.ssm)
     margin = np.maximum(limit, 0.0) - approach
     speeding = margin < -monitor.tolerance
