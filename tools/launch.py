@@ -43,6 +43,13 @@ def die_with_parent() -> None:
     ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)     # PR_SET_PDEATHSIG
 
 
+def stat_cpu_seconds(stat: Path) -> float:
+    """User + system CPU time (s) from a /proc stat file (a process's or a thread's); OSError when it has
+    gone, IndexError or ValueError when the file is not one."""
+    fields = stat.read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 @dataclass
 class CellProcesses:
     """The emulator and the five services of one cell, as children of this process."""
@@ -125,12 +132,10 @@ class CellProcesses:
 
     def cpu_seconds(self) -> dict[str, float]:
         """CPU time (user + system, s) each live child has used so far (/proc/<pid>/stat)."""
-        tick = os.sysconf("SC_CLK_TCK")
         out = {}
         for name, proc in self.procs.items():
             try:
-                fields = Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
-                out[name] = round((int(fields[11]) + int(fields[12])) / tick, 2)
+                out[name] = round(stat_cpu_seconds(Path(f"/proc/{proc.pid}/stat")), 2)
             except (OSError, IndexError, ValueError):
                 pass
         return out
@@ -139,15 +144,13 @@ class CellProcesses:
         """Per live child, the CPU time (s) of its threads so far, by thread name (/proc/<pid>/task: the
         names the OS knows: zenoh's runtime threads, the ones the services name, 'python' for the rest;
         threads of the same name summed)."""
-        tick = os.sysconf("SC_CLK_TCK")
         out: dict[str, dict[str, float]] = {}
         for name, proc in self.procs.items():
             threads: dict[str, float] = {}
             for task in Path(f"/proc/{proc.pid}/task").glob("*"):
                 try:
                     comm = (task / "comm").read_text().strip()
-                    fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
-                    threads[comm] = threads.get(comm, 0.0) + (int(fields[11]) + int(fields[12])) / tick
+                    threads[comm] = threads.get(comm, 0.0) + stat_cpu_seconds(task / "stat")
                 except (OSError, IndexError, ValueError):        # a thread that ended meanwhile
                     continue
             if threads:
