@@ -155,15 +155,25 @@ class Queue(_Inbox):
         return out
 
 
+SWITCH_INTERVAL = 0.0005      # s: how often Python hands the GIL over (its default is 5 ms)
+
+
+def prepare_loop_thread() -> None:
+    """What every loop thread of a service sets before it loops: the GIL handed over every 0.5 ms, so no
+    callback thread waits 5 ms behind the loop (nor the loop behind a callback), and the thread's name in
+    the OS (``name_os_thread``; the main thread keeps the process's)."""
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    name_os_thread()
+
+
 def run_paced(period: float, tick, stop: threading.Event) -> None:
     """Call tick(now) every period: deadline sleeping (clock_nanosleep, tens of microseconds late), no
     spinning (that would hold the GIL while a callback waits); an overrun re-syncs instead of bursting.
     Python hands the GIL over every 5 ms by default, which would let any callback thread delay a tick that
     long: the switch interval is set to 0.5 ms. The thread runs with its process's scheduling, which the
     process took at start (``open_service``, or the driver's and emulator's own start-up). A thread of its
-    own is named in the OS after its Python name (``name_os_thread``)."""
-    sys.setswitchinterval(0.0005)
-    name_os_thread()
+    own is named in the OS after its Python name (``prepare_loop_thread``)."""
+    prepare_loop_thread()
     deadline = time.monotonic()
     while not stop.is_set():
         deadline += period
@@ -182,8 +192,7 @@ def run_synced(period: float, tick, stop: threading.Event, ready: threading.Even
     to the robot's own clock, a loop never runs ahead of the drives: a SYNC that comes late delays its
     tick instead of leaving the robot a period behind the commands, which a trajectory at the velocity
     limit can never make up. Switch interval, scheduling and naming as run_paced."""
-    sys.setswitchinterval(0.0005)
-    name_os_thread()
+    prepare_loop_thread()
     while not stop.is_set():
         ready.wait(1.5 * period)
         ready.clear()

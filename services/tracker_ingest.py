@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 
-from services.common import ServiceShell, open_service, serve, service_parser, setup_logging
+from services.common import ServiceShell, open_service, prepare_loop_thread, serve, service_parser, setup_logging
 from shared.core.humans import HumanCapsules
 from shared.tracking.tracker import HumanTracker, TrackerParameters
 from shared.wire.convert import humans_to_msg
@@ -71,9 +71,9 @@ class TrackerIngest:
                 (self.shell.log.warning if not valid else self.shell.log.info)(text)
 
     def watch(self, stop: threading.Event) -> None:
-        """check() at the moments next_check says, until stopped. Python hands the GIL over every 0.5 ms
-        (as the services' paced loops set it): a sample's callback never waits 5 ms behind this thread."""
-        sys.setswitchinterval(0.0005)
+        """check() at the moments next_check says, until stopped (set up as every loop thread:
+        ``prepare_loop_thread``, so a sample's callback never waits 5 ms behind this thread)."""
+        prepare_loop_thread()
         while not stop.is_set():
             now = time.monotonic()
             self.check(now)
