@@ -126,8 +126,8 @@ class CommandJudge:
         is nobody to judge against, a tracker dropout in a recorded motion)."""
         margin = float("inf")
         if humans is not None:
-            points, jac = self.robot.capsule_kinematics(step.q_command)
-            check = pair_ssm(points, self.robot.radii, jac @ step.qd_command, humans, self.ssm)
+            points, velocities = self.robot.capsule_motion(step.q_command, step.qd_command)
+            check = pair_ssm(points, self.robot.radii, velocities, humans, self.ssm)
             margin = float(check.margin.min()) if check.margin.size else margin
         braking = step.method.endswith("+braking")
         result.braking_cycles += braking

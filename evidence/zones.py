@@ -53,8 +53,8 @@ class SpeedZones:
 
 def fastest_point_speed(robot: RobotModel, q: np.ndarray, qd: np.ndarray) -> float:
     """The speed (m/s) of the fastest capsule end point of the robot moving at qd."""
-    _, jac = robot.capsule_kinematics(q)
-    return float(np.linalg.norm(jac @ qd, axis=-1).max())
+    _, velocities = robot.capsule_motion(q, qd)
+    return float(np.linalg.norm(velocities, axis=-1).max())
 
 
 class ZoneScalingLayer(ScalingLayer):

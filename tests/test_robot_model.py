@@ -62,6 +62,10 @@ def test_point_jacobians_match_finite_differences(robot, rng):
         h = 1e-6
         numeric = (robot.capsule_segments(q + h * qd) - robot.capsule_segments(q - h * qd)) / (2 * h)
         assert np.allclose(np.einsum("lpij,j->lpi", jac, qd), numeric, atol=1e-7)
+        moved, velocities = robot.capsule_motion(q, qd)          # the Jacobians applied, never formed
+        assert np.array_equal(moved, points)
+        assert np.allclose(velocities, np.einsum("lpij,j->lpi", jac, qd), atol=1e-12)
+        assert np.allclose(velocities, numeric, atol=1e-7)
 
 
 def test_compiled_chain_matches_pinocchio(robot, rng):

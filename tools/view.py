@@ -84,8 +84,8 @@ def closest_pair(robot: RobotModel, q: np.ndarray, qd: np.ndarray, humans_segmen
         return None
     humans = HumanCapsules(np.asarray(humans_segments, float), np.asarray(humans_radii, float),
                            np.asarray(velocities, float), np.asarray(known, bool))
-    points, jac = robot.capsule_kinematics(np.asarray(q, float))
-    pairs = pair_ssm(points, robot.radii, jac @ np.asarray(qd, float), humans, ssm)
+    points, velocities = robot.capsule_motion(q, qd)
+    pairs = pair_ssm(points, robot.radii, velocities, humans, ssm)
     i, j = np.unravel_index(int(np.argmin(np.maximum(pairs.limit, 0.0) - pairs.robot_speed)), pairs.limit.shape)
     dist = capsule_pair_distances(points[i:i + 1], robot.radii[i:i + 1], humans.segments[j:j + 1],
                                   humans.radii[j:j + 1])

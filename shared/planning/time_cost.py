@@ -35,7 +35,7 @@ import numpy as np
 
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
-from shared.robot.model import RobotModel, _chain_points_and_jacobians
+from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import _pair_ssm_kernel
 from shared.scaling.problem import _NO_ROWS, _upper_bound
@@ -72,14 +72,7 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
         if n_h == 0 or total >= stay:
             total += dts[k]
             continue
-        points, jac = _chain_points_and_jacobians(qs[k], placement, parent, local, joint, ancestry)
-        vel = np.zeros((points.shape[0], 3))
-        for p in range(points.shape[0]):
-            for r in range(3):
-                acc = 0.0
-                for j in range(dqs.shape[1]):
-                    acc += jac[p, r, j] * dqs[k, j]
-                vel[p, r] = acc
+        points, vel = chain_points_and_velocities(qs[k], dqs[k], placement, parent, local, joint, ancestry)
         left = 1.0                 # the fraction of this sample still to travel
         while left > 0.0:
             if total >= stay:      # the people have left: the rest at full speed
@@ -190,9 +183,8 @@ class SsmTimeCost:
         ssm, o = self.ssm, self.options
         total = _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
                                 placement, parent, local, joint, r.ancestry, r.radii, humans.segments,
-                                humans.radii, humans.velocities, humans.velocity_known, ssm.horizon,
-                                ssm.fixed_distance, ssm.human_near_distance, ssm.human_speed_near,
-                                ssm.human_speed_far, ssm.tracking_margin,
+                                humans.radii, humans.velocities, humans.velocity_known, *ssm.kernel_constants,
+                                ssm.tracking_margin,
                                 o.extrapolation if moving else 0.0, float(stay), o.alpha_floor, o.wait_step)
         return float(total) + samples.overhead
 

@@ -84,6 +84,13 @@ class SsmParameters:
         return self.reaction_time + self.stopping_time
 
     @property
+    def kernel_constants(self) -> tuple[float, float, float, float, float]:
+        """What the compiled SSM kernel takes, in its order: horizon, fixed distance, the ISO 13855 near
+        distance and its two approach speeds (near, far)."""
+        return (self.horizon, self.fixed_distance, self.human_near_distance, self.human_speed_near,
+                self.human_speed_far)
+
+    @property
     def fixed_distance(self) -> float:
         """The distance terms that do not depend on speed: a_max T_s^2 / 2 + C + Z_d + Z_r (m)."""
         return (0.5 * self.stopping_deceleration * self.stopping_time ** 2 + self.intrusion_distance

@@ -140,7 +140,5 @@ def pair_ssm(robot_segments: np.ndarray, robot_radii: np.ndarray, robot_velociti
     distances, the actual closest points).
     """
     out = _pair_ssm_kernel(robot_segments, robot_radii, np.ascontiguousarray(robot_velocities), humans.segments,
-                           humans.radii, humans.velocities, humans.velocity_known, params.horizon,
-                           params.fixed_distance, params.human_near_distance, params.human_speed_near,
-                           params.human_speed_far)
+                           humans.radii, humans.velocities, humans.velocity_known, *params.kernel_constants)
     return PairSsm(*out)

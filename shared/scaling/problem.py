@@ -32,9 +32,9 @@ import numpy as np
 import piqp
 
 from shared.core.humans import HumanCapsules
-from shared.robot.model import RobotModel
+from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
-from shared.safety.ssm import PairSsm, pair_ssm
+from shared.safety.ssm import PairSsm, _pair_ssm_kernel, pair_ssm
 
 
 @dataclass(slots=True)
@@ -124,8 +124,8 @@ def build_rows(robot: RobotModel, q: np.ndarray, dq_ds: np.ndarray, d2q_ds2: np.
     lim = robot.limits
     pairs = None
     if humans.count:
-        points, jac = robot.capsule_kinematics(q)                       # (L,2,3), (L,2,3,6)
-        pairs = pair_ssm(points, robot.radii, jac @ tangent, humans, ssm)
+        points, velocities = robot.capsule_motion(q, tangent)          # (L,2,3) each
+        pairs = pair_ssm(points, robot.radii, velocities, humans, ssm)
     joint_speed = np.abs(tangent)
     upper = _upper_bound(joint_speed, lim.velocity, *((pairs.robot_speed, pairs.limit - ssm.tracking_margin)
                                                       if pairs else (_NO_PAIRS, _NO_PAIRS)))
@@ -139,12 +139,27 @@ def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray
     """The largest alpha in [0, 1] for which moving at alpha * joint_velocity from q meets every SSM row."""
     if not humans.count:
         return 1.0
-    points, jac = robot.capsule_kinematics(q)
-    pairs = pair_ssm(points, robot.radii, jac @ joint_velocity, humans, ssm)
-    return _upper_bound(_NO_ROWS, _NO_ROWS, pairs.robot_speed, pairs.limit - ssm.tracking_margin)
+    return motion_alpha_bound(np.asarray(q, dtype=np.float64), np.asarray(joint_velocity, dtype=np.float64),
+                              *robot.chain, robot.ancestry, robot.radii, humans.segments, humans.radii,
+                              humans.velocities, humans.velocity_known, *ssm.kernel_constants,
+                              ssm.tracking_margin)
 
 
 _NO_ROWS = np.zeros(0)
+
+
+@numba.njit(cache=True)
+def motion_alpha_bound(q, joint_velocity, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
+                       human_vel, human_known, horizon, fixed, near_d, v_near, v_far, margin):
+    """``ssm_alpha_bound`` in one compiled call (the kinematics, every pair's SSM row, their bound; the kernels
+    the scaling rows and the planning layer's time cost use): the scaling layer checks every command with it,
+    without the Python between three calls that a control cycle pays for on cold caches."""
+    n_links = radii.shape[0]
+    points, velocities = chain_points_and_velocities(q, joint_velocity, placement, parent, local, joint, ancestry)
+    _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
+                                                velocities.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
+                                                human_known, horizon, fixed, near_d, v_near, v_far)
+    return _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin)
 
 
 @numba.njit(cache=True)
