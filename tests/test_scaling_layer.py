@@ -203,3 +203,32 @@ def test_a_plan_from_rest_ahead_of_a_crawling_robot_is_taken_where_the_robot_sto
     steps = [lay.step(NOBODY, 0.0) for _ in range(3)]
     assert all(st.trajectory_version == 1 for st in steps) and lay.pending is None
     assert "could not stop" in lay.dropped
+
+
+def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_it_is_held_at_rest():
+    """A person who came closer after the stop plan was made holds the robot short of its start: it would
+    wait there for as long as they stay, so the plan is dropped, saying why, and a plan from rest where the
+    robot stands is taken instead (the paper's phase 4, where the robot used to stand still beside the arm)."""
+    lim = ROBOT.limits
+    old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
+    q, dq, _ = old.sample(1.0)
+    points, velocities = ROBOT.capsule_motion(q, dq)
+    ahead = points[-1, 1] + 0.4 * velocities[-1, 1] / np.linalg.norm(velocities[-1, 1])   # in the flange's way
+    person = HumanCapsules(np.array([[ahead, ahead]]), np.array([0.1]), np.zeros((1, 2, 3)), np.array([True]))
+    lay = ScalingLayer(ROBOT, SsmParameters(), ScalingParameters())
+    lay.set_trajectory(old)
+    lay.s, lay.sdot = 1.0, 0.2
+    back = straight_line_trajectory(old.sample(1.04)[0], Q_START, lim.velocity, lim.acceleration, version=2)
+    assert lay.take(back, True, 0.0, q_here=q, start_tolerance=1e-3) is None and lay.pending is not None
+    steps = []
+    while lay.pending is not None and len(steps) < 100:
+        steps.append(lay.step(person, 0.0))
+    assert lay.pending is None and lay.dropped.startswith("held by the SSM") and "plan 2" in lay.dropped
+    assert all(st.trajectory_version == 1 and st.s < 1.04 for st in steps)
+    assert np.abs(old.sample(lay.s)[1] * lay.sdot).max() < 0.02            # at rest, short of the start
+    here = old.sample(lay.s)[0]
+    fresh = straight_line_trajectory(here, Q_START, lim.velocity, lim.acceleration, version=3)
+    for _ in range(5):                                    # the braking floor has brought it to rest exactly
+        lay.step(person, 0.0)
+    assert lay.take(fresh, True, 0.0, q_here=old.sample(lay.s)[0], start_tolerance=0.02) is None
+    assert lay.trajectory is fresh

@@ -133,6 +133,34 @@ def test_the_search_goes_round_a_person_who_stays_by_a_short_detour_and_is_repea
     assert alone.origin == "seed 0" and len(alone.waypoints) == 2
 
 
+def test_a_path_cannot_start_towards_a_person_inside_its_no_approach_distance_while_they_stay():
+    # the robot stands inside the person's protective distance, and the first metres of this motion
+    # approach them (the SSM allows no approach at all there), though a step further on it would not:
+    # the scaling layer holds it until they leave, and the path's cost must say so as its trajectory's does
+    q = Q_START + 0.35 * (Q_GOAL - Q_START)
+    goal = np.array([2.171, -0.361, 0.895, -0.139, 0.391, 1.071])
+    velocity = (goal - q) / COST.segment_time(q, goal)
+    assert ssm_alpha_bound(ROBOT, q, velocity, NEAR, SSM) == 0.0
+    assert ssm_alpha_bound(ROBOT, q + 0.025 / np.abs(goal - q).max() * (goal - q), velocity, NEAR, SSM) > 0.5
+    timed = straight_line_trajectory(q, goal, LIM.velocity, LIM.acceleration)
+    stay = 3.0
+    path = COST.path_time(np.vstack([q, goal]), NEAR, stay)
+    assert path > stay and path == pytest.approx(COST.trajectory_time(timed, 0.0, NEAR, stay), rel=0.05)
+    assert np.array_equal(COST.path_samples(np.vstack([q, goal])).q[0], q)     # sampled from where it stands
+
+
+def test_lifts_pass_over_an_arm_across_the_sweep_where_random_offsets_seldom_do():
+    direct = np.vstack([Q_START, Q_GOAL])
+    only_lifts = PathSearch(CM, COST, SearchOptions(candidates=0, refinements=0, escape_directions=0))
+    found = only_lifts.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(0), stay=5.0, seeds=(direct,))
+    assert found.origin == "lift" and only_lifts.free(found.waypoints, NEAR)
+    assert found.predicted < 0.8 * COST.path_time(direct, NEAR, 5.0)
+    assert np.allclose(found.waypoints[:, 3:], Q_START[3:])        # the wrist as it is: the shoulder and elbow
+    assert np.abs(found.waypoints[1:-1, 1:3] - Q_START[1:3]).max() > 0.2      # carry the arm over
+    none = PathSearch(CM, COST, SearchOptions(candidates=0, refinements=0, escape_directions=0, lift_offsets=((), ())))
+    assert none.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(0), stay=5.0, seeds=(direct,)).origin == "seed 0"
+
+
 def test_the_search_with_no_time_left_returns_the_best_path_found_so_far():
     search = PathSearch(CM, COST, SearchOptions(time_budget=0.0))
     direct = np.vstack([Q_START, Q_GOAL])

@@ -36,6 +36,7 @@ from shared.scaling.problem import ssm_alpha_bound
 
 CELL_BUDGET = 0.08   # s of wall clock per search in the planner service (the simulation charges it per search)
 ACTION_BUDGET = 0.1  # s of wall clock for a whole planning action in the planner service (searches + the rest)
+BENT_WITHIN = 1.5    # a straight winner: the best free bent candidate within this factor of its time is refined
 
 
 @dataclass(frozen=True)
@@ -46,11 +47,14 @@ class SearchOptions:
     wall-clock bound (None:
     bounded by the counts only, the same result for the same seed)."""
 
-    candidates: int = 120
+    candidates: int = 72
     refinements: int = 60
     radii: tuple[float, ...] = (0.25, 0.5, 1.0, 1.5)
     escape_directions: int = 64
     escape_best: int = 4
+    lift_joints: tuple[int, int] = (1, 2)
+    lift_offsets: tuple[tuple[float, ...], tuple[float, ...]] = ((-0.6, -0.3, 0.3, 0.6), (0.0, 0.4, 0.8, 1.2))
+    lift_spans: tuple[tuple[float, float], ...] = ((0.0, 0.5), (0.25, 0.75), (0.5, 1.0))
     time_budget: float | None = None
 
 
@@ -102,6 +106,24 @@ class PathSearch:
             out.append(np.vstack([q_from, np.clip(via, lower, upper), q_goal]))
         return out
 
+    def _lifts(self, q_from: np.ndarray, q_goal: np.ndarray) -> list[np.ndarray]:
+        """Detours over or under a person: the straight line with the shoulder and elbow (``lift_joints``)
+        offset by every pair of ``lift_offsets`` over a stretch of it (``lift_spans``, fractions of the
+        line), which raises, lowers, folds or stretches the arm there. Random 6-joint offsets seldom hit
+        these: a person's arm across a sweep is passed over by a few tenths of a radian of exactly these
+        two joints, with the wrist left as it is."""
+        lower, upper = self.limits.lower, self.limits.upper
+        first, second = self.options.lift_joints
+        out = []
+        for a in self.options.lift_offsets[0]:
+            for b in self.options.lift_offsets[1]:
+                offset = np.zeros(q_from.size)
+                offset[first], offset[second] = a, b
+                for f1, f2 in self.options.lift_spans:
+                    via = [q_from + f * (q_goal - q_from) + offset for f in (f1, f2)]
+                    out.append(np.vstack([q_from, np.clip(via, lower, upper), q_goal]))
+        return out
+
     def _escapes(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
                  rng: np.random.Generator) -> list[np.ndarray]:
         """Detours that first leave the people's slowdown: of `escape_directions` random joint directions,
@@ -150,6 +172,7 @@ class PathSearch:
 
         labelled = [(f"seed {k}", np.asarray(w, dtype=float)) for k, w in enumerate(seeds)]
         labelled += [("escape", w) for w in self._escapes(q_from, q_goal, humans, rng)]
+        labelled += [("lift", w) for w in self._lifts(q_from, q_goal)]
         labelled += [("detour", w) for w in self._detours(q_from, q_goal, rng, self.options.candidates)]
         costs = []
         for _, w in labelled:
@@ -157,18 +180,39 @@ class PathSearch:
                 break
             costs.append(cost(w))
         checked = 0
-        best = None
+        best = bent = None
         for k in np.argsort(costs, kind="stable"):
+            if best is not None and (labelled[k][1].shape[0] <= 2 or costs[k] > BENT_WITHIN * best[1]):
+                continue
             checked += 1
             if self.free(labelled[k][1], humans, inflation):
-                best = (labelled[k][1], costs[k], labelled[k][0])
-                break
+                if best is None:
+                    best = (labelled[k][1], costs[k], labelled[k][0])
+                    if best[0].shape[0] > 2:
+                        break
+                else:
+                    bent = (labelled[k][1], costs[k], labelled[k][0])
+                    break
             if out_of_time() and checked > 4:
                 break
         if best is None:
             return None
-        waypoints, predicted, origin = best
         costed = len(costs)
+        waypoints, predicted, origin = best
+        if waypoints.shape[0] <= 2 and bent is not None:      # a straight winner has nothing to refine: the
+            waypoints, predicted, origin = bent                # best bent candidate is refined instead, and
+        waypoints, predicted, refined, refined_checked = self._refine(      # wins if it ends up faster
+            waypoints, predicted, q_from, humans, rng, inflation, cost, out_of_time)
+        costed, checked = costed + refined, checked + refined_checked
+        if predicted >= best[1]:
+            waypoints, predicted, origin = best
+        return SearchResult(waypoints, predicted, origin, costed, checked)
+
+    def _refine(self, waypoints: np.ndarray, predicted: float, q_from: np.ndarray, humans: HumanCapsules | None,
+                rng: np.random.Generator, inflation: float, cost, out_of_time) -> tuple[np.ndarray, float, int, int]:
+        """The waypoints perturbed with shrinking steps, and dropped where that costs no time, as long as
+        each change is faster and free: (waypoints, predicted, costed, checked)."""
+        costed = checked = 0
         step = max(self.options.radii) / 4
         for k in range(self.options.refinements):
             if out_of_time():
@@ -191,4 +235,4 @@ class PathSearch:
                     waypoints, predicted = trial, value
                     continue
             step = max(step * 0.93, 0.02)
-        return SearchResult(waypoints, predicted, origin, costed, checked)
+        return waypoints, predicted, costed, checked

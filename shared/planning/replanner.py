@@ -45,6 +45,7 @@ from shared.planning.path_search import PathSearch, SearchOptions
 from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
 from shared.planning.timing import TimingError, parameterize
 from shared.safety.parameters import SsmParameters
+from shared.scaling.layer import REST_SPEED
 
 REMEMBERED = 4          # searched paths to the current goal kept as seeds of the next searches
 
@@ -75,7 +76,7 @@ class ReplanOptions:
     lead: float = 0.1
     min_gain: float = 0.10
     min_saving: float = 0.25
-    rest_speed: float = 0.02
+    rest_speed: float = REST_SPEED
     crawl: float = 0.25
     stop_lead: float = 0.15
     patience: float = 1.5

@@ -133,7 +133,11 @@ class SsmTimeCost:
         return float(np.max(np.abs(np.asarray(q1) - np.asarray(q0)) / self.limits.velocity))
 
     def path_samples(self, waypoints: np.ndarray, from_rest: bool = True) -> PathSamples:
-        """Samples of a waypoint path at full joint speed along each straight segment. The overhead counts
+        """Samples of a waypoint path at full joint speed along each straight segment, each segment's first
+        at its start: a robot that stands (or turns a corner) inside a person's no-approach distance and
+        would approach them by moving on cannot start while they stay, and a sample half a step further on
+        would miss exactly that (the timed trajectory's own samples see it, so the two disagreed by
+        seconds on such a path). The overhead counts
         what a time law adds: v/(2a) to start from rest (from_rest) and again to come to rest (a trapezoid's
         L/v + v/a), and at each corner the time to change the joint velocities, |dv| / (2 a) for the slowest joint."""
         w = np.asarray(waypoints, dtype=float)
@@ -145,7 +149,7 @@ class SsmTimeCost:
             if duration <= 0.0:
                 continue
             n = max(1, int(np.ceil(np.max(np.abs(b - a)) / self.options.spacing)))
-            u = (np.arange(n) + 0.5) / n
+            u = np.arange(n) / n                  # from the segment's start: see the docstring
             v = (b - a) / duration
             q_parts.append(a + u[:, None] * (b - a))
             dq_parts.append(np.repeat(v[None, :], n, axis=0))

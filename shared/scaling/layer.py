@@ -24,7 +24,9 @@ Safety rules kept here:
 * a plan from rest whose start lies a little ahead on the path (the planner's stop plan for a robot the
   SSM holds to a crawl) is reached by slowing down, never by a jump: the path speed is capped so that the
   robot comes to rest exactly at that start (method '+stopping'; the cap only ever lowers alpha), and the
-  plan is taken there, at rest (``take``).
+  plan is taken there, at rest (``take``). Where the SSM holds the robot to rest short of that start (a
+  person who came closer meanwhile), the plan is dropped, saying why: it would wait there for as long as
+  the person stays, and a plan from where the robot stands can follow at once.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ def _path_deceleration(dq_ds, d2q_ds2, sdot, acceleration):
 
 
 STOP_REACH = 0.5          # nominal s: how far ahead a plan for a crawling robot may start (``ScalingLayer.take``)
+REST_SPEED = 0.02         # rad/s (fastest joint): below it the robot counts as at rest (the planner's too)
 
 
 class StepStatus(str, enum.Enum):
@@ -278,6 +281,12 @@ class ScalingLayer:
         floor = self.braking_floor(dq, ddq) if running else 0.0
         if floor > alpha:
             alpha, method = floor, method + "+braking"
+        if self.pending is not None and status is StepStatus.RUNNING and safe_alpha < cap \
+                and float(np.abs(dq).max()) * alpha < REST_SPEED:
+            plan, s_stop = self.pending   # the SSM holds it short of the start, where it would wait for as long as
+            self.pending = None           # the person stays: dropped, so that a plan from where it stands can follow
+            self.dropped = (f"held by the SSM at s={self.s:.3f}, short of the start of plan {plan.version} "
+                            f"at s={s_stop:.3f}")
         if status is StepStatus.RUNNING and safe_alpha <= self.params.alpha_min:
             self.beta = True
         elif status is not StepStatus.RUNNING or safe_alpha >= self.params.alpha_release:
