@@ -109,6 +109,8 @@ class Scaler:
         if self.layer.dropped is not None:
             self.shell.log.warning("trajectory dropped: %s", self.layer.dropped)
             self.layer.dropped = None
+            with self.lock:         # the planner numbers its next plan from the followed one: it may come with
+                self.version = self.layer.trajectory.version       # the dropped plan's number and is taken
         self.seq += 1
         fresh = np.isfinite(stamp) and stamp != self.reported_stamp      # first command from this sample
         if fresh:

@@ -85,6 +85,33 @@ def test_the_scaler_refuses_a_merge_into_a_trajectory_it_does_not_follow_and_dro
     assert shell.published(keys.scaler_status, ScalerStatus)[-1].trajectory_version == -1    # holding
 
 
+def test_after_the_layer_drops_a_plan_the_scaler_takes_the_next_plan_numbered_like_it():
+    """The planner numbers a replan from the trajectory the scaler follows, so the plan after a dropped one
+    carries the dropped one's number; the scaler must not take it for an old message (in the demo's phase 4
+    every replan for 4 s was ignored so, and the robot stood beside the arm until the person left)."""
+    shell, scaler, keys = scaler_at_start()
+    old = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(old, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    def ticks(n: int) -> None:
+        nonlocal now
+        for _ in range(n):
+            now += 0.01
+            shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+            scaler.tick(now)
+    ticks(60)                                      # at full speed
+    ahead = straight_line_trajectory(old.sample(scaler.layer.s + 0.02)[0], Q_START, LIM.velocity, LIM.acceleration,
+                                     version=2)    # a plan from rest just ahead: too close to stop for
+    shell.deliver(keys.trajectory, trajectory_to_msg(ahead, 1, "beta", 0.0, -1))
+    ticks(5)
+    assert scaler.layer.trajectory.version == 1 and scaler.layer.pending is None and scaler.version == 1
+    merged = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=2)
+    shell.deliver(keys.trajectory, trajectory_to_msg(merged, 1, "beta", scaler.layer.s + 0.3, base_version=1))
+    ticks(1)
+    assert scaler.version == 2 and scaler.layer.trajectory is not None and scaler.layer.trajectory.version == 2
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].trajectory_version == 2
+
+
 # -------------------------------------------------------------------------------------- tracker_ingest
 def test_tracker_ingest_publishes_each_sample_with_velocities_and_announces_a_dropout():
     shell = FakeShell("tracker_ingest")
