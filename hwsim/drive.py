@@ -60,6 +60,9 @@ class DriveLimits:
     following_timeout: float = FOLLOWING_TIMEOUT
 
 
+POWERED = (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE)
+
+
 @dataclass
 class Drive:
     limits: DriveLimits
@@ -125,15 +128,26 @@ class Drive:
         self.fault_code = code
         return [code]
 
+    def watchdog_due(self, step: float) -> float | None:
+        """The monotonic time (s) at which ``watchdog`` has something to do: the SYNC time-out after the last
+        SYNC while powered or in a fault reaction; the next braking step (step, s) while a fault reaction
+        brakes on the drive's own clock; None when there is nothing to watch (no SYNC yet, or at rest in a
+        state the time-out does not concern)."""
+        if self.last_sync is None:
+            return None
+        timeout_at = self.last_sync + self.limits.sync_timeout_factor * self.limits.period
+        if self.state is State.FAULT_REACTION_ACTIVE:
+            return timeout_at if self._moved_at is None else self._moved_at + step
+        return timeout_at if self.state in POWERED else None
+
     def watchdog(self, now: float) -> list[int]:
         """Called between SYNCs: once SYNC has run, no SYNC for sync_timeout_factor periods while the drive is
         powered (ready, switched on, enabled, quick stop) is a fault. Without SYNC the drive keeps its own
         clock: the fault reaction then brakes in real time (a drive does not wait for a dead master to finish
         its stop), so the joint is at rest when a new master brings SYNC back."""
-        powered = (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE)
         if self.last_sync is None or now - self.last_sync <= self.limits.sync_timeout_factor * self.limits.period:
             return []
-        codes = self.raise_fault(EMCY_SYNC_TIMEOUT) if self.state in powered else []
+        codes = self.raise_fault(EMCY_SYNC_TIMEOUT) if self.state in POWERED else []
         if self.state is State.FAULT_REACTION_ACTIVE:
             if self._moved_at is None:            # until the watchdog fired it went on at its speed
                 self.position += self.velocity * (now - self.last_sync)

@@ -38,7 +38,8 @@ from shared.robot.model import default_robot
 from shared.scheduling import name_callback_thread, realtime
 
 log = logging.getLogger("hwsim")
-WATCHDOG_POLL = 0.005        # s: how often the drives look for a missing SYNC between SYNCs
+WATCHDOG_STEP = 0.005        # s: the braking step of a fault reaction on the drives' own clock (no SYNC)
+LATE = 1e-4                  # s: a watchdog wakes this long after the moment it is due
 
 
 class EmulatedNode:
@@ -199,6 +200,17 @@ class EmulatedNode:
             self._emcy(self.drive.watchdog(now))
 
 
+def next_watchdog(drives: list[Drive], now: float) -> float:
+    """How long (s) the watchdog thread may sleep: until the first drive's SYNC time-out could pass (every
+    SYNC moves it on, so a running bus wakes the thread once a time-out, not every few milliseconds: a
+    wake-up costs this machine a cold cache), or its next braking step while a fault reaction brakes
+    without SYNC; half a time-out when nothing is due (no SYNC yet, not powered)."""
+    dues = [due for d in drives if (due := d.watchdog_due(WATCHDOG_STEP)) is not None]
+    if not dues:
+        return 0.5 * min((d.limits.sync_timeout_factor * d.limits.period for d in drives), default=PERIOD)
+    return max(min(dues) - now, 0.0) + LATE
+
+
 def build_limits(period: float) -> list[DriveLimits]:
     lim = default_robot().limits
     return [DriveLimits(float(lo), float(hi), float(v), float(a), period)
@@ -223,7 +235,7 @@ def run(interface: str, channel: str | None, start: np.ndarray, seed: int, stop:
     print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}, {scheduling}",
           flush=True)
     try:
-        while not stop.wait(WATCHDOG_POLL):
+        while not stop.wait(next_watchdog([n.drive for n in nodes if not n.frozen], time.monotonic())):
             now = time.monotonic()
             for n in nodes:
                 n.watchdog(now)

@@ -158,6 +158,32 @@ def test_missing_sync_and_missing_setpoints_fault():
     assert codes == [EMCY_RPDO_TIMEOUT]
 
 
+def test_the_watchdog_is_due_at_the_sync_time_out_and_at_each_braking_step_without_sync():
+    from hwsim.emulator import LATE, WATCHDOG_STEP, next_watchdog
+
+    d = enabled_drive()
+    assert d.watchdog_due(WATCHDOG_STEP) is None                # no SYNC yet: nothing to watch
+    idle = Drive(DriveLimits(lower=-1, upper=1))
+    assert next_watchdog([idle], 0.0) == pytest.approx(0.5 * 6 * T)      # half a time-out
+    run(d, trapezoid(10.0, 1.2, 6.0, 40))                       # moving at 1.2 rad/s
+    t_last = 39 * T
+    assert d.watchdog_due(WATCHDOG_STEP) == pytest.approx(t_last + 6 * T)
+    # a thread woken when the time-out is due finds the fault exactly then, not a poll later
+    assert next_watchdog([d], t_last + T) == pytest.approx(5 * T + LATE)
+    assert d.watchdog(t_last + 6 * T - 1e-6) == [] and d.watchdog(t_last + 6 * T + LATE) == [EMCY_SYNC_TIMEOUT]
+    moved = t_last + 6 * T + LATE
+    assert d.state is State.FAULT_REACTION_ACTIVE
+    assert d.watchdog_due(WATCHDOG_STEP) == pytest.approx(moved + WATCHDOG_STEP)   # braking on its own clock
+    now = moved
+    while d.state is State.FAULT_REACTION_ACTIVE:
+        now += next_watchdog([d], now)
+        d.watchdog(now)
+    assert d.velocity == 0.0 and d.state is State.FAULT
+    assert d.watchdog_due(WATCHDOG_STEP) is None               # at rest in fault: nothing more until SYNC
+    d.on_sync(now + 1.0)                                        # a master is back
+    assert d.watchdog_due(WATCHDOG_STEP) is None and d.state is State.FAULT
+
+
 def test_a_held_setpoint_is_kept_until_the_rpdo_time_out():
     d = enabled_drive()
     pos, _, _ = run(d, [0.0005, 0.0015, 0.003])

@@ -34,7 +34,7 @@ import numpy as np
 
 from evidence.scenarios import IN_PATH, Keyframe, ScriptedHuman
 from hwsim.drive import DriveLimits
-from hwsim.emulator import WATCHDOG_POLL
+from hwsim.emulator import WATCHDOG_STEP
 from shared.config import CellConfig
 from shared.drives import driver_core
 from shared.drives.prbt import EMCY_SYNC_TIMEOUT, PERIOD
@@ -80,7 +80,8 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
     brake = float(np.max(robot.limits.velocity / robot.limits.monitor_acceleration))
     # the robot driver's and the emulated drives' own defaults, as the cell runs them (hrc up)
     p, ct, hb = PERIOD, driver_core.COMMAND_TIMEOUT, driver_core.HEARTBEAT_TIMEOUT
-    wd = DriveLimits.sync_timeout_factor * DriveLimits.period + WATCHDOG_POLL     # the drives look every 5 ms
+    # the drives look when the time-out is due; a wake-up up to a braking step late is allowed
+    wd = DriveLimits.sync_timeout_factor * DriveLimits.period + WATCHDOG_STEP
     human = max(config.scaling.human_timeout, 0.05)
     horizon = config.ssm.reaction_time + config.ssm.stopping_time
     # + one SYNC more everywhere the drives keep reporting: a drive reports the position of the SYNC
