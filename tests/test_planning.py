@@ -1,6 +1,8 @@
 """The planning layer: RRT-Connect around a human arm in the paper's experiment, typed errors, time
 parameterisation, horizon check, continuous merge, beta replans, and the trajectory message."""
 
+import contextlib
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock, ReplanFailed
-from shared.planning.horizon import HorizonOptions, horizon_check, people_passing
+from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach, people_passing
 from shared.planning.ompl_planner import (
     GoalInCollision,
     JointPlanner,
@@ -114,6 +116,30 @@ def test_horizon_check_finds_a_human_in_the_path_and_ignores_one_beside_it():
     assert horizon_check(OLD, 0.0, CM, ASIDE, HorizonOptions(samples=40, spacing=0.05)).first_infeasible is None
     # a human who steps in only later than the horizon reaches is not reported yet
     assert horizon_check(OLD, 0.0, CM, ARM_ACROSS, HorizonOptions(samples=3, spacing=0.05)).first_infeasible is None
+
+
+def test_people_out_of_the_robots_reach_need_no_horizon_check():
+    # the reach sphere holds every capsule in every configuration (sampled), and is not loose
+    rng = np.random.default_rng(4)
+    farthest = max(float((np.linalg.norm(ROBOT.capsule_segments(q) - ROBOT.reach_centre, axis=-1).max(axis=1)
+                          + ROBOT.radii).max()) for q in rng.uniform(LIM.lower, LIM.upper, (3000, 6)))
+    assert farthest <= ROBOT.reach_radius < farthest + 0.05
+    assert out_of_reach(CM, ASIDE) and out_of_reach(CM, None) and not out_of_reach(CM, ARM_ACROSS)
+    # where the bound says out of reach, no configuration is blocked; just inside it, the check runs
+    required = CM.min_separation + CM.margins.human + CM.margins.tolerance
+    for gap in (required + 0.01, required - 0.01):
+        centre = ROBOT.reach_centre + np.array([-(ROBOT.reach_radius + 0.17 + gap), 0.0, 0.0])
+        person = known([[centre, centre + np.array([0.0, 0.0, 0.5])]], [0.17])
+        qs = rng.uniform(LIM.lower, LIM.upper, (2000, 6))
+        assert out_of_reach(CM, person) == (gap > required)
+        if out_of_reach(CM, person):           # the person changes no configuration's clearance
+            assert np.array_equal(CM.clearances(qs, person), CM.clearances(qs, None))
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), SsmParameters())
+    before = CM.checks
+    assert replanner.on_horizon(OLD, 0.5, Q_GOAL, ASIDE) is None and CM.checks == before     # not even checked
+    with contextlib.suppress(ReplanFailed):              # (whatever it decides; it has to look first)
+        replanner.on_horizon(OLD, 0.5, Q_GOAL, known([[[-0.7, 0.0, 0.3], [-0.7, 0.0, 1.45]]], [0.17]))
+    assert CM.checks > before
 
 
 def merged_round(s_now: float, humans: HumanCapsules):

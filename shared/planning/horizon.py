@@ -37,6 +37,23 @@ class HorizonResult:
         return None if self.first_infeasible == 0 else float(self.s[self.first_infeasible - 1])
 
 
+def out_of_reach(collision: CollisionModel, humans: HumanCapsules | None) -> bool:
+    """Every human capsule is farther from the robot's reach sphere (``RobotModel.reach_radius``: the robot
+    lies inside it in every configuration) than the planner's margin: no configuration of any path is
+    blocked by them now, so the horizon is clear without checking it (the planner's idle cadence: a
+    check costs about 350 us on this machine at 50 Hz; this bound, a few microseconds)."""
+    if humans is None or humans.count == 0:
+        return True
+    robot = collision.robot
+    a, b = humans.segments[:, 0], humans.segments[:, 1]
+    axis = b - a
+    length2 = np.maximum(np.einsum("ij,ij->i", axis, axis), 1e-18)
+    t = np.clip(np.einsum("ij,ij->i", robot.reach_centre - a, axis) / length2, 0.0, 1.0)
+    gap = np.linalg.norm(a + t[:, None] * axis - robot.reach_centre, axis=1) - humans.radii - robot.reach_radius
+    required = collision.min_separation + collision.margins.human + collision.margins.tolerance
+    return bool(np.all(gap > required))
+
+
 def horizon_check(trajectory: Trajectory, s: float, collision: CollisionModel, humans: HumanCapsules | None,
                   options: HorizonOptions = HorizonOptions()) -> HorizonResult:
     """Alg. 1: the first infeasible configuration among the next samples of the trajectory (one batch)."""

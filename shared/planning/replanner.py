@@ -38,7 +38,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory, polyline_trajectory, straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
-from shared.planning.horizon import HorizonOptions, horizon_check, people_passing
+from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach, people_passing
 from shared.planning.merge import merge
 from shared.planning.ompl_planner import JointPlanner, PlanningError
 from shared.planning.path_search import PathSearch, SearchOptions
@@ -371,6 +371,8 @@ class Replanner:
         speed, which a stopped robot cannot); crawling and held, from rest a little ahead (as on_beta).
         waited: as in predicted_time."""
         started = time.perf_counter()
+        if out_of_reach(self.collision, humans):        # nobody near enough to block any configuration
+            return None
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
         # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
         # a beta replan plans the way out, and only when it is predicted to pay)

@@ -126,6 +126,7 @@ class RobotModel:
         self._parent = np.array(list(self.model.parents), dtype=np.int64)
         self.link_reach = self._link_reach()
         self.joint_reach = self.link_reach.max(axis=0)
+        self.reach_centre, self.reach_radius = self._reach()
 
     def _link_reach(self) -> np.ndarray:
         """(L, 6): for link i and joint k, a bound (m) on the distance from joint k's axis to any capsule
@@ -140,6 +141,20 @@ class RobotModel:
                 lever = sum(offsets[j] for j in chain[pos + 1:]) + np.linalg.norm(self._point_local[p])
                 reach[p // 2, k - 1] = max(reach[p // 2, k - 1], lever)
         return reach
+
+    def _reach(self) -> tuple[np.ndarray, float]:
+        """A sphere that holds the whole robot in every configuration: centred on the first joint's origin
+        (base frame), its radius the largest distance of a capsule's surface from it (``link_reach`` bounds
+        the distance of a moving link's points from there; a link fixed to the base is where it is)."""
+        centre = self._joint_placement[1][:3, 3].copy()
+        radius = 0.0
+        for i, cap in enumerate(self.capsules):
+            if self.moving_links[i]:
+                bound = self.link_reach[i, 0]
+            else:
+                bound = max(float(np.linalg.norm(self._point_local[2 * i + e] - centre)) for e in range(2))
+            radius = max(radius, bound + cap.radius)
+        return centre, radius
 
     def _load_limits(self, path: Path) -> JointLimits:
         try:
