@@ -161,6 +161,24 @@ def test_lifts_pass_over_an_arm_across_the_sweep_where_random_offsets_seldom_do(
     assert none.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(0), stay=5.0, seeds=(direct,)).origin == "seed 0"
 
 
+def test_the_lifts_are_costed_right_after_the_seeds_so_a_cut_short_search_has_them():
+    class Recording:                       # the search's cost, recording what it is asked, in order
+        def __init__(self):
+            self.asked, self.ssm = [], COST.ssm
+
+        def path_time(self, waypoints, *args, **kwargs):
+            self.asked.append(np.asarray(waypoints))
+            return COST.path_time(waypoints, *args, **kwargs)
+
+    recording = Recording()
+    search = PathSearch(CM, recording, SearchOptions(refinements=0))
+    direct = np.vstack([Q_START, Q_GOAL])
+    search.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(0), stay=5.0, seeds=(direct,))
+    lifts = search._lifts(Q_START, Q_GOAL)
+    assert np.array_equal(recording.asked[0], direct)
+    assert all(np.array_equal(a, b) for a, b in zip(recording.asked[1:1 + len(lifts)], lifts))
+
+
 def test_the_search_with_no_time_left_returns_the_best_path_found_so_far():
     search = PathSearch(CM, COST, SearchOptions(time_budget=0.0))
     direct = np.vstack([Q_START, Q_GOAL])

@@ -170,9 +170,11 @@ class PathSearch:
         def cost(w: np.ndarray) -> float:
             return self.cost.path_time(w, humans, stay, from_rest=from_rest)
 
+        # the lifts right after the seeds: where a busy machine's budget stops the costing early, the family
+        # that finds the way over a person's arm has been costed
         labelled = [(f"seed {k}", np.asarray(w, dtype=float)) for k, w in enumerate(seeds)]
-        labelled += [("escape", w) for w in self._escapes(q_from, q_goal, humans, rng)]
         labelled += [("lift", w) for w in self._lifts(q_from, q_goal)]
+        labelled += [("escape", w) for w in self._escapes(q_from, q_goal, humans, rng)]
         labelled += [("detour", w) for w in self._detours(q_from, q_goal, rng, self.options.candidates)]
         costs = []
         for _, w in labelled:
