@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from shared.core.geometry import capsule_pair_distances
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
@@ -45,11 +46,8 @@ def out_of_reach(collision: CollisionModel, humans: HumanCapsules | None) -> boo
     if humans is None or humans.count == 0:
         return True
     robot = collision.robot
-    a, b = humans.segments[:, 0], humans.segments[:, 1]
-    axis = b - a
-    length2 = np.maximum(np.einsum("ij,ij->i", axis, axis), 1e-18)
-    t = np.clip(np.einsum("ij,ij->i", robot.reach_centre - a, axis) / length2, 0.0, 1.0)
-    gap = np.linalg.norm(a + t[:, None] * axis - robot.reach_centre, axis=1) - humans.radii - robot.reach_radius
+    sphere = np.stack([robot.reach_centre, robot.reach_centre])[None]         # a capsule of zero length
+    gap = capsule_pair_distances(sphere, np.array([robot.reach_radius]), humans.segments, humans.radii).distance
     required = collision.min_separation + collision.margins.human + collision.margins.tolerance
     return bool(np.all(gap > required))
 
