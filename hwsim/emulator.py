@@ -35,11 +35,10 @@ from shared.drives.bus import BusError, describe, open_bus
 from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
 from shared.drives.prbt import COUNTS_PER_RAD, EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register, to_counts
 from shared.robot.model import default_robot
-from shared.scheduling import name_callback_thread, realtime
+from shared.scheduling import name_callback_thread, realtime, sleep_until
 
 log = logging.getLogger("hwsim")
 WATCHDOG_STEP = 0.005        # s: the braking step of a fault reaction on the drives' own clock (no SYNC)
-LATE = 1e-4                  # s: a watchdog wakes this long after the moment it is due
 
 
 class EmulatedNode:
@@ -208,7 +207,7 @@ def next_watchdog(drives: list[Drive], now: float) -> float:
     dues = [due for d in drives if (due := d.watchdog_due(WATCHDOG_STEP)) is not None]
     if not dues:
         return 0.5 * min((d.limits.sync_timeout_factor * d.limits.period for d in drives), default=PERIOD)
-    return max(min(dues) - now, 0.0) + LATE
+    return sleep_until(min(dues), now)
 
 
 def build_limits(period: float) -> list[DriveLimits]:

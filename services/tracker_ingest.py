@@ -18,19 +18,19 @@ import time
 
 from services.common import ServiceShell, open_service, prepare_loop_thread, serve, service_parser, setup_logging
 from shared.core.humans import HumanCapsules
+from shared.scheduling import sleep_until
 from shared.tracking.tracker import HumanTracker, TrackerParameters
 from shared.wire.convert import humans_to_msg
 from shared.wire.messages import HumanRaw, HumanState, SafetyEvent, encode
 
 INVALID_PERIOD = 0.01       # s: how often the invalid state is repeated while no sample comes
-LATE = 1e-4                 # s: the watch wakes this long after the dropout bound would pass
 
 
 def next_check(now: float, valid_until: float, period: float = INVALID_PERIOD) -> float:
     """How long the dropout watch sleeps (s): just past the moment the track turns invalid while it is valid
     (a sample that comes meanwhile moves that moment on, and the watch sleeps again), every period while it
     is invalid."""
-    return valid_until - now + LATE if now <= valid_until else period
+    return sleep_until(valid_until, now) if now <= valid_until else period
 
 
 class TrackerIngest:

@@ -61,3 +61,13 @@ def name_callback_thread(name: str) -> None:
     if not getattr(_named, "done", False):
         _named.done = True
         name_os_thread(name)
+
+
+WAKE_LATE = 1e-4                    # s: a thread sleeping until a deadline wakes this long after it
+
+
+def sleep_until(due: float, now: float) -> float:
+    """How long (s) a thread sleeps to wake just after the monotonic time `due` (at once when it has passed):
+    the loops that wake only when something can be due (tracker_ingest's dropout watch, the emulated drives'
+    SYNC watchdog) instead of polling; each wake-up costs this machine a cold cache."""
+    return max(due - now, 0.0) + WAKE_LATE

@@ -159,7 +159,8 @@ def test_missing_sync_and_missing_setpoints_fault():
 
 
 def test_the_watchdog_is_due_at_the_sync_time_out_and_at_each_braking_step_without_sync():
-    from hwsim.emulator import LATE, WATCHDOG_STEP, next_watchdog
+    from hwsim.emulator import WATCHDOG_STEP, next_watchdog
+    from shared.scheduling import WAKE_LATE as LATE
 
     d = enabled_drive()
     assert d.watchdog_due(WATCHDOG_STEP) is None                # no SYNC yet: nothing to watch

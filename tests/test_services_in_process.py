@@ -14,13 +14,14 @@ import pytest
 from evidence.scenarios import Q_GOAL, Q_START
 from services.safety_monitor import MonitorService
 from services.scaler import Scaler
-from services.tracker_ingest import INVALID_PERIOD, LATE, TrackerIngest, next_check
+from services.tracker_ingest import INVALID_PERIOD, TrackerIngest, next_check
 from shared.config import CellConfig
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
 from shared.safety.monitor import SafetyMonitor
 from shared.scaling.layer import ScalingLayer
+from shared.scheduling import WAKE_LATE as LATE
 from shared.tracking.tracker import HumanTracker, TrackerParameters
 from shared.wire.convert import humans_to_msg, trajectory_to_msg
 from shared.wire.messages import HumanRaw, HumanState, JointCommand, JointState, MonitorReport, SafetyEvent, ScalerStatus
