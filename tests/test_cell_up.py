@@ -26,7 +26,7 @@ def hrc(*args, timeout=60):
 
 
 def status(prefix):
-    return hrc("status", "--prefix", prefix, "--timeout", "1").stdout
+    return hrc("status", "--prefix", prefix, "--timeout", "3").stdout      # the monitor reports once a second
 
 
 def wait_status(prefix, pattern, timeout):

@@ -194,8 +194,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "services run with (default: built in)")
     cell_options(faults)
     status = sub.add_parser("status", help="what the running cell is doing",
-                            description="Listen to the cell for --timeout seconds and report which services are "
-                                        "alive, the robot's state, the scaler and the safety monitor.")
+                            description="Listen to the cell until each of its reports has come once (at most "
+                                        "--timeout seconds) and report which services are alive, the robot's state, "
+                                        "the scaler and the safety monitor.")
     cell_options(status)
     return parser
 
@@ -628,7 +629,9 @@ def cmd_status(args: argparse.Namespace) -> int:
             session.declare_subscriber(keys.safety_events, keep(SafetyEvent)),
             session.declare_subscriber(keys.drive_lag, keep(DriveLagReport))]
     try:
-        time.sleep(args.timeout)
+        deadline = time.monotonic() + args.timeout      # until every report has come once (the monitor's is 1 Hz)
+        while len(latest) < len(subs) and time.monotonic() < deadline:
+            time.sleep(0.05)
         alive = sorted({str(r.ok.key_expr).rsplit("/", 1)[-1] for r in session.liveliness().get(keys.alive_all, timeout=1.0)
                         if r.ok is not None})
         print(f"cell {args.prefix} at {args.connect}")
