@@ -5,16 +5,22 @@
   leave the machine, so it is refused unless this process sits in a private network namespace whose only
   interface is ``lo`` (the launcher or test makes it with ``unshare``). Such a bus also receives the
   frames it sends, which a CAN controller does not: in CANopen every COB-ID has exactly one producer, so
-  ``OwnFrameFilter`` drops received frames with an identifier this process has itself sent.
+  ``OwnFrameFilter`` drops received frames with an identifier this process has itself sent: in the kernel
+  where it can (``shared.drives.echo_filter``, a socket filter), and in Python for whatever passes.
 """
 
 from __future__ import annotations
 
+import logging
 import socket
+import threading
 
 import can
 
 from shared.core.errors import HrcError
+from shared.drives import echo_filter
+
+log = logging.getLogger(__name__)
 
 ECHOING_INTERFACES = {"udp_multicast"}
 DEFAULT_MULTICAST_GROUP = "239.74.163.2"
@@ -39,17 +45,36 @@ def in_private_namespace() -> bool:
 
 
 class OwnFrameFilter(can.BusABC):
-    """Wraps a bus that echoes sent frames back; drops received frames with an identifier sent here."""
+    """Wraps a bus that echoes sent frames back; drops received frames with an identifier sent here. Each
+    new identifier also goes into the socket's kernel filter (when the bus has a socket and the kernel
+    takes it), so most echoes never wake the receiving thread."""
 
     def __init__(self, bus: can.BusABC) -> None:
         self._bus = bus
         self._sent: set[int] = set()
+        self.in_kernel = True          # False once the kernel refused the filter: Python alone from then on
+        self._lock = threading.Lock()  # send() is called from several threads
         super().__init__(channel=getattr(bus, "channel_info", "filtered"))
         self.channel_info = f"{getattr(bus, 'channel_info', bus)} (own frames filtered)"
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self._sent.add(msg.arbitration_id)
+        if msg.arbitration_id not in self._sent:
+            with self._lock:
+                self._sent = self._sent | {msg.arbitration_id}      # a new set: readers never see it change
+                self._filter_in_kernel()
         self._bus.send(msg, timeout)
+
+    def _filter_in_kernel(self) -> None:
+        if not self.in_kernel:
+            return
+        try:
+            fd = self._bus.fileno()
+            if fd < 0:
+                raise OSError("the bus has no socket")
+            echo_filter.attach(fd, self._sent)
+        except (OSError, NotImplementedError, AttributeError) as exc:
+            self.in_kernel = False
+            log.info("own frames filtered in Python only (no kernel socket filter: %s)", exc)
 
     def _recv_internal(self, timeout: float | None):
         msg = self._bus.recv(timeout)

@@ -1,0 +1,73 @@
+"""The udp_multicast bus's own-frame filter: echoes of this process's identifiers are dropped in the kernel
+(shared.drives.echo_filter, a socket filter), every other frame arrives, and what the kernel lets pass
+(a layout it does not know) is still dropped in Python (OwnFrameFilter)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import can
+
+from shared.drives.bus import OwnFrameFilter
+from shared.drives.echo_filter import MAX_IDS, echo_program
+from tests.util import require_namespace
+from tools.cell import in_new_namespace
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Two buses on one group: a sends identifiers of each msgpack width (fixint, one byte, two bytes); b
+# sends its own frames, and one with an identifier a also sends. What reaches each raw socket is printed.
+PROBE = textwrap.dedent("""
+    import time, can
+    from shared.drives.bus import open_bus
+    a, b = open_bus("udp_multicast"), open_bus("udp_multicast")
+    for i in (0x00, 0x7F, 0x80, 0x181, 0x7FF):
+        a.send(can.Message(arbitration_id=i, data=b"a", is_extended_id=False))
+    b.send(can.Message(arbitration_id=0x582, data=b"b", is_extended_id=False))
+    b.send(can.Message(arbitration_id=0x181, data=b"b", is_extended_id=False))
+    def drain(bus):
+        got = []
+        while (m := bus._bus.recv(0.2)) is not None:       # the raw socket, under the Python filter
+            got.append(f"{m.arbitration_id:x}:{bytes(m.data).decode()}")
+        return got
+    print(a.in_kernel, b.in_kernel)
+    print(" ".join(drain(a)))
+    print(" ".join(drain(b)))
+    a.shutdown(); b.shutdown()
+""")
+
+
+def test_own_identifiers_are_dropped_in_the_kernel_and_every_other_frame_arrives():
+    require_namespace("OwnFrameFilter's Python side is covered below on the virtual bus")
+    out = subprocess.run(in_new_namespace([sys.executable, "-c", PROBE]), capture_output=True, text=True,
+                         cwd=ROOT, timeout=60)
+    assert out.returncode == 0, out.stderr
+    in_kernel, at_a, at_b = out.stdout.splitlines()
+    assert in_kernel == "True True"
+    assert at_a.split() == ["582:b"]       # its own five never reached its socket; b's 0x181 is one of its own ids
+    assert at_b.split() == ["0:a", "7f:a", "80:a", "181:a", "7ff:a"]       # a's, and none of its own
+
+
+def test_what_the_kernel_lets_pass_is_still_dropped_in_python():
+    bus = OwnFrameFilter(can.Bus(interface="virtual", channel="echo-test", receive_own_messages=True))
+    try:
+        bus.send(can.Message(arbitration_id=0x181, data=b"x", is_extended_id=False))
+        assert bus.in_kernel is False         # the virtual bus has no socket: the kernel part gives way
+        assert bus.recv(0.1) is None          # its own echo, dropped in Python
+        other = can.Bus(interface="virtual", channel="echo-test")
+        other.send(can.Message(arbitration_id=0x201, data=b"y", is_extended_id=False))
+        msg = bus.recv(0.5)
+        assert msg is not None and msg.arbitration_id == 0x201
+        other.shutdown()
+    finally:
+        bus.shutdown()
+
+
+def test_the_program_matches_at_most_max_ids_identifiers_and_always_ends_in_accept_then_drop():
+    prog = echo_program(range(0x100, 0x100 + 3 * MAX_IDS))
+    assert len(prog) < 256 + 40                # every jump offset fits its 8 bits
+    assert prog[-2][-4:] == b"\xff\xff\xff\xff" and prog[-1][-4:] == b"\x00\x00\x00\x00"
+    assert len(echo_program(range(5))) == len(echo_program([])) + 5
