@@ -7,11 +7,13 @@ planner and the safety monitor stay in the normal class and are niced (planner +
 deploy/supervisord.conf and in hrc demo's launcher).
 
 On a machine with two or more CPUs the two ends of the CAN bus (the driver and, in the emulated cell, the
-drives) get the last CPU to themselves and the Zenoh services share the others (``cpus_for``): each process
-then wakes on a core whose caches still hold its code (a Python wake-up on a cache another process has
-just evicted costs 4-8 times its warm time here), and the SYNC cycle never queues behind a service.
-Measured with bench/cell_cpu.py: the safety chain from 55.6 % to 48-50 % of a core, all processes from
-72 % to 64-67 %. HRC_PIN_CPUS=0 in the environment leaves every process on every CPU.
+drives) get the last CPU and the scaler and tracker_ingest the others (``cpus_for``); the planner and the
+monitor, niced, stay free to take any idle CPU for their bursts (pinned too, a replan under load once took
+1.1 s). Each chain process then wakes on a core whose caches still hold its code (a Python wake-up on a
+cache another process has just evicted costs 4-8 times its warm time here), and the SYNC cycle never
+queues behind a Zenoh service. Measured in hrc demo with a CPU-bound process beside it, two runs each:
+processing p99 2.3 / 2.9 ms pinned against 2.8 / 3.3 ms free, the cell's CPU 20.8 / 20.4 s against
+22.8 / 25.4 s. HRC_PIN_CPUS=0 in the environment leaves every process on every CPU.
 """
 
 from __future__ import annotations
@@ -31,8 +33,9 @@ BUS_SIDE = ("robot_driver", "hwsim")      # the two ends of the CAN bus: the las
 
 def cpus_for(name: str, available: set[int]) -> set[int] | None:
     """The CPUs process `name` runs on (None: leave it where it is): with two CPUs or more, the last one
-    for the bus side and the others for everyone else."""
-    if len(available) < 2:
+    for the bus side and the others for the rest of the safety chain. The planner and the monitor (niced)
+    stay free: their work comes in bursts that any idle CPU should take."""
+    if len(available) < 2 or name not in PRIORITY:
         return None
     last = max(available)
     return {last} if name in BUS_SIDE else available - {last}

@@ -53,7 +53,8 @@ def test_realtime_says_what_it_applied_and_leaves_other_services_in_the_normal_c
 
 def test_the_bus_side_gets_the_last_cpu_and_the_services_the_others():
     assert cpus_for("robot_driver", {0, 1}) == {1} and cpus_for("hwsim", {0, 1}) == {1}
-    assert cpus_for("scaler", {0, 1}) == {0} and cpus_for("planner", {0, 1, 2, 3}) == {0, 1, 2}
+    assert cpus_for("scaler", {0, 1}) == {0} and cpus_for("tracker_ingest", {0, 1, 2, 3}) == {0, 1, 2}
+    assert cpus_for("planner", {0, 1}) is None and cpus_for("safety_monitor", {0, 1}) is None   # free for bursts
     assert cpus_for("robot_driver", {2, 5, 7}) == {7}
     assert cpus_for("scaler", {3}) is None                 # one CPU: nothing to place
 
