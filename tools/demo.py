@@ -79,8 +79,10 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
         feed = HumanFeed(session, keys, human, rec.t0)
         feed.start()
         _direct(session, keys, recorder, rec, duration, say)
+        # the monitor's last summary (once a second), the person still tracked: a feed stopped first would end
+        # every run with a tracker dropout, a stopped robot and a second of states the monitor cannot check
+        time.sleep(1.2)
         feed.running = False
-        time.sleep(1.2)                             # the monitor's last summary (once a second)
         alive, cpu = cell.alive(), cell.cpu_seconds()
     except LaunchError as exc:
         raise RuntimeError(f"the cell did not start: {exc}") from None
