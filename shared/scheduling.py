@@ -64,9 +64,10 @@ def _pin(name: str) -> str:
     if os.environ.get("HRC_PIN_CPUS", "1") == "0":
         return "any CPU (HRC_PIN_CPUS=0)"
     try:
-        cpus = cpus_for(name, set(os.sched_getaffinity(0)))
+        available = set(os.sched_getaffinity(0))
+        cpus = cpus_for(name, available)
         if cpus is None:
-            return "any CPU (one available)"
+            return "any CPU" + (" (one available)" if len(available) < 2 else "")
         os.sched_setaffinity(0, cpus)
         return f"CPU {','.join(map(str, sorted(cpus)))}"
     except (AttributeError, OSError) as exc:
