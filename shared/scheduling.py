@@ -6,14 +6,17 @@ SCHED_FIFO, highest first: the driver's SYNC cycle, the emulated drives, the sca
 planner and the safety monitor stay in the normal class and are niced (planner +10, monitor +5: in
 deploy/supervisord.conf and in hrc demo's launcher).
 
-On a machine with two or more CPUs the two ends of the CAN bus (the driver and, in the emulated cell, the
-drives) get the last CPU and the scaler and tracker_ingest the others (``cpus_for``); the planner and the
-monitor, niced, stay free to take any idle CPU for their bursts (pinned too, a replan under load once took
-1.1 s). Each chain process then wakes on a core whose caches still hold its code (a Python wake-up on a
-cache another process has just evicted costs 4-8 times its warm time here), and the SYNC cycle never
-queues behind a Zenoh service. Measured in hrc demo with a CPU-bound process beside it, two runs each:
-processing p99 2.3 / 2.9 ms pinned against 2.8 / 3.3 ms free, the cell's CPU 20.8 / 20.4 s against
-22.8 / 25.4 s. HRC_PIN_CPUS=0 in the environment leaves every process on every CPU.
+With HRC_PIN_CPUS=1 in the environment, on a machine with two or more CPUs, the driver, which paces the
+drives' SYNC, gets the last CPU to itself and the emulated drives, the scaler and tracker_ingest share the
+others (``cpus_for``); the planner and the monitor stay free for their bursts. That is the layout for a
+cell whose last core is kept for the driver (isolcpus). It is off by default because on this 2-core VM
+it did not pay: bench/can_loop.py, idle, three interleaved pairs: SYNC jitter max 0.64-0.67 ms pinned
+against 3.9-7.5 ms free, command -> frame p99 1.08-1.47 against 1.30-1.42 ms, but the joint state reached
+a Zenoh subscriber later (p99 1.41-1.53 against 0.84-0.89 ms); loaded, two pairs: jitter max 3.96 / 0.56
+against 0.53 / 0.98 ms, command -> frame p99 1.03 / 2.30 against 1.02 / 1.04 ms; hrc demo loaded, two
+pairs: processing p99 2.47 / 2.04 against 2.18 / 1.89 ms. Other layouts were worse: the driver and the
+emulated drives on one CPU serialised the CAN exchange (command -> frame p99 up to 3 ms), and pinning the
+planner too made a replan under load take 1.1 s.
 """
 
 from __future__ import annotations
@@ -28,17 +31,18 @@ import threading
 PRIORITY = {"robot_driver": 60, "hwsim": 55, "scaler": 50, "tracker_ingest": 45}
 
 
-BUS_SIDE = ("robot_driver", "hwsim")      # the two ends of the CAN bus: the last CPU is theirs
+OWN_CPU = "robot_driver"                             # the SYNC cycle: the last CPU is its own
+SHARED_CPUS = ("hwsim", "scaler", "tracker_ingest")   # the rest of the chain: the other CPUs
 
 
 def cpus_for(name: str, available: set[int]) -> set[int] | None:
     """The CPUs process `name` runs on (None: leave it where it is): with two CPUs or more, the last one
-    for the bus side and the others for the rest of the safety chain. The planner and the monitor (niced)
-    stay free: their work comes in bursts that any idle CPU should take."""
-    if len(available) < 2 or name not in PRIORITY:
+    for the driver and the others for the emulated drives, the scaler and tracker_ingest. The planner and
+    the monitor stay free: their work comes in bursts that any idle CPU should take."""
+    if len(available) < 2 or (name != OWN_CPU and name not in SHARED_CPUS):
         return None
     last = max(available)
-    return {last} if name in BUS_SIDE else available - {last}
+    return {last} if name == OWN_CPU else available - {last}
 
 
 def realtime(name: str) -> str:
@@ -61,8 +65,8 @@ def _fifo(name: str) -> str:
 
 
 def _pin(name: str) -> str:
-    if os.environ.get("HRC_PIN_CPUS", "1") == "0":
-        return "any CPU (HRC_PIN_CPUS=0)"
+    if os.environ.get("HRC_PIN_CPUS", "0") != "1":
+        return "any CPU"
     try:
         available = set(os.sched_getaffinity(0))
         cpus = cpus_for(name, available)

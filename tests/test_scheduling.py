@@ -51,28 +51,29 @@ def test_realtime_says_what_it_applied_and_leaves_other_services_in_the_normal_c
     assert out[1].endswith("True") and "SCHED_FIFO 50" in out[1]          # applied, or refused and said so
 
 
-def test_the_bus_side_gets_the_last_cpu_and_the_services_the_others():
-    assert cpus_for("robot_driver", {0, 1}) == {1} and cpus_for("hwsim", {0, 1}) == {1}
+def test_the_driver_gets_the_last_cpu_and_the_rest_of_the_chain_the_others():
+    assert cpus_for("robot_driver", {0, 1}) == {1} and cpus_for("hwsim", {0, 1}) == {0}
     assert cpus_for("scaler", {0, 1}) == {0} and cpus_for("tracker_ingest", {0, 1, 2, 3}) == {0, 1, 2}
     assert cpus_for("planner", {0, 1}) is None and cpus_for("safety_monitor", {0, 1}) is None   # free for bursts
     assert cpus_for("robot_driver", {2, 5, 7}) == {7}
     assert cpus_for("scaler", {3}) is None                 # one CPU: nothing to place
 
 
-def test_realtime_pins_a_process_where_there_are_two_cpus_and_not_when_told_not_to():
+def test_realtime_pins_the_driver_only_when_asked_to():
     code = "import os; from shared.scheduling import realtime; print(realtime('robot_driver')); " \
            "print(sorted(os.sched_getaffinity(0)))"
     root = Path(__file__).resolve().parents[1]
     cpus = sorted(os.sched_getaffinity(0))
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         cwd=root).stdout.splitlines()
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root,
+                         env=dict(os.environ, HRC_PIN_CPUS="1")).stdout.splitlines()
     if len(cpus) >= 2:
         assert out[0].endswith(f"CPU {cpus[-1]}") and out[1] == str([cpus[-1]])
     else:
         assert out[0].endswith("any CPU (one available)") and out[1] == str(cpus)
+    env = {k: v for k, v in os.environ.items() if k != "HRC_PIN_CPUS"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root,
-                         env=dict(os.environ, HRC_PIN_CPUS="0")).stdout.splitlines()
-    assert out[0].endswith("any CPU (HRC_PIN_CPUS=0)") and out[1] == str(cpus)
+                         env=env).stdout.splitlines()
+    assert out[0].endswith("any CPU") and out[1] == str(cpus)                 # the default: free
 
 
 def test_the_cpu_of_each_thread_of_a_child_is_read_by_its_os_name(tmp_path):
