@@ -10,6 +10,8 @@ nothing needs planning. With people moving through the cell it also counts the d
 the driver's clamp warnings: a robot that trips its drives in ordinary work is not usable. Each process's
 share is split by thread (the OS's thread names: zenoh's runtime threads rx/tx/net/acc, zenoh-callback,
 can-receive, can-cycle; 'python' is the main thread), so a hot spot is found before anything is tuned.
+A fixed pure-Python loop is timed before the cell starts and after it stops (``reference_loop_ms``): this
+VM's cores change speed from minute to minute, and two runs' shares compare only next to it.
 
 udp_multicast runs inside a private network namespace: the script re-runs itself in one when needed.
 Last line: one JSON object.
@@ -41,7 +43,22 @@ from tools.report import Recording  # noqa: E402
 SAFETY_CHAIN = ("robot_driver", "scaler", "tracker_ingest", "safety_monitor")
 
 
+def reference_loop_ms(repeats: int = 5) -> float:
+    """How fast this machine runs Python right now: the median time (ms) of a fixed pure-Python loop. A VM's
+    cores change speed (the same cell measured 50 % and 61 % of a core within 20 minutes), so shares of a
+    core from two runs compare only next to this figure."""
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        total = 0
+        for k in range(200_000):
+            total += k & 7
+        times.append((time.perf_counter() - started) * 1e3)
+    return round(sorted(times)[repeats // 2], 2)
+
+
 def measure(seconds: float, warmup: float, seed: int) -> dict:
+    speed = [reference_loop_ms()]              # the machine's speed before the cell starts and after it stops
     interface, channel = choose_bus()
     keys = KeySpace("bench/cpu")
     with tempfile.TemporaryDirectory(prefix="hrc-cell-cpu-") as tmp:
@@ -76,6 +93,7 @@ def measure(seconds: float, warmup: float, seed: int) -> dict:
                 recorder.close()
             cell.stop()
             session.close()
+    speed.append(reference_loop_ms())
     span = t_after - t_before
     share = {name: round(100.0 * (after[name] - before[name]) / span, 1) for name in after if name in before}
     threads = {name: {t: round(100.0 * (cpu - threads_before.get(name, {}).get(t, 0.0)) / span, 1)
@@ -86,7 +104,7 @@ def measure(seconds: float, warmup: float, seed: int) -> dict:
             "services_total": round(sum(share.get(n, 0.0) for n in SAFETY_CHAIN), 1),
             "emulator": share.get("hwsim"), "planner": share.get("planner"),
             "total": round(sum(share.values()), 1), "shuttles": shuttles, "drive_faults": faults,
-            "command_clamped": clamps,
+            "command_clamped": clamps, "reference_loop_ms": speed,
             "control_rate_hz": round(statuses / (t_after - rec.t0), 1)}
 
 
@@ -109,6 +127,9 @@ def main() -> int:
           f"emulator {result['emulator']} % (goal <= 10); all {result['total']} %; {result['capsules']} capsules, "
           f"{result['shuttles']} shuttles, control {result['control_rate_hz']} Hz; drive faults "
           f"{len(result['drive_faults'])}, clamp warnings {result['command_clamped']}")
+    print(f"machine speed: a fixed Python loop took {result['reference_loop_ms'][0]} ms before the cell started and "
+          f"{result['reference_loop_ms'][1]} ms after it stopped (compare shares of a core only between runs where "
+          "it took about as long)")
     print(json.dumps(result))
     return 0
 
