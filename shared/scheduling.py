@@ -46,10 +46,11 @@ def cpus_for(name: str, available: set[int]) -> set[int] | None:
 
 
 def realtime(name: str) -> str:
-    """Put the calling thread (and the threads it starts later) in SCHED_FIFO at the priority of `name`, on
-    the CPUs ``cpus_for`` gives it; returns what was applied, for the start-up line. Where the OS refuses
-    (no CAP_SYS_NICE, a container's limits) the thread stays in the normal class and the cell relies on
-    niceness alone (planner +10, monitor +5 in supervisord and hrc demo): said, not hidden."""
+    """Put the calling thread (and the threads it starts later) in SCHED_FIFO at the priority of `name` and,
+    with HRC_PIN_CPUS=1, on the CPUs ``cpus_for`` gives it; returns what was applied, for the start-up
+    line. Where the OS refuses (no CAP_SYS_NICE, a container's limits) the thread stays in the normal class
+    and the cell relies on niceness alone (planner +10, monitor +5 in supervisord and hrc demo): said, not
+    hidden."""
     return f"{_fifo(name)}, {_pin(name)}"
 
 
