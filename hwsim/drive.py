@@ -59,6 +59,11 @@ class DriveLimits:
     following_window: float = FOLLOWING_WINDOW
     following_timeout: float = FOLLOWING_TIMEOUT
 
+    @property
+    def sync_timeout(self) -> float:
+        """s without SYNC after which a powered drive faults (sync_timeout_factor periods)."""
+        return self.sync_timeout_factor * self.period
+
 
 POWERED = (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE)
 
@@ -135,7 +140,7 @@ class Drive:
         state the time-out does not concern)."""
         if self.last_sync is None:
             return None
-        timeout_at = self.last_sync + self.limits.sync_timeout_factor * self.limits.period
+        timeout_at = self.last_sync + self.limits.sync_timeout
         if self.state is State.FAULT_REACTION_ACTIVE:
             return timeout_at if self._moved_at is None else self._moved_at + step
         return timeout_at if self.state in POWERED else None
@@ -145,7 +150,7 @@ class Drive:
         powered (ready, switched on, enabled, quick stop) is a fault. Without SYNC the drive keeps its own
         clock: the fault reaction then brakes in real time (a drive does not wait for a dead master to finish
         its stop), so the joint is at rest when a new master brings SYNC back."""
-        if self.last_sync is None or now - self.last_sync <= self.limits.sync_timeout_factor * self.limits.period:
+        if self.last_sync is None or now - self.last_sync <= self.limits.sync_timeout:
             return []
         codes = self.raise_fault(EMCY_SYNC_TIMEOUT) if self.state in POWERED else []
         if self.state is State.FAULT_REACTION_ACTIVE:

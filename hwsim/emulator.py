@@ -206,7 +206,7 @@ def next_watchdog(drives: list[Drive], now: float) -> float:
     without SYNC; half a time-out when nothing is due (no SYNC yet, not powered)."""
     dues = [due for d in drives if (due := d.watchdog_due(WATCHDOG_STEP)) is not None]
     if not dues:
-        return 0.5 * min((d.limits.sync_timeout_factor * d.limits.period for d in drives), default=PERIOD)
+        return 0.5 * min((d.limits.sync_timeout for d in drives), default=PERIOD)
     return sleep_until(min(dues), now)
 
 
