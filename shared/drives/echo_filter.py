@@ -46,7 +46,7 @@ def echo_program(own_ids: Iterable[int]) -> list[bytes]:
     ids = sorted({int(i) for i in own_ids if 0 <= int(i) < 0x10000})[:MAX_IDS]
     header = [(_LDB, 0x8B, 0), (_LDB, 0xA9, 1), (_LDB, 0xCB, 11), (_LDB, 0xAE, 20), (_LDW, _ARBI, 21)]
     prog: list[tuple] = []
-    # each header check: load, then jump to ACCEPT (the last instruction) unless it matches
+    # each header check: load, then jump to the final accept unless it matches
     for load, value, offset in header:
         prog.append(("ld", load, _UDP + offset))
         prog.append(("jne_accept", value))
@@ -57,7 +57,7 @@ def echo_program(own_ids: Iterable[int]) -> list[bytes]:
              ("label", "two"), ("ld", _LDH, _UDP + 36),
              ("label", "match")]
     prog += [("jeq_drop", i) for i in ids]
-    prog += [("accept",), ("label", "drop"), ("drop",)]
+    prog += [("label", "accept"), ("accept",), ("label", "drop"), ("drop",)]
     return _assemble(prog)
 
 
@@ -70,8 +70,6 @@ def _assemble(prog: list[tuple]) -> list[bytes]:
             at[op[1]] = n
         else:
             n += 1
-    accept = n - 2                      # the final ('accept', 'label drop', 'drop'): accept, then drop
-    drop = n - 1
     out, k = [], 0
     for op in prog:
         kind = op[0]
@@ -80,7 +78,7 @@ def _assemble(prog: list[tuple]) -> list[bytes]:
         if kind == "ld":
             out.append(_insn(op[1], k=op[2]))
         elif kind == "jne_accept":
-            out.append(_insn(_JEQ, 0, accept - k - 1, op[1]))
+            out.append(_insn(_JEQ, 0, at["accept"] - k - 1, op[1]))
         elif kind == "jlt_fixint":
             out.append(_insn(_JGE, 0, at["match"] - k - 1, 0x80))
         elif kind == "jeq_next":
@@ -88,7 +86,7 @@ def _assemble(prog: list[tuple]) -> list[bytes]:
         elif kind == "goto":
             out.append(_insn(0x05, k=at[op[1]] - k - 1))          # BPF_JMP | BPF_JA
         elif kind == "jeq_drop":
-            out.append(_insn(_JEQ, drop - k - 1, 0, op[1]))
+            out.append(_insn(_JEQ, at["drop"] - k - 1, 0, op[1]))
         elif kind == "accept":
             out.append(_insn(_RET, k=_ACCEPT))
         elif kind == "drop":
