@@ -81,7 +81,7 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
     # the robot driver's and the emulated drives' own defaults, as the cell runs them (hrc up)
     p, ct, hb = PERIOD, driver_core.COMMAND_TIMEOUT, driver_core.HEARTBEAT_TIMEOUT
     # the drives look when the time-out is due; a wake-up up to a braking step late is allowed
-    wd = DriveLimits.sync_timeout_factor * DriveLimits.period + WATCHDOG_STEP
+    wd = DriveLimits(lower=0.0, upper=0.0).sync_timeout + WATCHDOG_STEP
     human = max(config.scaling.human_timeout, 0.05)
     horizon = config.ssm.reaction_time + config.ssm.stopping_time
     # + one SYNC more everywhere the drives keep reporting: a drive reports the position of the SYNC
