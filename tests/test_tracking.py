@@ -79,3 +79,14 @@ def test_out_of_order_samples_are_dropped_and_capsule_count_changes_restart():
     assert tracker.update(np.zeros((1, 2, 3)), [0.05], 0.0, 1.0) is None
     h = tracker.update(np.zeros((2, 2, 3)), [0.05, 0.05], 11 * DT, 11 * DT)
     assert h.count == 2 and not h.velocity_known.any()
+
+
+def test_a_window_longer_than_the_buffer_keeps_every_sample_and_fits_exactly():
+    """A 0.5 s window at 240 Hz holds 121 samples, more than the tracker's arrays start with: they grow, and
+    a constant velocity is still fitted exactly from all of them."""
+    tracker = HumanTracker(TrackerParameters(window=0.5))
+    v = np.array([0.7, -0.2, 0.05])
+    h = feed(tracker, [np.array([0.3, 0.1, 1.0]) + v * k * DT for k in range(300)])
+    assert tracker.samples == 121
+    assert np.allclose(h.velocities[0], v, atol=1e-9)
+    assert np.allclose(h.segments[0, 0], [0.3, 0.1, 1.0] + v * 299 * DT, atol=1e-9)

@@ -19,9 +19,9 @@ Times in seconds (the tracker's sample time for the fit, the arrival time for th
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from shared.core.humans import HumanCapsules
@@ -35,60 +35,124 @@ class TrackerParameters:
     dropout: float = 0.05
 
 
+@numba.njit(cache=True)
+def _largest_step(seg, last):
+    """The largest end-point displacement (m) between two (M, 2, 3) samples."""
+    step = 0.0
+    for i in range(seg.shape[0]):
+        for e in range(2):
+            d = 0.0
+            for c in range(3):
+                d += (seg[i, e, c] - last[i, e, c]) ** 2
+            step = max(step, np.sqrt(d))
+    return step
+
+
+@numba.njit(cache=True)
+def _line_fit(times, pts, sample_time):
+    """Least-squares line through K samples (times (K,), points (K, M, 2, 3)) of every end-point coordinate:
+    (its value at sample_time, its slope), each (M, 2, 3)."""
+    k = times.shape[0]
+    t_mean = 0.0
+    for n in range(k):
+        t_mean += times[n]
+    t_mean /= k
+    var = 0.0
+    for n in range(k):
+        var += (times[n] - t_mean) ** 2
+    fitted, slope = np.empty(pts.shape[1:]), np.empty(pts.shape[1:])
+    for i in range(pts.shape[1]):
+        for e in range(2):
+            for c in range(3):
+                mean = 0.0
+                for n in range(k):
+                    mean += pts[n, i, e, c]
+                mean /= k
+                cov = 0.0
+                for n in range(k):
+                    cov += (times[n] - t_mean) * (pts[n, i, e, c] - mean)
+                slope[i, e, c] = cov / var
+                fitted[i, e, c] = mean + slope[i, e, c] * (sample_time - t_mean)
+    return fitted, slope
+
+
 class HumanTracker:
+    """The filter of one tracked scene. The window's samples are kept in two arrays (times, points) used
+    from ``_first`` to ``_end``: a sample is written at the end, old ones are left behind by moving
+    ``_first``, and the window is moved to the front (doubling the arrays when it fills more than half)
+    when the end is reached, so a sample costs no allocation and the fit reads one contiguous slice."""
+
     def __init__(self, params: TrackerParameters | None = None) -> None:
         self.params = params or TrackerParameters()
-        self._samples: deque[tuple[float, np.ndarray]] = deque()
+        self._times = np.zeros(32)
+        self._points = np.zeros((32, 0, 2, 3))
+        self._first = self._end = 0
         self._radii = np.zeros(0)
         self._last_arrival = -np.inf
         self._trusted_from = np.inf          # sample time from which the window holds only clean samples
         self._ghost: tuple[np.ndarray, np.ndarray] | None = None   # (segments, radii) before the last step
         self.glitches = 0
 
+    @property
+    def samples(self) -> int:
+        """How many samples the velocity window holds now."""
+        return self._end - self._first
+
     def update(self, segments: np.ndarray, radii: np.ndarray, sample_time: float, arrival: float) -> HumanCapsules | None:
         """Add one sample; the capsules with their velocities, or None when the sample was dropped."""
-        seg = np.asarray(segments, dtype=float).reshape(-1, 2, 3)
+        seg = np.ascontiguousarray(segments, dtype=np.float64).reshape(-1, 2, 3)
         p = self.params
-        if self._samples and sample_time <= self._samples[-1][0]:
+        held = self._end > self._first
+        if held and sample_time <= self._times[self._end - 1]:
             return None                                          # out of order or repeated
-        if self._samples and seg.shape != self._samples[-1][1].shape:
-            self._restart(sample_time)
-        elif self._samples:
-            t_last, last = self._samples[-1]
-            step = np.linalg.norm(seg - last, axis=2).max() if seg.size else 0.0
-            if step > p.max_speed * (sample_time - t_last) + 0.01:
+        if seg.shape[0] != self._points.shape[1]:
+            self._restart(sample_time, seg.shape[0])
+        elif held:
+            last = self._points[self._end - 1]
+            step = _largest_step(seg, last) if seg.shape[0] else 0.0
+            if step > p.max_speed * (sample_time - self._times[self._end - 1]) + 0.01:
                 self.glitches += 1
-                self._ghost = (last, self._radii)
-                self._restart(sample_time)
-        elif not self._samples:
+                self._ghost = (last.copy(), self._radii)
+                self._restart(sample_time, seg.shape[0])
+        else:
             self._trusted_from = sample_time
-        self._samples.append((sample_time, seg))
+        self._append(sample_time, seg)
         self._radii = np.asarray(radii, dtype=float).reshape(-1)
-        while self._samples and self._samples[0][0] < sample_time - p.window:
-            self._samples.popleft()
+        times = self._times
+        while times[self._first] < sample_time - p.window:
+            self._first += 1
         self._last_arrival = arrival
         return self._estimate(sample_time)
 
-    def _restart(self, sample_time: float) -> None:
-        self._samples.clear()
+    def _append(self, sample_time: float, seg: np.ndarray) -> None:
+        if self._end == self._times.shape[0]:                    # move the window to the front
+            held = self._end - self._first
+            size = self._times.shape[0] * (2 if 2 * held > self._times.shape[0] else 1)
+            times, points = np.zeros(size), np.zeros((size, *self._points.shape[1:]))
+            times[:held], points[:held] = self._times[self._first:self._end], self._points[self._first:self._end]
+            self._times, self._points, self._first, self._end = times, points, 0, held
+        self._times[self._end] = sample_time
+        self._points[self._end] = seg
+        self._end += 1
+
+    def _restart(self, sample_time: float, capsules: int) -> None:
+        if capsules != self._points.shape[1]:
+            self._points = np.zeros((self._times.shape[0], capsules, 2, 3))
+        self._first = self._end = 0
         self._trusted_from = sample_time
 
     def _estimate(self, sample_time: float) -> HumanCapsules:
-        times = np.array([t for t, _ in self._samples])
-        pts = np.stack([s for _, s in self._samples])                 # (K, M, 2, 3)
-        m = pts.shape[1]
-        enough = len(times) >= self.params.min_samples and times[0] >= self._trusted_from
+        times, pts = self._times[self._first:self._end], self._points[self._first:self._end]
+        enough = times.shape[0] >= self.params.min_samples and times[0] >= self._trusted_from
         if not enough:
-            seg, radii = pts[-1], self._radii
+            seg, radii = pts[-1].copy(), self._radii
             if self._ghost is not None:
                 seg, radii = np.concatenate([seg, self._ghost[0]]), np.concatenate([radii, self._ghost[1]])
             return HumanCapsules(seg, radii, np.zeros_like(seg), np.zeros(len(radii), dtype=bool))
         self._ghost = None
-        dt = times - times.mean()
-        slope = np.tensordot(dt, pts - pts.mean(axis=0), axes=(0, 0)) / float(dt @ dt)   # (M, 2, 3)
         # report the fitted position at the newest sample time (the fit's value, not the noisy sample)
-        fitted = pts.mean(axis=0) + slope * (sample_time - times.mean())
-        return HumanCapsules(fitted, self._radii, slope, np.ones(m, dtype=bool))
+        fitted, slope = _line_fit(times, pts, float(sample_time))
+        return HumanCapsules(fitted, self._radii, slope, np.ones(pts.shape[1], dtype=bool))
 
     def valid(self, now: float) -> bool:
         """False once no sample has arrived for longer than the dropout bound."""

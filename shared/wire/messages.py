@@ -322,15 +322,37 @@ def encode(msg: Message) -> bytes:
 
 # ---------------------------------------------------------------------------------------------- decode
 def _decode_value(kind: str, name: str, spec: Spec, raw):
-    if spec.kind == "farray" and isinstance(raw, (bytes, bytearray)):      # the common case, fast
-        itemsize, fixed = 8, _FIXED[spec.shape]
-        if len(raw) % (itemsize * fixed) == 0:
-            rows = len(raw) // (itemsize * fixed)
-            if (-1 in spec.shape or rows == 1) and rows <= MAX_ROWS:
-                arr = np.frombuffer(raw, dtype="<f8").reshape(
-                    tuple(rows if d == -1 else d for d in spec.shape)).astype(np.float64)
-                if np.isfinite(arr).all() and (spec.minimum is None or not (arr < spec.minimum).any()):
-                    return arr
+    """One field: the common, valid cases on a short path; anything else (and every error, with its
+    message) on ``_decode_checked``."""
+    what = spec.kind
+    if what == "farray" or what == "barray":
+        if type(raw) is bytes:
+            itemsize = 8 if what == "farray" else 1
+            fixed = _FIXED[spec.shape]
+            if len(raw) % (itemsize * fixed) == 0:
+                rows = len(raw) // (itemsize * fixed)
+                if (-1 in spec.shape or rows == 1) and rows <= MAX_ROWS:
+                    shape = tuple(rows if d == -1 else d for d in spec.shape)
+                    if what == "farray":
+                        arr = np.frombuffer(raw, dtype="<f8").reshape(shape).astype(np.float64)
+                        # a sum is finite only where every term is (an overflow to inf goes the long way)
+                        if math.isfinite(arr.sum()) and (spec.minimum is None or not (arr < spec.minimum).any()):
+                            return arr
+                    else:
+                        arr = np.frombuffer(raw, dtype=np.uint8)
+                        if not arr.size or arr.max() <= 1:
+                            return arr.reshape(shape).astype(bool)
+    elif what == "float":
+        if type(raw) is float and math.isfinite(raw) and (spec.minimum is None or raw >= spec.minimum):
+            return raw
+    elif what == "int":
+        if type(raw) is int and raw < 2 ** 63 and (spec.minimum is None or raw >= spec.minimum):
+            return raw
+    elif what == "bool":
+        if type(raw) is bool:
+            return raw
+    elif type(raw) is str and len(raw) <= MAX_STRING:
+        return raw
     return _decode_checked(kind, name, spec, raw)
 
 
