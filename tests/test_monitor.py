@@ -160,12 +160,14 @@ def test_a_lagging_monitor_pairs_each_joint_state_with_the_person_of_its_moment(
 def _random_person(rng, m):
     segs = rng.uniform(-0.8, 0.8, (m, 2, 3))
     segs[..., 2] += 0.6
+    segs[0, 1] = segs[0, 0]                     # a sphere (a head): the closest-point code's degenerate case
     return HumanCapsules(segs, rng.uniform(0.04, 0.15, m), rng.uniform(-1.5, 1.5, (m, 2, 3)), rng.random(m) < 0.7)
 
 
 def test_the_batched_check_is_the_coal_check():
-    """check_batch (numpy closest points, many states at once) against check (coal, one state): the same
-    separations, margins and violations, penetrating pairs and untracked velocities included."""
+    """check_batch (its own compiled closest points, many states at once) against check (coal, one state):
+    the same separations, margins and violations, penetrating pairs, spheres and untracked velocities
+    included."""
     rng = np.random.default_rng(11)
     # two different people of 10 capsules: states of different human states are checked in one batch
     people = [_random_person(rng, 10), _random_person(rng, 3), None, HumanCapsules.empty(), _random_person(rng, 10)]
