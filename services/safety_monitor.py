@@ -32,6 +32,7 @@ from collections import Counter
 import numpy as np
 
 from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
+from shared.core.humans import HumanCapsules
 from shared.robot.model import default_robot
 from shared.safety.latency import DelayHistogram
 from shared.safety.monitor import Backlog, HumanHistory, ReactionWindow, SafetyMonitor
@@ -145,7 +146,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     config, shell = opened
     service = MonitorService(shell, SafetyMonitor(default_robot(), config.ssm))
-    service.monitor.check_batch(np.zeros((1, 6)), np.zeros((1, 6)), [None])       # warm
+    someone = HumanCapsules(np.array([[[1.0, 0.0, 0.5], [1.0, 0.0, 1.5]]]), np.array([0.1]), np.zeros((1, 2, 3)),
+                            np.array([True]))
+    service.monitor.check_batch(np.zeros((1, 6)), np.zeros((1, 6)), [someone])    # compile before the first pass
     return serve(shell, f"safety_monitor: ISO/TS 15066 SSM on every joint state, keys {shell.keys.prefix}/",
                  lambda stop: run_paced(PASS_PERIOD, service.tick, stop))
 

@@ -95,6 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     if opened is None:
         return 2
     _, shell = opened
+    HumanTracker.warm_up()           # compile before the first sample, not at it
     service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=args.window, dropout=args.dropout)))
     return serve(shell, f"tracker_ingest: least-squares velocity over {args.window * 1000:.0f} ms, dropout "
                         f"{args.dropout * 1000:.0f} ms, keys {shell.keys.prefix}/",

@@ -93,6 +93,14 @@ class HumanTracker:
         self._ghost: tuple[np.ndarray, np.ndarray] | None = None   # (segments, radii) before the last step
         self.glitches = 0
 
+    @staticmethod
+    def warm_up() -> None:
+        """Run the compiled kernels once on a scratch tracker, so that a service's first samples are not the
+        ones that wait for them to compile (or load from numba's cache)."""
+        scratch = HumanTracker()
+        for k in range(4):
+            scratch.update(np.full((1, 2, 3), 0.001 * k), np.array([0.05]), 0.01 * k, 0.01 * k)
+
     @property
     def samples(self) -> int:
         """How many samples the velocity window holds now."""
