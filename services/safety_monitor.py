@@ -145,10 +145,13 @@ def main(argv: list[str] | None = None) -> int:
     if opened is None:
         return 2
     config, shell = opened
-    service = MonitorService(shell, SafetyMonitor(default_robot(), config.ssm))
+    monitor = SafetyMonitor(default_robot(), config.ssm)
+    # compiled (or loaded from numba's cache, half a second) before subscribing: the joint states queued
+    # meanwhile would be late at the first pass
     someone = HumanCapsules(np.array([[[1.0, 0.0, 0.5], [1.0, 0.0, 1.5]]]), np.array([0.1]), np.zeros((1, 2, 3)),
                             np.array([True]))
-    service.monitor.check_batch(np.zeros((1, 6)), np.zeros((1, 6)), [someone])    # compile before the first pass
+    monitor.check_batch(np.zeros((1, 6)), np.zeros((1, 6)), [someone])
+    service = MonitorService(shell, monitor)
     return serve(shell, f"safety_monitor: ISO/TS 15066 SSM on every joint state, keys {shell.keys.prefix}/",
                  lambda stop: run_paced(PASS_PERIOD, service.tick, stop))
 
