@@ -1,10 +1,11 @@
 """The independent safety monitor's check (pure): ISO/TS 15066 SSM on a measured robot state.
 
 Independent of the scaling layer on purpose: distances and witness points come from coal (not the
-project's compiled kernels), point velocities from pinocchio's frame Jacobians (not the compiled chain),
-and the robot's approach speed is taken at its actual closest point to each human capsule, as the
-standard states it (the scaling layer bounds it by the worst end point of the link, a stronger
-condition). Only the ISO formula itself (shared.safety.ssm.velocity_limit) is common: it is the standard.
+project's compiled kernels), point velocities from pinocchio (frame Jacobians; frame velocities in the
+batch), not the compiled chain, and the robot's approach speed is taken at its actual closest point to
+each human capsule, as the standard states it (the scaling layer bounds it by the worst end point of the
+link, a stronger condition). Only the ISO formula itself (shared.safety.ssm.velocity_limit) is common: it
+is the standard.
 
 For every robot link i and human capsule j: separation d_ij (coal), unit direction n_ij from the robot's
 closest point to the human's, the robot point's velocity v_r = J_i(q, p) qd, the human point's velocity
