@@ -131,6 +131,28 @@ def test_errors_name_the_field():
         decode(encode(_goal()), JointCommand)
 
 
+def test_the_short_paths_decide_as_the_checked_ones():
+    """decode's short path for valid fields gives way to the checked path, never a different answer: huge
+    finite values are valid, an integer where a float is expected is still a float, and a boolean array
+    holding a 2, a NaN and an infinity are still refused with their messages."""
+    huge = _goal(q=np.full(6, 1.5e308))
+    assert np.array_equal(decode(encode(huge)).q, huge.q)
+    body = msgpack.unpackb(encode(_goal()), raw=False)
+    body["stamp"] = 3
+    assert decode(msgpack.packb(body)).stamp == 3.0 and isinstance(decode(msgpack.packb(body)).stamp, float)
+    seg = np.zeros((2, 2, 3))
+    state = msgpack.unpackb(encode(HumanState(segments=seg, radii=np.ones(2), velocities=seg,
+                                              velocity_known=np.ones(2, bool), valid=True, sample_stamp=0.0)), raw=False)
+    state["velocity_known"] = bytes([1, 2])
+    with pytest.raises(MessageError, match=r"human_state\.velocity_known: boolean array holds a value other than 0 or 1"):
+        decode(msgpack.packb(state, use_bin_type=True))
+    for bad in (np.nan, np.inf, -np.inf):
+        body = msgpack.unpackb(encode(_goal()), raw=False)
+        body["q"] = np.array([0, 0, bad, 0, 0, 0], dtype="<f8").tobytes()
+        with pytest.raises(MessageError, match=r"goal\.q: contains NaN or infinity"):
+            decode(msgpack.packb(body, use_bin_type=True))
+
+
 def test_cross_field_checks():
     seg = np.zeros((2, 2, 3))
     with pytest.raises(MessageError, match="same length"):

@@ -80,7 +80,8 @@ class HumanTracker:
     """The filter of one tracked scene. The window's samples are kept in two arrays (times, points) used
     from ``_first`` to ``_end``: a sample is written at the end, old ones are left behind by moving
     ``_first``, and the window is moved to the front (doubling the arrays when it fills more than half)
-    when the end is reached, so a sample costs no allocation and the fit reads one contiguous slice."""
+    when the end is reached: a sample allocates nothing but at those moves, and the fit reads one
+    contiguous slice."""
 
     def __init__(self, params: TrackerParameters | None = None) -> None:
         self.params = params or TrackerParameters()

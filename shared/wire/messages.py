@@ -335,8 +335,7 @@ def _decode_value(kind: str, name: str, spec: Spec, raw):
                     shape = tuple(rows if d == -1 else d for d in spec.shape)
                     if what == "farray":
                         arr = np.frombuffer(raw, dtype="<f8").reshape(shape).astype(np.float64)
-                        # a sum is finite only where every term is (an overflow to inf goes the long way)
-                        if math.isfinite(arr.sum()) and (spec.minimum is None or not (arr < spec.minimum).any()):
+                        if np.isfinite(arr).all() and (spec.minimum is None or not (arr < spec.minimum).any()):
                             return arr
                     else:
                         arr = np.frombuffer(raw, dtype=np.uint8)
