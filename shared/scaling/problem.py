@@ -34,7 +34,7 @@ import piqp
 from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
-from shared.safety.ssm import PairSsm, _pair_ssm_kernel, pair_ssm
+from shared.safety.ssm import PairSsm, _pair_ssm_kernel
 
 
 @dataclass(slots=True)
@@ -113,24 +113,38 @@ def _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration):
     return coef[:m], bound[:m]
 
 
-_NO_PAIRS = np.zeros((0, 0))
+@numba.njit(cache=True)
+def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, acceleration, placement, parent, local,
+                joint, ancestry, radii, human_seg, human_rad, human_vel, human_known, horizon, fixed, near_d,
+                v_near, v_far, margin):
+    """``build_rows`` in one compiled call: the joint speeds at alpha = 1, every pair's SSM row (kinematics and
+    ``_pair_ssm_kernel``; empty without people), the hard rows' bound and the acceleration rows (a cycle
+    paid about 6 us of Python between the four calls this replaces)."""
+    n_links = radii.shape[0]
+    tangent = dq * sdot_nominal                                        # joint velocity at alpha = 1
+    joint_speed = np.abs(tangent)
+    if human_seg.shape[0]:
+        points, vel = chain_points_and_velocities(q, tangent, placement, parent, local, joint, ancestry)
+        dist, robot_speed, human_speed, limit = _pair_ssm_kernel(
+            points.reshape(n_links, 2, 3), radii, vel.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
+            human_known, horizon, fixed, near_d, v_near, v_far)
+    else:
+        dist = robot_speed = human_speed = limit = np.zeros((n_links, 0))
+    upper = _upper_bound(joint_speed, velocity, robot_speed, limit - margin)
+    coef, bound = _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration)
+    return joint_speed, dist, robot_speed, human_speed, limit, upper, coef, bound
 
 
 def build_rows(robot: RobotModel, q: np.ndarray, dq_ds: np.ndarray, d2q_ds2: np.ndarray, sdot_nominal: float,
                sdot_prev: float, humans: HumanCapsules, ssm: SsmParameters, period: float) -> ScalingRows:
     """Assemble one cycle's problem at configuration q for the path tangent dq_ds (pure, no I/O)."""
-    dq = np.asarray(dq_ds, dtype=np.float64)
-    tangent = dq * sdot_nominal                                        # joint velocity at alpha = 1
     lim = robot.limits
-    pairs = None
-    if humans.count:
-        points, velocities = robot.capsule_motion(q, tangent)          # (L,2,3) each
-        pairs = pair_ssm(points, robot.radii, velocities, humans, ssm)
-    joint_speed = np.abs(tangent)
-    upper = _upper_bound(joint_speed, lim.velocity, *((pairs.robot_speed, pairs.limit - ssm.tracking_margin)
-                                                      if pairs else (_NO_PAIRS, _NO_PAIRS)))
-    coef, bound = _acceleration_rows(dq, np.asarray(d2q_ds2, dtype=np.float64), float(sdot_nominal),
-                                     float(sdot_prev), float(period), lim.acceleration)
+    joint_speed, dist, robot_speed, human_speed, limit, upper, coef, bound = _cycle_rows(
+        np.asarray(q, dtype=np.float64), np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
+        float(sdot_nominal), float(sdot_prev), float(period), lim.velocity, lim.acceleration, *robot.chain,
+        robot.ancestry, robot.radii, humans.segments, humans.radii, humans.velocities, humans.velocity_known,
+        *ssm.kernel_constants, ssm.tracking_margin)
+    pairs = PairSsm(dist, robot_speed, human_speed, limit) if humans.count else None
     return ScalingRows(joint_speed, lim.velocity, upper, coef, bound, pairs, ssm.tracking_margin)
 
 
