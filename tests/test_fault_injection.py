@@ -44,3 +44,24 @@ def test_the_campaign_estimates_the_time_left_from_the_faults_done():
     assert time_left(0, 12, 0.0) == ""
     assert time_left(3, 12, 60.0) == " (60 s so far, about 180 s left)"
     assert time_left(12, 12, 240.0).endswith("about 0 s left)")
+
+
+def test_an_emcy_is_timed_when_it_reached_the_socket_not_when_a_busy_campaign_read_it():
+    """The probe's receive thread may get to a frame late on a loaded machine: the EMCY is recorded at its
+    receive time (taken back onto the monotonic clock), so the drives are not blamed for the observer's
+    delay; no receive time, or one that makes no sense, counts no delay."""
+    import threading
+    import time
+
+    probe = CanProbe.__new__(CanProbe)
+    probe.lock, probe.emcy = threading.Lock(), []
+    code = (0x8250).to_bytes(2, "little")
+    before = time.monotonic()
+    probe._on_emcy(3, code, time.time() - 0.4)               # read 0.4 s after it arrived
+    probe._on_emcy(4, code, 0.0)                             # a bus without receive times
+    probe._on_emcy(5, code, time.time() + 60.0)              # a clock that makes no sense
+    after = time.monotonic()
+    (t3, n3, c3), (t4, _, _), (t5, _, _) = probe.emcy
+    assert (n3, c3) == (3, 0x8250)
+    assert before - 0.45 < t3 < after - 0.35
+    assert before <= t4 <= after and before <= t5 <= after

@@ -140,12 +140,19 @@ class CanProbe:
         self.lock = threading.Lock()
         self.emcy: list[tuple[float, int, int]] = []           # (monotonic time, node, code)
         for nid in NODE_IDS:
-            self.network.subscribe(0x80 + nid, lambda can_id, data, ts, nid=nid: self._on_emcy(nid, data))
+            self.network.subscribe(0x80 + nid, lambda can_id, data, ts, nid=nid: self._on_emcy(nid, data, ts))
 
-    def _on_emcy(self, nid: int, data: bytes) -> None:
+    def _on_emcy(self, nid: int, data: bytes, received: float) -> None:
+        """Record an EMCY at the moment it reached this process's socket: the frame's receive time (wall
+        clock; the kernel's for udp_multicast) taken back onto the monotonic clock the cell's events use.
+        This thread's own delay in getting to the frame (a loaded campaign process: up to half a second
+        seen) is the observer's, not the drives' reaction; a receive time that is missing or implausible
+        counts no delay."""
         if len(data) >= 2:
+            delay = time.time() - received if received else 0.0
+            now = time.monotonic() - (delay if 0.0 <= delay < 5.0 else 0.0)
             with self.lock:
-                self.emcy.append((time.monotonic(), nid, int.from_bytes(data[:2], "little")))
+                self.emcy.append((now, nid, int.from_bytes(data[:2], "little")))
 
     def inject(self, node: int, subindex: int, value: int, tries: int = 3) -> None:
         """SDO write 0x2F00:subindex = value, tried `tries` times (a busy emulator can miss one request);
