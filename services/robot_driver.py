@@ -46,7 +46,7 @@ from services.common import ServiceShell, run_paced, service_parser, setup_loggi
 from shared.config import load_config
 from shared.core.errors import HrcError
 from shared.drives.bus import BusError, describe, open_bus
-from shared.drives.driver_core import COMMAND_TIMEOUT, DriverCore, Feedback
+from shared.drives.driver_core import COMMAND_TIMEOUT, DriverCore, Feedback, warm_up
 from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
 from shared.drives.prbt import (
     DIAGNOSTIC_EVERY,
@@ -336,6 +336,7 @@ class Driver:
 
 async def serve(args: argparse.Namespace) -> int:
     config = load_config(args.config)
+    warm_up(default_robot().limits)         # the setpoint limiter compiled before the first SYNC, not at it
     scheduling = realtime("robot_driver")   # every thread of the process: the GIL holder runs at the cycle's priority
     bus = open_bus(args.interface, args.channel)
     print(f"robot_driver: CANopen master on {describe(args.interface, args.channel)}, SYNC every "

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hwsim.drive import Drive, DriveLimits
-from shared.drives.driver_core import DriverCore, Feedback, Mode
+from shared.drives.driver_core import CLAMP_TOLERANCE, EXACT, DriverCore, Feedback, Mode, follow_step
 from shared.drives.prbt import to_counts, to_rad
 from shared.robot.model import default_robot
 
@@ -232,3 +232,48 @@ def test_a_scaler_on_its_own_clock_is_followed_without_clamping():
     assert late > 5                                # the case did happen
     assert "command_clamped" not in events
     assert np.abs(cell.q - Q_GOAL).max() < 1e-3
+
+
+def follow_step_reference(command, command_velocity, setpoint, velocity, limits, period):
+    """follow_step's definition in numpy, vectorised (what the compiled kernel must reproduce exactly)."""
+    lower, upper = limits.lower, limits.upper
+    v_max, a = limits.velocity, limits.monitor_acceleration
+    with np.errstate(invalid="ignore"):
+        target = np.clip(command, lower, upper)
+        w = np.clip(np.nan_to_num(command_velocity), -v_max, v_max)
+        rest = target - setpoint - w * period
+        correction = np.sign(rest) * np.minimum(np.abs(rest) / period, np.sqrt(2.0 * a * np.abs(rest)))
+        new_v = np.clip(w + correction, velocity - a * period, velocity + a * period)
+        room_up = np.sqrt(2.0 * a * np.maximum(upper - setpoint, 0.0))
+        room_down = np.sqrt(2.0 * a * np.maximum(setpoint - lower, 0.0))
+        new_v = np.clip(new_v, -np.minimum(v_max, room_down), np.minimum(v_max, room_up))
+        new_s = np.clip(setpoint + new_v * period, lower, upper)
+        new_v = (new_s - setpoint) / period
+        clamped = bool(np.any(np.abs(new_s - command) > CLAMP_TOLERANCE) or np.any(target != command))
+        return np.where(np.abs(new_s - target) <= EXACT, target, new_s), new_v, clamped
+
+
+def test_the_compiled_follow_step_is_its_numpy_definition_to_the_bit():
+    """Random setpoints, velocities and commands (near and beyond the limits, abrupt, exactly followable,
+    NaN and infinite ones): the same setpoint, velocity and clamp flag as the numpy definition, bit for bit."""
+    rng = np.random.default_rng(7)
+    specials = np.array([np.nan, np.inf, -np.inf, 0.0])
+    for k in range(4000):
+        setpoint = rng.uniform(LIM.lower - 0.05, LIM.upper + 0.05)
+        velocity = rng.uniform(-1.2, 1.2, 6) * LIM.velocity
+        command = setpoint + rng.choice([0.0, 1e-4, 0.01, 0.3, 5.0]) * rng.normal(size=6)
+        command_velocity = rng.normal(size=6) * rng.choice([0.0, 0.5, 3.0])
+        if k % 5 == 0:                                 # exactly followable: one period along its velocity
+            command = setpoint + velocity * T
+            command_velocity = velocity.copy()
+        if k % 7 == 0:
+            command_velocity[rng.integers(6)] = rng.choice(specials)
+        if k % 11 == 0:
+            command[rng.integers(6)] = rng.choice(specials)
+        if k % 13 == 0:
+            setpoint[rng.integers(6)] = np.nan
+        got = follow_step(command, command_velocity, setpoint, velocity, LIM, T)
+        want = follow_step_reference(command, command_velocity, setpoint, velocity, LIM, T)
+        assert np.array_equal(got[0], want[0], equal_nan=True), (k, got[0], want[0])
+        assert np.array_equal(got[1], want[1], equal_nan=True), (k, got[1], want[1])
+        assert got[2] == want[2], k
