@@ -63,6 +63,26 @@ def test_the_scaler_follows_a_fresh_trajectory_and_publishes_a_command_and_a_sta
     assert not np.allclose(commands[-1].q, Q_START)                       # moving along the shuttle
 
 
+def test_the_scaler_takes_the_newest_human_state_at_its_tick_and_reports_its_latency_once():
+    """Human states are kept by Zenoh (a ring of one) and taken at the tick: of two that came between ticks
+    the newer is used, and the first command computed from it carries its sample time and how long it
+    waited since tracker_ingest published it; the commands after it carry neither."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    older = humans_to_msg(FAR, True, now - 0.010, stamp=now - 0.009)
+    newer = humans_to_msg(FAR, True, now - 0.006, stamp=now - 0.004)
+    shell.deliver(keys.human_state, older)
+    shell.deliver(keys.human_state, newer)
+    scaler.tick(now)
+    scaler.tick(now + 0.01)
+    first, second = shell.published(keys.command, JointCommand)
+    assert first.human_sample_stamp == pytest.approx(now - 0.006)
+    assert first.human_wait == pytest.approx(0.004)
+    assert second.human_sample_stamp is None and second.human_wait is None
+
+
 def test_the_scaler_stops_the_robot_on_stale_human_data():
     shell, scaler, keys = scaler_at_start()
     traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)

@@ -146,8 +146,9 @@ class JointCommand(Message):
     """The scaler's joint command for the driver: position (rad) and velocity (rad/s).
 
     For the end-to-end latency (a human sample entering tracker_ingest -> the target frame on CAN), the
-    first command computed from a new human state carries that state's sample_stamp and how long it
-    waited in the scaler for the tick (s): the driver subtracts the wait to get the processing time.
+    first command computed from a new human state carries that state's sample_stamp and how long it had
+    been published by tracker_ingest when the tick took it (s: its way to the scaler and its wait for the
+    tick): the driver subtracts the wait to get the processing time.
     Both are None on every other command."""
 
     KIND: ClassVar[str] = "joint_command"
@@ -233,7 +234,8 @@ class DriverRequest(Message):
 class LatencyReport(Message):
     """The robot driver's latency measurements since its last report (s): for each human sample that
     reached the bus, from its arrival at tracker_ingest to its target frame on CAN, and the part of that
-    which was processing (the rest is waiting for the scaler's tick). p99 is checked against T_r."""
+    which was processing (the rest is the human state's way to the scaler and its wait for the tick). p99 is
+    checked against T_r."""
 
     KIND: ClassVar[str] = "latency_report"
     SPEC: ClassVar[dict[str, Spec]] = {"source": S, "sample_to_frame": Spec("farray", (-1,), minimum=0.0),
