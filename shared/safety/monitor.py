@@ -173,16 +173,19 @@ def _monitor_pairs(a_w, b_w, origin, lin, ang, radii, segments, h_radii, h_vel):
     eps = 1e-12
     n, links, m = a_w.shape[0], a_w.shape[1], segments.shape[1]
     dist, approach, human = np.empty((n, links, m)), np.empty((n, links, m)), np.empty((n, links, m))
-    d1, d2, r = np.empty(3), np.empty(3), np.empty(3)
     for k in range(n):
         for i in range(links):
+            ax, ay, az = a_w[k, i, 0], a_w[k, i, 1], a_w[k, i, 2]
+            d1x, d1y, d1z = b_w[k, i, 0] - ax, b_w[k, i, 1] - ay, b_w[k, i, 2] - az
+            aa = d1x * d1x + d1y * d1y + d1z * d1z
             for j in range(m):
-                for c in range(3):
-                    d1[c] = b_w[k, i, c] - a_w[k, i, c]
-                    d2[c] = segments[k, j, 1, c] - segments[k, j, 0, c]
-                    r[c] = a_w[k, i, c] - segments[k, j, 0, c]
-                aa, e = d1 @ d1, d2 @ d2
-                bb, cc, f = d1 @ d2, d1 @ r, d2 @ r
+                px, py, pz = segments[k, j, 0, 0], segments[k, j, 0, 1], segments[k, j, 0, 2]
+                d2x, d2y, d2z = segments[k, j, 1, 0] - px, segments[k, j, 1, 1] - py, segments[k, j, 1, 2] - pz
+                rx, ry, rz = ax - px, ay - py, az - pz
+                e = d2x * d2x + d2y * d2y + d2z * d2z
+                bb = d1x * d2x + d1y * d2y + d1z * d2z
+                cc = d1x * rx + d1y * ry + d1z * rz
+                f = d2x * rx + d2y * ry + d2z * rz
                 a_ok, e_ok = aa > eps, e > eps
                 safe_a, safe_e = aa if a_ok else 1.0, e if e_ok else 1.0
                 denom = aa * e - bb * bb
@@ -201,24 +204,29 @@ def _monitor_pairs(a_w, b_w, origin, lin, ang, radii, segments, h_radii, h_vel):
                     t = 0.0
                 elif not a_ok:
                     t = min(max(f / safe_e, 0.0), 1.0)
-                diff = np.empty(3)
-                for c in range(3):
-                    diff[c] = segments[k, j, 0, c] + t * d2[c] - a_w[k, i, c] - s * d1[c]
-                centre = np.sqrt(diff @ diff)
-                d = centre - radii[i] - h_radii[k, j]
+                # from the robot's closest point to the human's
+                gx, gy, gz = px + t * d2x - ax - s * d1x, py + t * d2y - ay - s * d1y, pz + t * d2z - az - s * d1z
+                centre = np.sqrt(gx * gx + gy * gy + gz * gz)
+                dist[k, i, j] = centre - radii[i] - h_radii[k, j]
                 defined = centre > 1e-9
-                normal = diff / centre if defined else np.zeros(3)
-                v_robot, v_h = np.empty(3), np.empty(3)
-                for c in range(3):
-                    # the robot's surface point, and its velocity: v_origin + omega x (p - origin)
-                    diff[c] = a_w[k, i, c] + s * d1[c] + radii[i] * normal[c] - origin[k, i, c]
-                for c in range(3):
-                    c1, c2 = (c + 1) % 3, (c + 2) % 3
-                    v_robot[c] = lin[k, i, c] + ang[k, i, c1] * diff[c2] - ang[k, i, c2] * diff[c1]
-                    v_h[c] = (1.0 - t) * h_vel[k, j, 0, c] + t * h_vel[k, j, 1, c]
-                approach[k, i, j] = normal @ v_robot if defined else np.sqrt(v_robot @ v_robot)
-                human[k, i, j] = max(0.0, -(normal @ v_h)) if defined else np.sqrt(v_h @ v_h)
-                dist[k, i, j] = d
+                nx, ny, nz = (gx / centre, gy / centre, gz / centre) if defined else (0.0, 0.0, 0.0)
+                # the robot's surface point, and its velocity: v_origin + omega x (p - origin)
+                ox = ax + s * d1x + radii[i] * nx - origin[k, i, 0]
+                oy = ay + s * d1y + radii[i] * ny - origin[k, i, 1]
+                oz = az + s * d1z + radii[i] * nz - origin[k, i, 2]
+                wx, wy, wz = ang[k, i, 0], ang[k, i, 1], ang[k, i, 2]
+                vx = lin[k, i, 0] + wy * oz - wz * oy
+                vy = lin[k, i, 1] + wz * ox - wx * oz
+                vz = lin[k, i, 2] + wx * oy - wy * ox
+                hx = (1.0 - t) * h_vel[k, j, 0, 0] + t * h_vel[k, j, 1, 0]
+                hy = (1.0 - t) * h_vel[k, j, 0, 1] + t * h_vel[k, j, 1, 1]
+                hz = (1.0 - t) * h_vel[k, j, 0, 2] + t * h_vel[k, j, 1, 2]
+                if defined:
+                    approach[k, i, j] = nx * vx + ny * vy + nz * vz
+                    human[k, i, j] = max(0.0, -(nx * hx + ny * hy + nz * hz))
+                else:
+                    approach[k, i, j] = np.sqrt(vx * vx + vy * vy + vz * vz)
+                    human[k, i, j] = np.sqrt(hx * hx + hy * hy + hz * hz)
     return dist, approach, human
 
 
