@@ -16,7 +16,10 @@ VM's cores change speed from minute to minute, and two runs' shares compare only
 udp_multicast runs inside a private network namespace: the script re-runs itself in one when needed.
 Last line: one JSON object.
 
-    python bench/cell_cpu.py [--seconds 60] [--warmup 8] [--seed 1]
+With --people far, one person stands 2.8 m away the whole time: nothing needs planning but each new
+shuttle's direct line, and the planner's share says what it costs at rest.
+
+    python bench/cell_cpu.py [--seconds 60] [--warmup 8] [--seed 1] [--people two|far]
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from evidence.scenarios import make_scenario  # noqa: E402
+from evidence.scenarios import IN_PATH, Keyframe, ScriptedHuman, make_scenario  # noqa: E402
 from shared.transport.zenoh_session import open_session  # noqa: E402
 from shared.wire.keys import KeySpace  # noqa: E402
 from tools.actors import HumanFeed, Recorder, Shuttle  # noqa: E402
@@ -57,7 +60,13 @@ def reference_loop_ms(repeats: int = 5) -> float:
     return round(sorted(times)[repeats // 2], 2)
 
 
-def measure(seconds: float, warmup: float, seed: int) -> dict:
+def far_person(duration: float) -> ScriptedHuman:
+    """One person standing 2.8 m from the robot's axis, out of its reach, for `duration` seconds."""
+    return ScriptedHuman([Keyframe(0.0, -2.8, 0.0, 0.0, IN_PATH, "far away"),
+                          Keyframe(duration, -2.8, 0.0, 0.0, IN_PATH, "far away")])
+
+
+def measure(seconds: float, warmup: float, seed: int, people_kind: str = "two") -> dict:
     speed = [reference_loop_ms()]              # the machine's speed before the cell starts and after it stops
     interface, channel = choose_bus()
     keys = KeySpace("bench/cpu")
@@ -69,7 +78,8 @@ def measure(seconds: float, warmup: float, seed: int) -> dict:
             cell.start(session)
             rec = Recording(t0=time.monotonic())
             recorder = Recorder(session, keys, rec)
-            people = make_scenario("two_humans", seed, warmup + seconds + 5.0)
+            length = warmup + seconds + 5.0
+            people = make_scenario("two_humans", seed, length) if people_kind == "two" else far_person(length)
             capsules = people.at(0.0).count
             feed = HumanFeed(session, keys, people, rec.t0, source="bench")
             feed.start()
@@ -99,7 +109,7 @@ def measure(seconds: float, warmup: float, seed: int) -> dict:
     threads = {name: {t: round(100.0 * (cpu - threads_before.get(name, {}).get(t, 0.0)) / span, 1)
                       for t, cpu in sorted(per.items(), key=lambda kv: -kv[1])}
                for name, per in threads_after.items()}
-    return {"bench": "cell_cpu", "seconds": round(span, 1), "capsules": capsules, "can": interface,
+    return {"bench": "cell_cpu", "seconds": round(span, 1), "people": people_kind, "capsules": capsules, "can": interface,
             "percent_of_core": share, "threads": threads,
             "services_total": round(sum(share.get(n, 0.0) for n in SAFETY_CHAIN), 1),
             "emulator": share.get("hwsim"), "planner": share.get("planner"),
@@ -113,13 +123,15 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=60.0, help="measured window (s)")
     parser.add_argument("--warmup", type=float, default=8.0, help="running before the window opens (s)")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--people", choices=("two", "far"), default="two",
+                        help="two people moving through the cell (default), or one standing far away")
     args = parser.parse_args()
     if args.seconds <= 0 or args.warmup < 0:
         parser.error("--seconds must be positive and --warmup not negative")
     code = reexec_in_namespace([sys.executable, __file__, *sys.argv[1:]])
     if code is not None:
         return code
-    result = measure(args.seconds, args.warmup, args.seed)
+    result = measure(args.seconds, args.warmup, args.seed, args.people)
     for name, pct in sorted(result["percent_of_core"].items(), key=lambda kv: -kv[1]):
         busiest = sorted(result["threads"].get(name, {}).items(), key=lambda kv: -kv[1])[:4]
         print(f"{name:<16} {pct:5.1f} % of one core   ({', '.join(f'{t} {p}' for t, p in busiest if p > 0)})")
