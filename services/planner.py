@@ -2,10 +2,12 @@
 
 Inputs (the latest of each is kept): goals, human states, joint states, scaler status (the last three
 kept by Zenoh in rings of one and taken each turn: no Python runs per message). A worker thread (OMPL holds
-the GIL: planning never runs in a latency-critical process) takes a turn every 20 ms, and at once on a new
-goal: one turn of the planning loop, the same loop the simulation runs (a new goal first, then a replan request,
-then the horizon check on a new human sample; see shared.planning.loop), telling it how long the scaler
-has been asking for a replan (HoldClock) and how fast the robot moves. Every published trajectory and
+the GIL: planning never runs in a latency-critical process) takes a turn every 20 ms while someone is within
+reach of a path or a replan is asked, up to 0.2 s apart while nobody could come within reach sooner
+(``shared.planning.loop.idle_time``), and at once on a new goal: one turn of the planning loop, the same loop
+the simulation runs (a new goal first, then a replan request, then the horizon check on a new human
+sample; see shared.planning.loop), telling it how long the scaler has been asking for a replan (HoldClock)
+and how fast the robot moves. Every published trajectory and
 every refusal is reported as an event on <prefix>/safety/events (source planner, severity info): why, and
 how long it took. The service bounds every path search by the wall clock (CELL_BUDGET), and every planning
 action as a whole (ACTION_BUDGET: the searches stop in time for the rest of the action; anytime: the best path
@@ -29,7 +31,8 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock
-from shared.planning.loop import PlanningInputs, PlanningLoop, held_by_ssm
+from shared.planning.horizon import reach_gap
+from shared.planning.loop import PlanningInputs, PlanningLoop, held_by_ssm, idle_time
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
@@ -162,9 +165,19 @@ class PlannerService:
             self._publish(now, result.trajectory, result.reason, result.junction, following[0].version, ms,
                           result.detail)
 
+    def pause(self) -> float:
+        """How long the worker may wait for its next turn (``idle_time``): a turn every POLL while someone is
+        within reach of any path, a replan is asked or a goal waits for the robot's position; up to
+        IDLE_LONGEST while the nearest person could not come within reach before then."""
+        with self.lock:
+            humans, status, waiting = self.humans, self.status, self.goal is not None and self.q is None
+        if waiting or self.new_goal or (status is not None and status.beta):
+            return POLL
+        return idle_time(reach_gap(self.loop.replanner.collision, humans), POLL)
+
     def run(self, stop: threading.Event) -> None:
         while not stop.is_set():
-            self.wake.wait(POLL)
+            self.wake.wait(self.pause())
             self.wake.clear()
             self.work_once(time.monotonic())
 

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from evidence.scenarios import Q_GOAL, Q_START, body_segments
-from services.planner import TAKE_WAIT, PlannerService
+from services.planner import POLL, TAKE_WAIT, PlannerService
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
-from shared.planning.loop import PlanningInputs, PlanningLoop, StillClock
+from shared.planning.horizon import reach_gap
+from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, StillClock, idle_time
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
@@ -314,3 +315,30 @@ def test_the_predictions_assume_standing_people_stay_at_least_as_long_as_they_ha
         walker.step(0.1 * k, inputs(humans=people(1.0), human_sample=k))
     walker.step(3.0, inputs(humans=people(1.0), human_sample=30, beta=True, waited=0.4))
     assert walker.replanner.waited == pytest.approx(0.4)
+
+
+def test_the_loop_idles_only_as_long_as_nobody_could_come_within_reach():
+    assert idle_time(-0.1, 0.02) == 0.02 and idle_time(0.0, 0.02) == 0.02 and idle_time(float("nan"), 0.02) == 0.02
+    assert idle_time(0.01, 0.02) == 0.02                              # never faster than the horizon period
+    assert idle_time(0.2, 0.02) == pytest.approx(0.2 / APPROACH_SPEED)
+    assert idle_time(5.0, 0.02) == IDLE_LONGEST and idle_time(float("inf"), 0.02) == IDLE_LONGEST
+
+
+def test_the_planner_service_polls_every_period_only_while_someone_is_within_reach(replanner):
+    shell, service = planner_given_a_goal(replanner, 3)
+    keys = shell.keys
+    far = HumanCapsules.from_arrays([[[-3.0, 0.0, 0.5], [-3.0, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
+    near = HumanCapsules.from_arrays([[[-0.9, 0.0, 0.5], [-0.9, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
+    assert reach_gap(replanner.collision, far) > 0 > reach_gap(replanner.collision, near)
+    shell.deliver(keys.human_state, humans_to_msg(far, True, 1.5))
+    service.work_once(1.5)
+    assert service.pause() == IDLE_LONGEST                  # 3 m away: nobody within reach for a while
+    shell.deliver(keys.human_state, humans_to_msg(near, True, 1.6))
+    service.work_once(1.6)
+    assert service.pause() == POLL                          # within reach: every horizon period
+    shell.deliver(keys.human_state, humans_to_msg(far, True, 1.7))
+    shell.deliver(keys.scaler_status, ScalerStatus(s=0.3, alpha=0.1, safe_alpha=0.1, beta=True, q_command=Q_START,
+                                                   trajectory_version=3, status="running", method="piqp",
+                                                   min_separation=None, min_margin=None, compute_us=50.0))
+    service.work_once(1.7)
+    assert service.pause() == POLL                          # a replan asked: every period whoever is where

@@ -38,18 +38,24 @@ class HorizonResult:
         return None if self.first_infeasible == 0 else float(self.s[self.first_infeasible - 1])
 
 
-def out_of_reach(collision: CollisionModel, humans: HumanCapsules | None) -> bool:
-    """Every human capsule is farther from the robot's reach sphere (``RobotModel.reach_radius``: the robot
-    lies inside it in every configuration) than the planner's margin: no configuration of any path is
-    blocked by them now, so the horizon is clear without checking it (the planner's idle cadence: a
-    check costs about 350 us on this machine at 50 Hz; this bound, a few microseconds)."""
+def reach_gap(collision: CollisionModel, humans: HumanCapsules | None) -> float:
+    """How far (m) the nearest human capsule is beyond the distance at which it could block a configuration:
+    the robot's reach sphere (``RobotModel.reach_radius``: the robot lies inside it in every configuration)
+    plus the planner's margin. inf without people; negative when someone is within it."""
     if humans is None or humans.count == 0:
-        return True
+        return np.inf
     robot = collision.robot
     sphere = np.stack([robot.reach_centre, robot.reach_centre])[None]         # a capsule of zero length
     gap = capsule_pair_distances(sphere, np.array([robot.reach_radius]), humans.segments, humans.radii).distance
     required = collision.min_separation + collision.margins.human + collision.margins.tolerance
-    return bool(np.all(gap > required))
+    return float(gap.min() - required)
+
+
+def out_of_reach(collision: CollisionModel, humans: HumanCapsules | None) -> bool:
+    """Every human capsule is beyond ``reach_gap``'s distance: no configuration of any path is blocked by
+    them now, so the horizon is clear without checking it (the planner's idle cadence: a check costs about
+    350 us on this machine at 50 Hz; this bound, a few microseconds)."""
+    return reach_gap(collision, humans) > 0.0
 
 
 def horizon_check(trajectory: Trajectory, s: float, collision: CollisionModel, humans: HumanCapsules | None,

@@ -104,6 +104,20 @@ class StillClock:
         return self.clock.waited(now)
 
 
+IDLE_LONGEST = 0.2     # s: the longest the planner's loop waits between turns when nothing is asked of it
+APPROACH_SPEED = 2.0   # m/s: the ISO 13855 approach speed near the robot, the fastest a person comes
+
+
+def idle_time(gap: float, period: float, longest: float = IDLE_LONGEST) -> float:
+    """How long (s) the loop may wait for its next turn when no goal is new and no replan is asked: the
+    time the nearest person needs, at the ISO 13855 approach speed, to come within reach of any path (gap,
+    m, ``shared.planning.horizon.reach_gap``), between one horizon period and `longest`. Someone within
+    reach, or an unknown gap: every period. (A goal wakes the loop at once whatever this says.)"""
+    if not gap > 0.0:
+        return period
+    return min(longest, max(period, gap / APPROACH_SPEED))
+
+
 class PlanningLoop:
     """The cadence above around one Replanner. beta_replans False: the paper's ablation (beta ignored).
     still_speed: below it people count as standing (StillClock; None: not used)."""
