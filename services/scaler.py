@@ -41,7 +41,7 @@ class Scaler:
         self.lock = threading.Lock()
         self.humans = None                 # HumanCapsules, or None
         self.human_stamp = -np.inf         # monotonic time of the human sample
-        self.human_arrival = -np.inf       # when tracker_ingest published its state (same host clock)
+        self.human_published = -np.inf     # when tracker_ingest published its state (same host clock)
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
         self.robot_following = False       # the driver runs and follows commands (JointState.enabled)
@@ -65,7 +65,7 @@ class Scaler:
         if msg is not None:
             self.humans = humans_from_msg(msg)
             self.human_stamp = msg.sample_stamp if msg.valid else -np.inf
-            self.human_arrival = msg.stamp
+            self.human_published = msg.stamp
 
     def on_joints(self, msg: JointState) -> None:
         with self.lock:
@@ -100,7 +100,7 @@ class Scaler:
             if self.pending is not None:
                 self._take_pending()
             humans, age, q_meas = self.humans, now - self.human_stamp, self.joint_q
-            stamp, arrival, following = self.human_stamp, self.human_arrival, self.robot_following
+            stamp, published, following = self.human_stamp, self.human_published, self.robot_following
         if q_meas is not None and (self.layer.trajectory is None or not following):
             if not following and self.layer.trajectory is not None and self.layer.trajectory.version != -1:
                 self.shell.log.warning("the robot is not following (driver stopped or enabling): trajectory %d "
@@ -123,7 +123,7 @@ class Scaler:
         self.cmd_pub.put(encode(JointCommand(q=step.q_command, qd=step.qd_command,
                                              trajectory_version=step.trajectory_version, s=step.s,
                                              human_sample_stamp=stamp if fresh else None,
-                                             human_wait=max(0.0, now - arrival) if fresh else None,
+                                             human_wait=max(0.0, now - published) if fresh else None,
                                              seq=self.seq, stamp=now)))
         finite = lambda v: v if np.isfinite(v) else None
         self.status_pub.put(encode(ScalerStatus(

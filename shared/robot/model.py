@@ -210,8 +210,9 @@ class RobotModel:
 
     def capsule_motion(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Capsule end points (L, 2, 3) and their linear velocities (L, 2, 3, m/s) at joint velocities qd
-        (rad/s): the Jacobians applied without being formed (one compiled pass; the hot path of the scaling
-        layer, twice a cycle, where forming them and the product cost more than the kinematics)."""
+        (rad/s): the Jacobians applied without being formed (one compiled pass, where forming them and the
+        product cost more than the kinematics). The scaling layer's cycle calls the same kernel inside its
+        own compiled calls (``shared.scaling.problem``)."""
         points, velocities = chain_points_and_velocities(np.asarray(q, dtype=np.float64), np.asarray(qd, dtype=np.float64),
                                                          self._joint_placement, self._parent, self._point_local,
                                                          self._point_joint, self._ancestry)
