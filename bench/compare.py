@@ -6,7 +6,10 @@ time stopped (shuttles count fractionally: the part of the current shuttle's pat
 smallest margin to the limit (conservative end-point bound, m), and violations counted
 by the independent monitor's rule. The full architecture pays its planning time on the simulated clock.
 Prints progress with an estimate of the time left. Writes a plot (compare.png) into --out. The last line
-is one JSON object (overall and per kind: "kinds": {kind: {strategy: shuttles per minute}}).
+is one JSON object (overall and per kind: "kinds": {kind: {strategy: shuttles per minute}}; "ratios":
+{kind or "overall": {"full/scale_only": [ratio, low, high], "full/zones": [...]}}, the paired bootstrap
+95 % interval of evidence.stats: how far the ratio would move with another draw of scenarios. The paper's
+phases are one scripted scenario, the same in every seed, so their interval has no width).
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
 """
@@ -27,6 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import SCENARIO_KINDS  # noqa: E402
+from evidence.stats import paired_ratio  # noqa: E402
 from evidence.strategies import STRATEGIES, Strategies  # noqa: E402
 
 _WORKER: Strategies | None = None
@@ -67,6 +71,16 @@ def aggregate(rows: list[dict], horizon: float) -> dict:
             "command_exceedances": int(sum(r["command_exceedances"] for r in runs)),
             "wall_s_per_scenario": round(float(np.mean([r["wall_s"] for r in runs])), 3)}
     return result
+
+
+PAIRS = (("full", "scale_only"), ("full", "zones"))
+
+
+def ratios(rows: list[dict]) -> dict:
+    """Each pair of PAIRS: the ratio of shuttles and its paired bootstrap interval (evidence.stats) over
+    these scenarios (every strategy runs each scenario equally long, so it is the shuttles-per-minute ratio)."""
+    return {f"{a}/{b}": paired_ratio([r[a]["shuttles"] for r in rows], [r[b]["shuttles"] for r in rows],
+                                     np.random.default_rng(0)) for a, b in PAIRS}
 
 
 def plot(rows: list[dict], out: Path, horizon: float) -> None:
@@ -122,19 +136,28 @@ def main() -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     plot(rows, args.out, horizon)
     (args.out / "scenarios.json").write_text(json.dumps(rows))
-    per_kind = {}
+    per_kind, intervals = {}, {}
     for kind in kinds:
-        per = per_kind[kind] = aggregate([r for r in rows if r["kind"] == kind], horizon)
+        of_kind = [r for r in rows if r["kind"] == kind]
+        per = per_kind[kind] = aggregate(of_kind, horizon)
         print(f"{kind:<12} " + "  ".join(f"{s}: {per[s]['shuttles_per_min']:6.2f}/min stopped "
                                           f"{per[s]['stopped_fraction']:.2f} viol {per[s]['violations']}"
                                           for s in STRATEGIES))
+        intervals[kind] = ratios(of_kind)
+    intervals["overall"] = ratios(rows)
+    print("ratios of shuttles per minute with their paired bootstrap 95 % intervals:")
+    for name, pairs in intervals.items():
+        for pair, r in pairs.items():
+            print(f"  {name:<12} {pair:<16} {r.describe()}")
     print(f"{len(rows)} scenarios x {args.duration:.0f} s in {time.perf_counter() - started:.0f} s on "
           f"{args.workers} workers; plot and per-scenario results in {args.out}")
     full, zones, scale = (strategies[s]["shuttles_per_min"] for s in ("full", "zones", "scale_only"))
     print(json.dumps({"bench": "compare", "scenarios": len(rows), "strategies": strategies,
                       "speedup_vs_zones": round(full / zones, 3) if zones else None,
                       "speedup_vs_scale_only": round(full / scale, 3) if scale else None,
-                      "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in STRATEGIES} for k in kinds}}))
+                      "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in STRATEGIES} for k in kinds},
+                      "ratios": {name: {pair: r.as_list() for pair, r in pairs.items()}
+                                 for name, pairs in intervals.items()}}))
     return 0
 
 
