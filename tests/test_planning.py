@@ -100,6 +100,33 @@ def test_toppra_laws_never_leave_the_acceleration_tolerance():
         assert np.max(np.abs(traj.sample(ends)[2]) / LIM.acceleration) <= ACCELERATION_TOLERANCE + 1e-9
 
 
+def test_a_detour_is_timed_through_its_corners_at_speed_and_inside_the_joint_limits():
+    """A lifted detour (the shoulder and elbow offset over the middle of the shuttle): the loosest smoothing
+    that is feasible turns its corners at speed, near the polyline's own estimate (straight segments at full
+    speed plus each corner's velocity change), where a spline held a quarter radian to the polyline crawls
+    round them; and a corner on a joint's limit, where the loosest spline would overshoot the limit, is
+    timed with a tighter one that stays inside."""
+    from shared.planning.time_cost import SsmTimeCost
+    lift = np.zeros(6)
+    lift[1], lift[2] = -0.3, 0.4
+    detour = np.vstack([Q_START, Q_START + 0.25 * (Q_GOAL - Q_START) + lift, Q_START + 0.75 * (Q_GOAL - Q_START) + lift,
+                        Q_GOAL])
+    estimate = SsmTimeCost(ROBOT, SsmParameters()).path_samples(detour).nominal
+    loose, tight = parameterize(detour, LIM, collision=CM), parameterize(detour, LIM, max_segment=0.25, collision=CM)
+    assert loose.duration < 1.03 * estimate and loose.duration < tight.duration - 0.05, (loose.duration, tight.duration,
+                                                                                          estimate)
+    near_limit = Q_START.copy()
+    near_limit[2] = LIM.upper[2] - 0.1                           # the elbow 0.1 rad short of its limit
+    corner = np.vstack([Q_START, near_limit, Q_GOAL])
+    with pytest.raises(TimingError, match="joint position limits"):
+        parameterize(corner, LIM, max_segment=np.inf)
+    traj = parameterize(corner, LIM)
+    assert np.all(traj.positions <= LIM.upper) and np.all(traj.positions >= LIM.lower)
+    near_limit[2] = LIM.upper[2]                                 # on it: every spline overshoots; refused
+    with pytest.raises(TimingError, match="max_segment 0.25: the smoothed path leaves the joint position limits"):
+        parameterize(np.vstack([Q_START, near_limit, Q_GOAL]), LIM)
+
+
 def test_time_parameterisation_starts_with_the_given_velocity():
     v0 = OLD.sample(0.5)[1]
     lead = OLD.sample(np.linspace(0.5, 1.0, 11))[0]
