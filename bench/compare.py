@@ -83,14 +83,14 @@ def ratios(rows: list[dict]) -> dict:
                                      np.random.default_rng(0)) for a, b in PAIRS}
 
 
-def plot(rows: list[dict], out: Path, horizon: float) -> None:
+def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     kinds = sorted({r["kind"] for r in rows})
     per_kind = {k: aggregate([r for r in rows if r["kind"] == k], horizon) for k in kinds}
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
+    fig, axes = plt.subplots(1, 3, figsize=(18, 4.5), gridspec_kw={"width_ratios": [1, 1, 0.8]})
     width = 0.27
     x = np.arange(len(kinds))
     for i, strategy in enumerate(STRATEGIES):
@@ -102,6 +102,22 @@ def plot(rows: list[dict], out: Path, horizon: float) -> None:
         ax.set_xticks(x, kinds)
         ax.set_title(title)
         ax.legend(fontsize=8)
+    names = kinds + ["overall"]
+    ratio = [intervals[k]["full/scale_only"] for k in names]
+    mid = np.array([r.ratio for r in ratio])
+    top = 1.3                       # a kind far above (a person standing in the path) is written, not drawn
+    shown = mid <= top
+    axes[2].errorbar(np.arange(len(names))[shown], mid[shown],
+                     yerr=[(mid - [r.low for r in ratio])[shown], ([r.high for r in ratio] - mid)[shown]],
+                     fmt="o", color="tab:green", capsize=4)
+    for k in np.flatnonzero(~shown):
+        axes[2].annotate(f"{ratio[k].ratio:.2f}x [{ratio[k].low:.2f}, {ratio[k].high:.2f}]", (k, top),
+                         xytext=(0, -14), textcoords="offset points", ha="center", fontsize=8, color="tab:green",
+                         arrowprops={"arrowstyle": "-|>", "color": "tab:green"})
+    axes[2].axhline(1.0, color="tab:orange", lw=1)
+    axes[2].set_ylim(min(0.95, float(np.min([r.low for r in ratio])) - 0.01), top)
+    axes[2].set_xticks(np.arange(len(names)), names, rotation=20)
+    axes[2].set_title("full / scale_only, paired bootstrap 95 % interval")
     fig.suptitle(f"{len(rows)} seeded scenarios; violations (monitor): "
                  + ", ".join(f"{s} {sum(r[s]['violations'] for r in rows)}" for s in STRATEGIES))
     fig.tight_layout()
@@ -134,7 +150,6 @@ def main() -> int:
     horizon = SsmParameters().horizon
     strategies = aggregate(rows, horizon)
     args.out.mkdir(parents=True, exist_ok=True)
-    plot(rows, args.out, horizon)
     (args.out / "scenarios.json").write_text(json.dumps(rows))
     per_kind, intervals = {}, {}
     for kind in kinds:
@@ -145,6 +160,7 @@ def main() -> int:
                                           for s in STRATEGIES))
         intervals[kind] = ratios(of_kind)
     intervals["overall"] = ratios(rows)
+    plot(rows, args.out, horizon, intervals)
     print("ratios of shuttles per minute with their paired bootstrap 95 % intervals:")
     for name, pairs in intervals.items():
         for pair, r in pairs.items():
