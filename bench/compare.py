@@ -12,6 +12,10 @@ is one JSON object (overall and per kind: "kinds": {kind: {strategy: shuttles pe
 phases are one scripted scenario, the same in every seed, so their interval has no width).
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
+                            [--kinds two_humans,random_walk] [--seed 0]
+
+(--kinds: only these kinds, in turn, seeds counted from --seed: `--scenarios 200 --kinds two_humans` runs
+200 two-person scenarios.)
 """
 
 from __future__ import annotations
@@ -78,9 +82,16 @@ PAIRS = (("full", "scale_only"), ("full", "zones"))
 
 def ratios(rows: list[dict]) -> dict:
     """Each pair of PAIRS: the ratio of shuttles and its paired bootstrap interval (evidence.stats) over
-    these scenarios (every strategy runs each scenario equally long, so it is the shuttles-per-minute ratio)."""
-    return {f"{a}/{b}": paired_ratio([r[a]["shuttles"] for r in rows], [r[b]["shuttles"] for r in rows],
-                                     np.random.default_rng(0)) for a, b in PAIRS}
+    these scenarios (every strategy runs each scenario equally long, so it is the shuttles-per-minute ratio),
+    or, where there is none (the second strategy did nothing at all), the reason."""
+    out = {}
+    for a, b in PAIRS:
+        try:
+            out[f"{a}/{b}"] = paired_ratio([r[a]["shuttles"] for r in rows], [r[b]["shuttles"] for r in rows],
+                                           np.random.default_rng(0))
+        except ValueError as exc:
+            out[f"{a}/{b}"] = f"no ratio: {exc}"
+    return out
 
 
 def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
@@ -102,7 +113,7 @@ def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
         ax.set_xticks(x, kinds)
         ax.set_title(title)
         ax.legend(fontsize=8)
-    names = kinds + ["overall"]
+    names = [k for k in kinds + ["overall"] if not isinstance(intervals[k]["full/scale_only"], str)]
     ratio = [intervals[k]["full/scale_only"] for k in names]
     mid = np.array([r.ratio for r in ratio])
     top = 1.3                       # a kind far above (a person standing in the path) is written, not drawn
@@ -115,7 +126,7 @@ def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
                          xytext=(0, -14), textcoords="offset points", ha="center", fontsize=8, color="tab:green",
                          arrowprops={"arrowstyle": "-|>", "color": "tab:green"})
     axes[2].axhline(1.0, color="tab:orange", lw=1)
-    axes[2].set_ylim(min(0.95, float(np.min([r.low for r in ratio])) - 0.01), top)
+    axes[2].set_ylim(min([0.95] + [r.low - 0.01 for r in ratio]), top)
     axes[2].set_xticks(np.arange(len(names)), names, rotation=20)
     axes[2].set_title("full / scale_only, paired bootstrap 95 % interval")
     fig.suptitle(f"{len(rows)} seeded scenarios; violations (monitor): "
@@ -132,10 +143,15 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--out", type=Path, default=ROOT / "reports" / "compare")
     parser.add_argument("--seed", type=int, default=0, help="first scenario seed")
+    parser.add_argument("--kinds", default=",".join(sorted(SCENARIO_KINDS)),
+                        help="comma-separated scenario kinds, run in turn (default: all)")
     args = parser.parse_args()
     if args.scenarios < 1 or args.duration <= 0 or args.workers < 1:
         parser.error("--scenarios and --workers must be >= 1, --duration > 0")
-    kinds = sorted(SCENARIO_KINDS)
+    kinds = sorted({k.strip() for k in args.kinds.split(",") if k.strip()})
+    unknown = [k for k in kinds if k not in SCENARIO_KINDS]
+    if unknown or not kinds:
+        parser.error(f"--kinds: unknown or none {unknown or args.kinds!r}; known: {', '.join(sorted(SCENARIO_KINDS))}")
     tasks = [(kinds[k % len(kinds)], args.seed + k, args.duration) for k in range(args.scenarios)]
     started = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=_init) as pool:
@@ -164,7 +180,7 @@ def main() -> int:
     print("ratios of shuttles per minute with their paired bootstrap 95 % intervals:")
     for name, pairs in intervals.items():
         for pair, r in pairs.items():
-            print(f"  {name:<12} {pair:<16} {r.describe()}")
+            print(f"  {name:<12} {pair:<16} {r if isinstance(r, str) else r.describe()}")
     print(f"{len(rows)} scenarios x {args.duration:.0f} s in {time.perf_counter() - started:.0f} s on "
           f"{args.workers} workers; plot and per-scenario results in {args.out}")
     full, zones, scale = (strategies[s]["shuttles_per_min"] for s in ("full", "zones", "scale_only"))
@@ -172,7 +188,7 @@ def main() -> int:
                       "speedup_vs_zones": round(full / zones, 3) if zones else None,
                       "speedup_vs_scale_only": round(full / scale, 3) if scale else None,
                       "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in STRATEGIES} for k in kinds},
-                      "ratios": {name: {pair: r.as_list() for pair, r in pairs.items()}
+                      "ratios": {name: {pair: None if isinstance(r, str) else r.as_list() for pair, r in pairs.items()}
                                  for name, pairs in intervals.items()}}))
     return 0
 

@@ -1,0 +1,50 @@
+"""bench/compare.py's command line and its ratios (the figures themselves are the benchmark's, not asserted)."""
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from evidence.stats import PairedRatio
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load_compare():
+    spec = importlib.util.spec_from_file_location("compare_bench", ROOT / "bench" / "compare.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def row(zones: float, scale_only: float, full: float) -> dict:
+    return {"kind": "standing", "zones": {"shuttles": zones}, "scale_only": {"shuttles": scale_only},
+            "full": {"shuttles": full}}
+
+
+def test_a_strategy_that_did_nothing_gives_a_reason_not_a_crash():
+    ratios = load_compare().ratios([row(0.0, 1.0, 2.0), row(0.0, 2.0, 2.0)])
+    assert isinstance(ratios["full/scale_only"], PairedRatio) and abs(ratios["full/scale_only"].ratio - 4 / 3) < 1e-12
+    assert ratios["full/zones"].startswith("no ratio: ") and "did nothing" in ratios["full/zones"]
+
+
+def run(*args: str, tmp_path: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(ROOT / "bench" / "compare.py"), "--out", str(tmp_path), *args],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+
+
+def test_unknown_kinds_are_refused_naming_the_known_ones(tmp_path):
+    done = run("--kinds", "standing,nope", tmp_path=tmp_path)
+    assert done.returncode == 2 and "--kinds: unknown or none ['nope']" in done.stderr and "two_humans" in done.stderr
+
+
+def test_one_kind_runs_and_its_ratios_come_with_intervals(tmp_path):
+    done = run("--scenarios", "2", "--kinds", "standing", "--duration", "0.5", "--workers", "1", tmp_path=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert set(result["kinds"]) == {"standing"} and set(result["ratios"]) == {"standing", "overall"}
+    low_mid_high = result["ratios"]["overall"]["full/scale_only"]
+    assert low_mid_high[1] <= low_mid_high[0] <= low_mid_high[2]
+    assert (tmp_path / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert len(json.loads((tmp_path / "scenarios.json").read_text())) == 2
