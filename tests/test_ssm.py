@@ -48,6 +48,21 @@ def test_bad_parameters_raise_a_clear_error(bad):
         SsmParameters.from_mapping(bad)
 
 
+def test_a_human_acceleration_allowance_adds_its_distance_to_every_limit():
+    """a_h (T_r + T_s)^2 / 2: 1 m/s^2 over the 0.4 s horizon is 0.08 m, so the limit at any separation and
+    human speed falls by 0.08 / 0.4 = 0.2 m/s; the monitor and the scaling layer both read fixed_distance.
+    A negative allowance is refused; 0 is the paper's formula."""
+    allowing = SsmParameters.from_mapping({"human_acceleration": 1.0})
+    assert allowing.fixed_distance == pytest.approx(P.fixed_distance + 0.08)
+    for s in (0.4, 1.0, 2.5):
+        assert velocity_limit(s, 0.0, allowing) == pytest.approx(velocity_limit(s, 0.0, P) - 0.2)
+    r = pair_ssm(np.array([[[0.0, 0, 0], [0.0, 0, 0]]]), np.array([0.1]), np.zeros((1, 2, 3)),
+                 HumanCapsules.from_arrays([[[1.0, 0, 0], [1.0, 0, 0]]], [0.1], np.zeros((1, 2, 3)), [True]), allowing)
+    assert r.limit[0, 0] == pytest.approx(velocity_limit(0.8, 0.0, P) - 0.2)    # a person measured standing
+    with pytest.raises(ConfigError, match="human_acceleration"):
+        SsmParameters.from_mapping({"human_acceleration": -1.0})
+
+
 def _one_pair(human_velocity, known=True, distance_centres=1.0):
     robot = np.array([[[0.0, 0, 0], [0.0, 0, 0]]])                  # a sphere of radius 0.1 at the origin
     robot_vel = np.array([[[1.0, 0, 0], [1.0, 0, 0]]])              # moving towards +x at 1 m/s
