@@ -48,8 +48,8 @@ class SsmParameters:
       the formula's reach (the one violation of the 1000-scenario comparison, in scale_only: see
       docs/architecture.md). a_h adds a_h (T_r + T_s)^2 / 2 to the protective distance, for every person
       (where the tracker gives no velocity the ISO 13855 speed already bounds the approach, so there it is
-      a margin on top). 0 keeps the formula; 1.0 m/s^2 (0.08 m) removed that violation, at 4 to 8 % of the
-      throughput of people walking near the robot and 17 % (full) or 62 % (scale_only) where they stand
+      a margin on top). 0 keeps the formula; 1.0 m/s^2 (0.08 m) removed that violation and cost 4 to 8 %
+      of the throughput where people walk near the robot, 17 % (full) or 62 % (scale_only) where they stand
       in the path (docs/architecture.md). An integrator's choice, per cell.
     tracking_margin (derived, m/s) = drive_lag x link_acceleration = 0.053 m/s: while the joints run
       drive_lag behind, the measured speed differs from the commanded one by at most this much. The
