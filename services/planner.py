@@ -170,8 +170,9 @@ class PlannerService:
         within reach of any path, a replan is asked or a goal waits for the robot's position; up to
         IDLE_LONGEST while the nearest person could not come within reach before then."""
         with self.lock:
-            humans, status, waiting = self.humans, self.status, self.goal is not None and self.q is None
-        if waiting or self.new_goal or (status is not None and status.beta):
+            humans, status, new_goal = self.humans, self.status, self.new_goal
+            waiting = self.goal is not None and self.q is None
+        if waiting or new_goal or (status is not None and status.beta):
             return POLL
         return idle_time(reach_gap(self.loop.replanner.collision, humans), POLL)
 

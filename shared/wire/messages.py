@@ -352,8 +352,9 @@ def _decode_value(kind: str, name: str, spec: Spec, raw):
     elif what == "bool":
         if type(raw) is bool:
             return raw
-    elif type(raw) is str and len(raw) <= MAX_STRING:
-        return raw
+    elif what == "str":
+        if type(raw) is str and len(raw) <= MAX_STRING:
+            return raw
     return _decode_checked(kind, name, spec, raw)
 
 
