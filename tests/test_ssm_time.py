@@ -80,6 +80,25 @@ def test_a_straight_path_costs_its_trapezoid_and_bends_cost_time():
     assert polyline_trajectory(bent, LIM.velocity, LIM.acceleration).duration >= COST.path_time(bent, None) - 1e-9
 
 
+def test_path_samples_walk_each_segment_from_its_start_and_count_rests_and_corners():
+    a = np.zeros(6)
+    b = a + np.array([0.12, 0.0, 0.0, 0.0, 0.0, 0.0])                # 0.12 rad: 3 samples at 0.05 rad spacing
+    c = b + np.array([0.0, 0.3, 0.0, 0.0, 0.0, 0.0])                 # a corner, then 6 samples
+    samples = COST.path_samples(np.vstack([a, b, b, c]))           # the repeated waypoint is no segment
+    assert samples.q.shape == (9, 6) and np.allclose(samples.q[[0, 3]], [a, b])
+    assert np.allclose(samples.q[:3, 0], [0.0, 0.04, 0.08])          # from the start, evenly
+    v0, v1 = 0.12 / COST.segment_time(a, b), 0.3 / COST.segment_time(b, c)
+    assert np.allclose(samples.dq[:3, 0], v0) and np.allclose(samples.dq[3:, 1], v1)
+    assert samples.dt.sum() == pytest.approx(COST.segment_time(a, b) + COST.segment_time(b, c))
+    acc = LIM.acceleration
+    rest_to_rest = v0 / (2 * acc[0]) + max(v0 / (2 * acc[0]), v1 / (2 * acc[1])) + v1 / (2 * acc[1])
+    assert samples.overhead == pytest.approx(rest_to_rest)
+    # moving already at the start: no start-up; nothing to walk: nothing
+    moving = COST.path_samples(np.vstack([a, b, c]), from_rest=False)
+    assert moving.overhead == pytest.approx(rest_to_rest - v0 / (2 * acc[0]))
+    empty = COST.path_samples(np.vstack([a, a]))
+    assert empty.q.shape == (0, 6) and empty.nominal == 0.0
+
 def test_people_stay_for_the_stay_and_move_on_along_their_velocities():
     # a person who leaves at once costs nothing; the longer they stay, the longer the way past them
     times = [COST.trajectory_time(OLD, 0.0, NEAR, stay) for stay in (0.0, 0.5, 2.0, np.inf)]

@@ -107,6 +107,48 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
     return total
 
 
+@numba.njit(cache=True)
+def _path_samples(w, velocity, acceleration, spacing, from_rest):
+    """SsmTimeCost.path_samples, compiled (it is called for every candidate of a search, and numpy's
+    per-call overhead made it cost more than the SSM kernel itself): (q, dq, dt, overhead)."""
+    n_j = w.shape[1]
+    durations = np.zeros(max(w.shape[0] - 1, 0))
+    counts = np.zeros(durations.size, dtype=np.int64)
+    for k in range(durations.size):
+        longest = 0.0
+        for j in range(n_j):
+            step = abs(w[k + 1, j] - w[k, j])
+            durations[k] = max(durations[k], step / velocity[j])
+            longest = max(longest, step)
+        if durations[k] > 0.0:
+            counts[k] = max(1, int(np.ceil(longest / spacing)))
+    total = counts.sum()
+    q, dq, dt = np.empty((total, n_j)), np.empty((total, n_j)), np.empty(total)
+    last = np.zeros(n_j)                        # the previous moving segment's velocity
+    overhead, m, seen = 0.0, 0, False
+    for k in range(durations.size):
+        if counts[k] == 0:
+            continue
+        v = (w[k + 1] - w[k]) / durations[k]
+        turn = 0.0                              # at rest before the first one (counted only from rest)
+        for j in range(n_j):
+            turn = max(turn, abs(v[j] - last[j]) / (2.0 * acceleration[j]))
+        if seen or from_rest:
+            overhead += turn
+        for i in range(counts[k]):             # from the segment's start: see path_samples
+            q[m] = w[k] + (i / counts[k]) * (w[k + 1] - w[k])
+            dq[m] = v
+            dt[m] = durations[k] / counts[k]
+            m += 1
+        last, seen = v, True
+    if seen:                                    # to rest at the end
+        end = 0.0
+        for j in range(n_j):
+            end = max(end, abs(last[j]) / (2.0 * acceleration[j]))
+        overhead += end
+    return q, dq, dt, overhead
+
+
 @dataclass(frozen=True)
 class PathSamples:
     """A path walked at its nominal speed: configurations (N, 6), joint velocities (N, 6) and the nominal
@@ -145,29 +187,9 @@ class SsmTimeCost:
         seconds on such a path). The overhead counts
         what a time law adds: v/(2a) to start from rest (from_rest) and again to come to rest (a trapezoid's
         L/v + v/a), and at each corner the time to change the joint velocities, |dv| / (2 a) for the slowest joint."""
-        w = np.asarray(waypoints, dtype=float)
-        amax = self.limits.acceleration
-        q_parts, dq_parts, dt_parts = [], [], []
-        velocities = []
-        for a, b in zip(w[:-1], w[1:]):
-            duration = self.segment_time(a, b)
-            if duration <= 0.0:
-                continue
-            n = max(1, int(np.ceil(np.max(np.abs(b - a)) / self.options.spacing)))
-            u = np.arange(n) / n                  # from the segment's start: see the docstring
-            v = (b - a) / duration
-            q_parts.append(a + u[:, None] * (b - a))
-            dq_parts.append(np.repeat(v[None, :], n, axis=0))
-            dt_parts.append(np.full(n, duration / n))
-            velocities.append(v)
-        if not q_parts:
-            return PathSamples(np.zeros((0, w.shape[1])), np.zeros((0, w.shape[1])), np.zeros(0))
-        overhead = float(np.max(np.abs(velocities[-1]) / (2.0 * amax)))
-        if from_rest:
-            overhead += float(np.max(np.abs(velocities[0]) / (2.0 * amax)))
-        for v_in, v_out in zip(velocities[:-1], velocities[1:]):
-            overhead += float(np.max(np.abs(v_out - v_in) / (2.0 * amax)))
-        return PathSamples(np.vstack(q_parts), np.vstack(dq_parts), np.concatenate(dt_parts), overhead)
+        w = np.ascontiguousarray(waypoints, dtype=float)
+        return PathSamples(*_path_samples(w, self.limits.velocity, self.limits.acceleration, self.options.spacing,
+                                          from_rest))
 
     def trajectory_samples(self, trajectory: Trajectory, s_from: float) -> PathSamples:
         """Samples of a timed trajectory from s_from to its end, at its own (nominal) velocities."""
