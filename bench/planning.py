@@ -7,7 +7,12 @@ For each placement:
   against the planning layer's search (the path fastest under the SSM, shared.planning.path_search), each
   predicted by the SSM-aware time cost with the person staying --stay seconds, and the straight line;
 * replan + merge: the robot runs the straight shuttle; at the moment the horizon check (1 s ahead) first
-  sees the person, Alg. 1 + 2 and the keep-or-replace decision (taken, old kept, failed).
+  sees the person, Alg. 1 + 2 and the keep-or-replace decision (taken, old kept, failed);
+* the cell's budget against the counts: the same search (same seed) bounded as the planner service bounds
+  it (CELL_BUDGET per search inside ACTION_BUDGET per action, wall clock) and by its counts alone, as the
+  simulation runs it: how many of the count-bounded search's candidates the budget costed, and the
+  predicted times of both winners (a ratio above 1: the cell plans worse paths than the simulation's
+  evidence assumes). Run it beside a CPU-bound process too: the cell shares two cores with six processes.
 Reported: median / p95 wall time of each, the predicted times and their ratios. Last line: JSON.
 
     python bench/planning.py [--placements N]
@@ -28,6 +33,7 @@ from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed
 from shared.planning.horizon import HorizonOptions, horizon_check
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
+from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import load_scene
 from shared.planning.timing import TimingError, parameterize
@@ -57,11 +63,14 @@ def main() -> None:
     collision = CollisionModel(robot, load_scene("deploy/scene.yaml"))
     planner = JointPlanner(collision, PlannerOptions(seed=args.seed, time_budget=1.0))
     replanner = Replanner(collision, planner, SsmParameters(), options=ReplanOptions(patience=args.stay))
+    in_cell = Replanner(collision, planner, SsmParameters(), options=ReplanOptions(
+        patience=args.stay, search=SearchOptions(time_budget=CELL_BUDGET), action_budget=ACTION_BUDGET))
     old = straight_line_trajectory(Q_START, Q_GOAL, robot.limits.velocity, robot.limits.acceleration)
     rng = np.random.default_rng(args.seed)
     rrt_ms, search_ms, replan_ms = [], [], []
     rrt_time, search_time, direct_time = [], [], []
     taken = kept = failed = 0
+    counted_ms, counted_time, budget_time, costed_share = [], [], [], []
     parameterize(np.vstack([Q_START, Q_GOAL]), robot.limits)         # warm the JIT and toppra
     replanner.path(Q_START, Q_GOAL, placement(np.random.default_rng(0)))
     for _ in range(args.placements):
@@ -85,6 +94,13 @@ def main() -> None:
             rrt_time.append(replanner.predicted_time(rrt, 0.0, humans))
             search_time.append(replanner.predicted_time(searched, 0.0, humans))
             direct_time.append(replanner.predicted_time(old, 0.0, humans))
+        # the same search bounded by the cell's wall-clock budget and by its counts alone (the simulation)
+        counted, budgeted, wall = both_bounds(replanner, in_cell, humans, args.stay)
+        if counted is not None and budgeted is not None:
+            counted_ms.append(wall)
+            counted_time.append(counted.predicted)
+            budget_time.append(budgeted.predicted)
+            costed_share.append(budgeted.costed / counted.costed)
         # a replan: the robot on the straight shuttle, the moment a 1 s horizon first sees the person
         full = horizon_check(old, 0.0, collision, humans, HorizonOptions(samples=200, spacing=0.02))
         if full.first_infeasible is None:
@@ -105,6 +121,9 @@ def main() -> None:
               "predicted_s": {"direct": stats(direct_time), "rrt_connect": stats(rrt_time), "search": stats(search_time)},
               "search_vs_rrt_connect": ratio(search_time, rrt_time), "search_vs_direct": ratio(search_time, direct_time),
               "replans": {"taken": taken, "kept_old": kept, "failed": failed},
+              "cell_budget": {"counted_search_ms": stats(counted_ms), "costed_share": stats(costed_share),
+                              "budget_vs_counts": ratio(budget_time, counted_time),
+                              "worse_in_budget": int(np.sum(np.array(budget_time) > np.array(counted_time) + 1e-9))},
               "cases": {"placements": len(rrt_ms), "compared": len(rrt_time), "replans": len(replan_ms)}}
     print(f"new goal, predicted time under the SSM (person staying {args.stay:g} s), median over "
           f"{len(rrt_time)} placements: direct {result['predicted_s']['direct']['median']} s, RRT-Connect "
@@ -114,7 +133,26 @@ def main() -> None:
           f"{result['search_plan_ms']['median']} ms (p95 {result['search_plan_ms']['p95']} ms)")
     print(f"horizon replans: {taken} taken, {kept} kept the old trajectory, {failed} failed; compute median "
           f"{result['replan_ms']['median']} ms, p95 {result['replan_ms']['p95']} ms")
+    cell = result["cell_budget"]
+    print(f"the cell's budget ({CELL_BUDGET * 1e3:.0f} ms a search, {ACTION_BUDGET * 1e3:.0f} ms an action) against "
+          f"the counts alone (the simulation's search, median {cell['counted_search_ms']['median']} ms, p95 "
+          f"{cell['counted_search_ms']['p95']} ms): costed {cell['costed_share']['median']} of the candidates "
+          f"(median), predicted times {cell['budget_vs_counts']} (sums), worse in {cell['worse_in_budget']} of "
+          f"{len(budget_time)}")
     print(json.dumps(result))
+
+
+def both_bounds(counted: Replanner, budgeted: Replanner, humans: HumanCapsules, stay: float):
+    """The new goal's search, seeded alike, bounded by its counts (counted) and by the cell's wall-clock
+    budget (budgeted, within one planning action): (SearchResult, SearchResult, counted wall ms)."""
+    seeds = (np.vstack([Q_START, Q_GOAL]),)
+    t0 = time.perf_counter()
+    full = counted.search.search(Q_START, Q_GOAL, humans, counted._rng(Q_START, Q_GOAL), stay, seeds)
+    wall = (time.perf_counter() - t0) * 1e3
+    budgeted.begin()
+    cut = budgeted.search.search(Q_START, Q_GOAL, humans, budgeted._rng(Q_START, Q_GOAL), stay, seeds)
+    budgeted.end()
+    return full, cut, wall
 
 
 if __name__ == "__main__":
