@@ -108,7 +108,8 @@ def main() -> None:
         s_seen = max(0.0, float(full.s[full.first_infeasible]) - 1.0)
         t0 = time.perf_counter()
         try:
-            taken += replanner.on_horizon(old, s_seen, Q_GOAL, humans) is not None
+            speed = float(np.abs(old.sample(s_seen)[1]).max())          # on the shuttle at full speed
+            taken += replanner.on_horizon(old, s_seen, Q_GOAL, humans, speed_now=speed) is not None
         except ReplanFailed as exc:
             kept += "kept the old" in str(exc)
             failed += "kept the old" not in str(exc)
