@@ -32,7 +32,7 @@ from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock
 from shared.planning.horizon import reach_gap
-from shared.planning.loop import PlanningInputs, PlanningLoop, held_by_ssm, idle_time
+from shared.planning.loop import PlanningInputs, PlanningLoop, held_by_ssm, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
@@ -216,6 +216,7 @@ def main(argv: list[str] | None = None) -> int:
         replanner.path(mid, mid + 0.3, someone)
     except (PlanningError, TimingError):
         pass
+    warm_up(replanner)               # and every kind of action once, so none loads a kernel when it counts
     service = PlannerService(shell, PlanningLoop(replanner, beta_replans=not args.no_beta))
     return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, "
                         f"keys {shell.keys.prefix}/",

@@ -16,7 +16,7 @@ from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
 from shared.planning.horizon import reach_gap
-from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, StillClock, idle_time
+from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, StillClock, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
@@ -184,6 +184,25 @@ def test_an_action_budget_stops_the_searches_in_time_for_the_rest_of_the_action(
     assert deadline < 0.0
     assert cut.costed < SearchOptions().candidates and budgeted.search.free(cut.waypoints, someone)
     assert 0.0 <= budgeted.finishing < 0.02        # learnt from what the rest took (at most the budget)
+
+
+def test_the_warm_up_runs_every_kind_of_action_and_leaves_no_trace():
+    """The planner service warms up with one action of each kind (a goal, the horizon, beta moving, crawling
+    and at rest) so that no kernel is loaded inside a real one; afterwards the replanner plans exactly as a
+    fresh one: nothing remembered, the learnt finishing time as it was."""
+    segments, radii = body_segments(-1.0, 0.0, 1.0, np.array([-0.4, 0.0, 0.8]))   # reaching over the shuttle
+    someone = HumanCapsules.from_arrays(segments, radii, np.zeros(segments.shape), np.ones(len(radii), bool))
+
+    def fresh() -> Replanner:
+        return Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+                         options=ReplanOptions(seed=5))
+
+    warmed = fresh()
+    warmed.finishing = 0.037
+    assert warm_up(warmed) >= 4 and warmed.searches >= 3        # a goal and the replan requests searched
+    assert warmed.remembered == [] and warmed.finishing == 0.037
+    first, second = (r.plan_goal(Q_START, Q_GOAL, someone, 1) for r in (warmed, fresh()))
+    assert np.array_equal(first.positions, second.positions) and first.duration == second.duration
 
 
 # ------------------------------------------------------------------------ the service, in-process

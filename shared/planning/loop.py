@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from shared.core.humans import HumanCapsules
-from shared.core.trajectory import Trajectory
+from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.blocked import GoalBlock, goal_block
 from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
 from shared.planning.ompl_planner import PlanningError
@@ -201,3 +201,41 @@ class PlanningLoop:
                                                                  waited=inputs.waited))
         except (PlanningError, TimingError, ReplanFailed) as exc:
             return PlanningOutcome("goal", refused=f"{type(exc).__name__}: {exc}")
+
+
+def warm_up(replanner: Replanner) -> int:
+    """Run every kind of planning action once on a made-up situation, so that the compiled kernels they
+    call are loaded before the first real one needs them (numba loads each from its cache at its first
+    call: 50-70 ms each, paid inside the first horizon check, prediction or beta replan with someone
+    near). The shuttle turns the first joint by 1 rad from the middle of the joint ranges; a person stands
+    beside the flange half way along it. A goal, a horizon check, and a beta replan moving, crawling and
+    at rest; whatever each decides is thrown away, and the replanner forgets it all (remembered paths, the
+    learnt finishing time). Returns the number of actions taken (errors count: the kernels ran)."""
+    robot = replanner.collision.robot
+    lim = robot.limits
+    q_a = (lim.lower + lim.upper) / 2
+    q_b = q_a.copy()
+    q_b[0] = min(lim.upper[0], q_a[0] + 1.0)
+    shuttle = straight_line_trajectory(q_a, q_b, lim.velocity, lim.acceleration)
+    flange = robot.capsule_segments((q_a + q_b) / 2)[-1, 1]
+    outward = np.array([flange[0] - robot.reach_centre[0], flange[1] - robot.reach_centre[1], 0.0])
+    where = flange + 0.3 * outward / max(float(np.linalg.norm(outward)), 1e-9)
+    person = HumanCapsules.from_arrays([[where - [0.0, 0.0, 0.5], where + [0.0, 0.0, 0.3]]], [0.12],
+                                       np.zeros((1, 2, 3)), [True])
+    finishing = replanner.finishing
+    loop = PlanningLoop(replanner)
+    nominal = float(np.abs(shuttle.sample(0.5 * shuttle.duration)[1]).max())
+    turns = [(True, None, 0.0, False, False),                 # a new goal with the person beside the path
+             (False, 0.3, nominal, False, False),             # the horizon check (and a merge)
+             (False, 0.4, nominal, True, False),              # a replan request while moving: a merge
+             (False, 0.5, 0.1 * nominal, True, True),         # crawling, held: a stop plan
+             (False, 0.5, 0.0, True, True)]                   # at rest: a plan from rest
+    taken = 0
+    for k, (new_goal, at, speed, beta, held) in enumerate(turns):
+        following = None if at is None else (shuttle, at * shuttle.duration)
+        q = q_a if at is None else shuttle.sample(at * shuttle.duration)[0]
+        inputs = PlanningInputs(q_b, new_goal, q, person, k, following, speed, beta, 0.0, 1, held)
+        taken += loop.step(float(k), inputs) is not None
+    replanner.forget()
+    replanner.finishing = finishing
+    return taken
