@@ -186,6 +186,39 @@ def test_an_action_budget_stops_the_searches_in_time_for_the_rest_of_the_action(
     assert 0.0 <= budgeted.finishing < 0.02        # learnt from what the rest took (at most the budget)
 
 
+def test_a_merge_tries_further_junctions_only_within_the_action_budget(monkeypatch):
+    """Every junction a merge tries times a whole law; in the cell a merge that failed at two junctions took
+    685 ms. With an action budget, a try after the budget is spent is not made: the replan is refused
+    saying what was tried. Without one (the simulation) every junction and stop-and-go are tried."""
+    import shared.planning.replanner as replanner_module
+    from shared.planning.timing import TimingError
+
+    tried = []
+
+    def failing(waypoints, *args, **kwargs):
+        tried.append(len(waypoints))
+        raise TimingError("the smoothed path leaves the joint position limits")
+
+    monkeypatch.setattr(replanner_module, "parameterize", failing)
+
+    def merge_with(budget):
+        tried.clear()
+        replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+                              options=ReplanOptions(seed=5, action_budget=budget))
+        replanner.begin()
+        try:
+            with pytest.raises(ReplanFailed) as refused:
+                replanner.replan(OLD, 0.5, Q_GOAL, None, "horizon", s_branch=1.5)
+        finally:
+            replanner.end()
+        return str(refused.value), len(tried)
+
+    unbounded, tries = merge_with(None)
+    assert tries == len(ReplanOptions().lookback) + 1 and unbounded.startswith("no junction allows")
+    spent, tries = merge_with(1e-6)                       # spent before the first try ends
+    assert tries == 1 and spent.startswith("out of the action's time after through at s=1.20")
+
+
 def test_the_warm_up_runs_every_kind_of_action_and_leaves_no_trace():
     """The planner service warms up with one action of each kind (a goal, the horizon, beta moving, crawling
     and at rest) so that no kernel is loaded inside a real one; afterwards the replanner plans exactly as a

@@ -242,12 +242,18 @@ class Replanner:
         have = float(self.collision.clearances(configs, humans, inflation=0.0).min()) - 2 * self.collision.margins.tolerance
         return min(inflation, have)
 
+    def _out_of_time(self) -> bool:
+        """The planning action's budget is spent (never without an action budget: the simulation)."""
+        return self._began is not None and time.perf_counter() > self._began + self.options.action_budget
+
     def _branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
                 humans: HumanCapsules | None, version: int, waited: float) -> tuple[Trajectory, float]:
         """Merge at a junction s_j before s_branch: from s_j the old geometry to the branch point, then the
         searched path to the goal. First continuously through the branch point (junctions further back give
         more room to slow down before turning); else stop-and-go: decelerate along the old path to rest at
-        the branch point, then the new path from rest. Returns (merged, s_j)."""
+        the branch point, then the new path from rest. Each further try needs time left in the planning
+        action (each one times a whole law, up to three smoothings: a merge that failed at two junctions took
+        685 ms in a demo); out of it, ReplanFailed says what was tried. Returns (merged, s_j)."""
         s_first = min(s_now + self.options.lead, s_branch)     # never before the planning lead
         junctions = sorted({max(s_first, s_branch - lb) for lb in self.options.lookback}, reverse=True)
         q_branch = old.sample(float(s_branch))[0]
@@ -260,6 +266,8 @@ class Replanner:
             return old.sample(np.linspace(s_j, s_branch, max(2, int(np.ceil((s_branch - s_j) / 0.05)) + 1)))[0]
 
         for s_j in junctions:                       # continuous through the branch point
+            if errors and self._out_of_time():
+                raise ReplanFailed("out of the action's time after " + "; ".join(errors))
             try:
                 part = parameterize(np.vstack([lead_in(s_j), tail[1:]]), self.limits,
                                     start_velocity=old.sample(float(s_j))[1], collision=self.collision,
@@ -268,6 +276,8 @@ class Replanner:
             except TimingError as exc:
                 errors.append(f"through at s={s_j:.2f}: {exc}")
         s_j = junctions[-1]                          # stop-and-go, with the most room to stop
+        if self._out_of_time():
+            raise ReplanFailed("out of the action's time after " + "; ".join(errors))
         try:
             stop = parameterize(lead_in(s_j), self.limits, start_velocity=old.sample(float(s_j))[1],
                                 collision=self.collision, humans=humans,
