@@ -216,7 +216,7 @@ def test_a_merge_tries_further_junctions_only_within_the_action_budget(monkeypat
     unbounded, tries = merge_with(None)
     assert tries == len(ReplanOptions().lookback) + 1 and unbounded.startswith("no junction allows")
     spent, tries = merge_with(1e-6)                       # spent before the first try ends
-    assert tries == 1 and spent.startswith("out of the action's time after through at s=1.20")
+    assert tries == 1 and spent.startswith("no merge within the action's time: through at s=1.20")
 
 
 def test_the_warm_up_runs_every_kind_of_action_and_leaves_no_trace():

@@ -204,3 +204,21 @@ def test_the_search_with_no_time_left_returns_the_best_path_found_so_far():
     found = search.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(1), stay=5.0, seeds=(direct,))
     assert found is not None and search.free(found.waypoints, NEAR)
     assert found.costed < SearchOptions().candidates                 # cut short, yet an answer
+
+
+def test_no_candidate_waypoint_is_put_on_a_joint_limit():
+    """The lifts raise the elbow by up to 1.2 rad and the detours offset every joint: near a limit they are
+    clipped, and clipped onto it the trajectory touched the limit and the driver clamped its commands. The
+    waypoints between the ends stay LIMIT_MARGIN inside the joint ranges, the refinement's too."""
+    from shared.planning.path_search import LIMIT_MARGIN
+    search = PathSearch(CM, COST, SearchOptions())
+    near = Q_START.copy()
+    near[2] = LIM.upper[2] - 0.1                       # the elbow 0.1 rad below its limit: the lifts go past it
+    rng = np.random.default_rng(3)
+    candidates = search._lifts(near, Q_GOAL) + search._detours(near, Q_GOAL, rng, 72) \
+        + search._escapes(near, Q_GOAL, NEAR, rng)
+    inner = np.vstack([w[1:-1] for w in candidates])
+    assert np.all(inner >= LIM.lower + LIMIT_MARGIN - 1e-12) and np.all(inner <= LIM.upper - LIMIT_MARGIN + 1e-12)
+    assert np.isclose(inner[:, 2].max(), LIM.upper[2] - LIMIT_MARGIN)    # clipped, not dropped
+    found = search.search(near, Q_GOAL, NEAR, np.random.default_rng(4), 5.0, (np.vstack([near, Q_GOAL]),))
+    assert np.all(found.waypoints[1:-1] <= LIM.upper - LIMIT_MARGIN + 1e-12)

@@ -37,6 +37,10 @@ from shared.scaling.problem import ssm_alpha_bound
 CELL_BUDGET = 0.08   # s of wall clock per search in the planner service (the simulation charges it per search)
 ACTION_BUDGET = 0.1  # s of wall clock for a whole planning action in the planner service (searches + the rest)
 BENT_WITHIN = 1.5    # a straight winner: the best free bent candidate within this factor of its time is refined
+# rad: how far inside the joint ranges a candidate's waypoints stay. A waypoint clipped onto a limit made the
+# trajectory touch it, and the driver clamped the commands there (it keeps every setpoint able to stop
+# before a limit, and a command on the limit is a hair beyond it in floating point)
+LIMIT_MARGIN = 0.01
 
 
 @dataclass(frozen=True)
@@ -75,6 +79,8 @@ class PathSearch:
         self.cost = cost
         self.options = options
         self.limits = collision.robot.limits
+        self.lower = self.limits.lower + LIMIT_MARGIN      # where candidates' waypoints are clipped to
+        self.upper = self.limits.upper - LIMIT_MARGIN
         # perf_counter time by which the current planning action must have its path (None: no action budget);
         # a search stops at the earlier of this and its own time_budget (set by Replanner.begin)
         self.deadline: float | None = None
@@ -89,7 +95,7 @@ class PathSearch:
         """`count` random detours: the straight line with a joint offset (radius cycling through
         options.radii) at one point, over a stretch (a plateau), or taken at once; within the limits."""
         radii = np.asarray(self.options.radii)
-        lower, upper = self.limits.lower, self.limits.upper
+        lower, upper = self.lower, self.upper
         out = []
         for k in range(count):
             offset = rng.normal(0.0, 1.0, q_from.size) * radii[k % radii.size] / np.sqrt(q_from.size)
@@ -112,7 +118,7 @@ class PathSearch:
         line), which raises, lowers, folds or stretches the arm there. Random 6-joint offsets seldom hit
         these: a person's arm across a sweep is passed over by a few tenths of a radian of exactly these
         two joints, with the wrist left as it is."""
-        lower, upper = self.limits.lower, self.limits.upper
+        lower, upper = self.lower, self.upper
         first, second = self.options.lift_joints
         out = []
         for a in self.options.lift_offsets[0]:
@@ -136,7 +142,7 @@ class PathSearch:
         alpha = np.array([ssm_alpha_bound(self.collision.robot, q_from, d * self.limits.velocity, humans,
                                           self.cost.ssm) for d in directions])
         out = []
-        lower, upper = self.limits.lower, self.limits.upper
+        lower, upper = self.lower, self.upper
         for d in directions[np.argsort(-alpha, kind="stable")[:self.options.escape_best]]:
             for step in (0.2, 0.5, 1.0):
                 away = np.clip(q_from + step * d, lower, upper)
@@ -227,8 +233,7 @@ class PathSearch:
                 trial = np.delete(trial, 1 + int(rng.integers(inner)), axis=0)
             else:
                 i = 1 + int(rng.integers(inner))
-                trial[i] = np.clip(trial[i] + rng.normal(0.0, step, q_from.size), self.limits.lower,
-                                   self.limits.upper)
+                trial[i] = np.clip(trial[i] + rng.normal(0.0, step, q_from.size), self.lower, self.upper)
             value = cost(trial)
             costed += 1
             if value < predicted:

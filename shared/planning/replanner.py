@@ -267,7 +267,7 @@ class Replanner:
 
         for s_j in junctions:                       # continuous through the branch point
             if errors and self._out_of_time():
-                raise ReplanFailed("out of the action's time after " + "; ".join(errors))
+                raise ReplanFailed("no merge within the action's time: " + "; ".join(errors))
             try:
                 part = parameterize(np.vstack([lead_in(s_j), tail[1:]]), self.limits,
                                     start_velocity=old.sample(float(s_j))[1], collision=self.collision,
@@ -277,7 +277,7 @@ class Replanner:
                 errors.append(f"through at s={s_j:.2f}: {exc}")
         s_j = junctions[-1]                          # stop-and-go, with the most room to stop
         if self._out_of_time():
-            raise ReplanFailed("out of the action's time after " + "; ".join(errors))
+            raise ReplanFailed("no merge within the action's time: " + "; ".join(errors))
         try:
             stop = parameterize(lead_in(s_j), self.limits, start_velocity=old.sample(float(s_j))[1],
                                 collision=self.collision, humans=humans,
