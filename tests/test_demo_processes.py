@@ -11,9 +11,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from evidence.scenarios import Q_GOAL, Q_START
+from shared.config import CellConfig
 from tests.util import require_namespace
 
 pytestmark = pytest.mark.cell      # runs processes, a namespace or Zenoh sessions: `make test`, not `make check`
@@ -69,7 +71,17 @@ def test_runs_to_the_end_with_zero_violations(report):
         was_there = there
     taken = [e for e in summary["replans"] if e["ok"]]
     phase3 = [e["t"] for e in taken if 13.8 <= e["t"] < 18.0]
-    assert phase3 and any(phase3[0] < t < 18.0 for t in arrivals), (summary["replans"], arrivals)
+    if phase3:      # held beside the arm: a replan takes the robot round it, and it arrives while the arm stays
+        assert any(phase3[0] < t < 18.0 for t in arrivals), (summary["replans"], arrivals)
+    else:           # or the goal planned as the arm came in already goes round it: it arrives while the arm
+        # stays, on a trajectory that leaves the straight shuttle, and is never held there for longer than a
+        # replan request's cooldown (with no request answered, that would be a stall the paper does not have)
+        assert any(13.8 <= t < 18.0 for t in arrivals), (summary["replans"], arrivals)
+        detours = [tr["t"] for tr in json.loads((out / "trajectories.json").read_text())
+                   if tr["reason"] == "goal" and 12.0 <= tr["t"] < 18.0 and off_the_line(tr["positions"]) > 0.1]
+        alpha_min = CellConfig().scaling.alpha_min
+        held = sum(1 for r in rows if 13.8 <= float(r["t"]) < 18.0 and float(r["alpha"]) < alpha_min)
+        assert detours and held <= 50, (summary["replans"], arrivals, detours, held)      # 0.5 s at 100 Hz
     phase4 = [e for e in taken if 18.0 <= e["t"] < 22.8 and e["reason"] == "beta"]
     moved_on = False
     if phase4:
@@ -104,3 +116,11 @@ def test_report_folder_holds_the_trace_and_the_figures(report):
         rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.num_rows
     assert rows["/world/robot/measured"] > 2000 and rows["/world/humans"] > 1000, rows
     assert rows["/scaling/alpha"] == summary["cycles_completed"] and rows["/world/planner/current"] >= 5, rows
+
+
+def off_the_line(positions) -> float:
+    """How far (rad, largest joint) a trajectory's knots leave the straight joint-space line between its ends."""
+    p = np.asarray(positions, dtype=float)
+    line = p[-1] - p[0]
+    u = np.clip((p - p[0]) @ line / max(float(line @ line), 1e-12), 0.0, 1.0)
+    return float(np.abs(p - p[0] - u[:, None] * line).max())
