@@ -27,17 +27,15 @@ import numpy as np
 
 from services.common import ServiceShell, open_service, serve, service_parser, setup_logging
 from shared.core.errors import HrcError
-from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock
 from shared.planning.horizon import reach_gap
 from shared.planning.loop import PlanningInputs, PlanningLoop, held_by_ssm, idle_time, warm_up
-from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
+from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import Scene, load_scene
-from shared.planning.timing import TimingError
 from shared.robot.model import default_robot
 from shared.wire.convert import humans_from_msg, trajectory_to_msg
 from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
@@ -208,15 +206,7 @@ def main(argv: list[str] | None = None) -> int:
                             action_budget=ACTION_BUDGET)
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
                           options=options)
-    lim = collision.robot.limits
-    mid = (lim.lower + lim.upper) / 2
-    someone = HumanCapsules.from_arrays([[[-3.0, 0.0, 0.9], [-3.0, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
-    try:                             # compile the kernels (collision, SSM time cost) and warm toppra
-        replanner.plan_fresh(mid, mid + 0.05, None, 0)
-        replanner.path(mid, mid + 0.3, someone)
-    except (PlanningError, TimingError):
-        pass
-    warm_up(replanner)               # and every kind of action once, so none loads a kernel when it counts
+    warm_up(replanner)               # every kind of action once: no kernel is loaded (or toppra warmed) when it counts
     service = PlannerService(shell, PlanningLoop(replanner, beta_replans=not args.no_beta))
     return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, "
                         f"keys {shell.keys.prefix}/",
