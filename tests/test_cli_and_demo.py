@@ -91,34 +91,42 @@ def test_the_paper_phases_with_both_layers():
     # robot is not held there. Since the time law follows the searched detours' corners at speed, the plans
     # of phase 3 already keep it out of the person's slowdown in phase 4 (alpha never below alpha_min
     # there); wherever the scaling layer does hold it below alpha_min for longer than a replan request's
-    # cooldown, a beta replan must take it on. The beta replan of phase 4 itself: the same phases in 12 s,
-    # below.
+    # cooldown, a beta replan must take it on. Phase 4 with 3 s phases: below.
     def legs_between(run, start, end):
         return sum(1 for a, b in zip(run.records, run.records[1:]) if b.shuttles > a.shuttles and start <= b.t < end)
     assert any(13.8 <= t < 18.0 for t, _ in done) and legs_between(result, 13.8, 18.0) >= 1, done
     assert legs_between(result, 19.2, 22.8) >= 1
-    def answered(start, end):                # a hold below alpha_min from start to end: short, or a beta replan
-        assert end - start <= 0.5 or any(start <= t <= end and why == "beta" for t, why in done), (start, end, done)
+    def holds_answered(run, start, end):    # every hold below alpha_min from start to end: short, or a beta replan
+        taken = [e.t for e in run.replans if e.ok and e.reason == "beta"]
+        held_from, holds = None, []
+        for rec in (r for r in run.records if start <= r.t < end):
+            if rec.step.alpha < config.scaling.alpha_min and held_from is None:
+                held_from = rec.t
+            elif rec.step.alpha >= config.scaling.alpha_min and held_from is not None:
+                holds.append((held_from, rec.t))
+                held_from = None
+        if held_from is not None:            # still held when the phase ends
+            holds.append((held_from, end))
+        for a, b in holds:
+            assert b - a <= 0.5 or any(a <= t <= b for t in taken), (a, b, run.replans)
 
-    held_from = None
-    for rec in (r for r in result.records if 18.0 <= r.t < 22.8):
-        if rec.step.alpha < config.scaling.alpha_min and held_from is None:
-            held_from = rec.t
-        elif rec.step.alpha >= config.scaling.alpha_min and held_from is not None:
-            answered(held_from, rec.t)
-            held_from = None
-    if held_from is not None:                # still held when phase 4 ends
-        answered(held_from, 22.8)
-    # phase 4 at 12 s (3 s phases): alpha falls below alpha_min, the scaling layer asks for a replan, and a
-    # new plan takes the robot on to its goal while the person still reaches in (before 11.4 s), where the
-    # scaling layer alone stays held until the end
+    holds_answered(result, 18.0, 22.8)
+    # phase 4 at 12 s (3 s phases): the scaling layer alone stays held beside the person until the end;
+    # with both layers the robot reaches its goal while the person still reaches in. Where alpha falls below
+    # alpha_min and the scaling layer asks for a replan, a new plan takes the robot on (the replan's own
+    # leg is asserted); where the goal planned before already goes round the person, no hold goes
+    # unanswered. (Before the search drew its candidates by the goal alone, a replan was taken in this run;
+    # over 15 runs with the phase period 0.5 % longer or shorter and planning charged 0 to 90 ms, one was
+    # taken and led to the goal in 6 of them, the goal reached in phase 4 in 9; now no replan is needed in
+    # any, and the goal is reached in all 15.)
     fast = run_shuttle(robot, config, paper_phases(3.0), Q_START, Q_GOAL, 12.0, replanner=Replanner(
         collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm))
     fast_alone = run_shuttle(robot, config, paper_phases(3.0), Q_START, Q_GOAL, 12.0)
-    assert min(r.step.alpha for r in fast.records if 9.0 <= r.t < 11.4) < config.scaling.alpha_min
-    taken = [e.t for e in fast.replans if e.ok and e.reason == "beta" and 9.0 <= e.t < 11.4]
-    assert taken and legs_between(fast, taken[0], 12.0) >= 1, fast.replans
     assert legs_between(fast_alone, 9.0, 12.0) == 0 and fast.violations == 0
+    assert legs_between(fast, 9.0, 12.0) >= 1
+    taken = [e.t for e in fast.replans if e.ok and e.reason == "beta" and 9.0 <= e.t < 11.4]
+    assert not taken or legs_between(fast, taken[0], 12.0) >= 1, fast.replans
+    holds_answered(fast, 9.0, 11.4)
     # without the replan requests (the paper's ablation) and with the scaling layer alone, the robot is held
     # beside the arm until the person leaves
     no_beta = run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0, beta_replans=False,
