@@ -295,6 +295,22 @@ def test_a_person_crossing_out_of_the_path_is_waited_for_and_one_standing_in_it_
     assert not people_passing(OLD, 0.0, check, ARM_ACROSS, CM)
 
 
+def test_nearby_starts_to_one_goal_are_planned_alike():
+    """The search draws its candidates by the seed and the goal alone: from starts a few milliradians apart
+    (a leg that ended a moment earlier) the searched paths bend the same way. Seeded by the start too,
+    they differed by up to a radian (another draw, another winner), and the plans after a small change
+    of timing had nothing in common with those before it."""
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    for humans in (STANDING, ARM_ACROSS):
+        paths = []
+        for offset in (0.0, 0.002, 0.005, 0.01):
+            replanner.forget()
+            paths.append(replanner.path(Q_START + offset, Q_GOAL, humans))
+        for path in paths[1:]:
+            assert path.shape == paths[0].shape and np.abs(path[1:-1] - paths[0][1:-1]).max() < 0.1, (path, paths[0])
+    assert not np.array_equal(replanner._rng(Q_START, Q_GOAL).random(4), replanner._rng(Q_START, Q_START).random(4))
+
+
 def test_the_hold_clock_counts_only_while_the_scaler_keeps_asking():
     clock = HoldClock()
     clock.update(10.0, True)

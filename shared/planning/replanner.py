@@ -68,8 +68,8 @@ class ReplanOptions:
     search unless the people are predicted to slow it by more than this (the search itself takes up to
     its budget while the robot waits for its plan); action_budget (s): wall clock for a whole planning
     action, searches and the rest (None: none; the simulation bounds by counts), see ``begin``; seed: the
-    search's seed (each query gets its own stream, derived from the seed and the query, so the same query
-    gives the same path in any order); search, cost:
+    search's seed (each goal gets its own stream, derived from the seed and the goal, so the same query
+    gives the same path in any order, see ``_rng``); search, cost:
     the search's bounds and the time cost's sampling."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
@@ -165,7 +165,7 @@ class Replanner:
         Seeded by both ends (before), a start a milliradian away drew a different set, and a different
         winner: whether the paper's phase 3 was gone round depended on when, to the millisecond, a leg
         ended (9 of 15 runs with the phase period 0.5 % longer or shorter and planning charged 0, 60,
-        70, 80 or 90 ms; 15 of 15 now, the 24 s runs' progress 8.18 +- 0.37 shuttles -> 8.36 +- 0.13).
+        70, 80 or 90 ms; 15 of 15 now, the 24 s runs' progress 8.18 +- 0.37 shuttles -> 8.57 +- 0.15).
         The same query still gives the same path in any order."""
         goal = np.round(np.asarray(q_goal) * 1000.0).astype(np.int64) + 100_000
         return np.random.default_rng([self.options.seed, *goal.tolist()])
