@@ -52,7 +52,7 @@ from tools.report import Recording
 HOLD = 1.5                      # s a fault stays active (kills: until the supervisor restarts the service)
 # s: the joint state wait_moving goes by must be this recent. The latest one kept could be older: the stream
 # paused (a driver or bus just back from the previous fault), and a fault was injected into a robot that
-# had stood still for a while, judged "not moving at the injection" (3 of 8 campaigns)
+# had stood still for a while, judged "not moving at the injection" (4 of 8 campaigns)
 FRESH = 0.05
 MOVING = 0.3                    # rad/s: the robot counts as moving (at speed) above this joint speed
 AHEAD = 1.2                     # rad still to go on the leg when a fault is injected (about a second)
