@@ -181,6 +181,11 @@ class CanProbe:
         self.network.disconnect()
 
 
+def stamps_and_speeds(states: list[JointState]) -> tuple[np.ndarray, np.ndarray]:
+    """The joint states' stamps (s) and largest joint speeds (rad/s), as the judging functions take them."""
+    return np.array([js.stamp for js in states]), np.array([np.abs(js.qd).max() for js in states])
+
+
 class Campaign:
     """One operator session against the running cell; run(name) injects one fault and judges it."""
 
@@ -263,8 +268,7 @@ class Campaign:
 
     def _recorded_moving(self, t: float) -> bool:
         """The robot moves at time t by the recorded joint states (the judge's own test, ``moving_at``)."""
-        states = self._joint_samples(t - 1.0)
-        return moving_at(np.array([js.stamp for js in states]), np.array([np.abs(js.qd).max() for js in states]), t)
+        return moving_at(*stamps_and_speeds(self._joint_samples(t - 1.0)), t)
 
     def _samples_around(self, t: float) -> str:
         """The recorded joint states around time t, in arrival order (stamp - t in ms, seq, largest joint speed,
@@ -345,8 +349,7 @@ class Campaign:
 
     def _judge(self, v: FaultVerdict, t_inject: float, t_lift: float, before: ScalerStatus | None) -> None:
         states = self._joint_samples(t_inject - 1.0)
-        times = np.array([js.stamp for js in states])
-        speeds = np.array([np.abs(js.qd).max() for js in states])
+        times, speeds = stamps_and_speeds(states)
         during = times <= t_lift
         if v.moving_at_injection and not moving_at(times, speeds, t_inject):
             v.notes.append(f"not moving at the injection by the recorded joint states: {self._samples_around(t_inject)}")
