@@ -378,3 +378,20 @@ def test_a_search_starts_from_the_paths_the_last_ones_found_to_the_same_goal():
     assert bare.searches == 3                                 # nothing free among its seeds: RRT-Connect seeded it
     elsewhere = bare._recalled(Q_START, Q_START)              # paths to another goal are no seeds
     assert elsewhere == []
+
+
+def test_a_crawl_that_the_ssm_slows_further_is_stopped_where_it_gets_by_the_plans_arrival():
+    """Towards the arm reaching over the path, the bound falls from 0.21 at s = 0.75 to 0 by s = 0.9: at its
+    present rate the crawl would be predicted further on than it gets, and the robot would crawl on for
+    the difference after its plan has come (about 150 ms of a 400 ms stall in hrc demo). The stop is where
+    the time cost's bound takes it in stop_lead and half the stop."""
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    s_now = 0.75
+    q, v, _ = OLD.sample(np.array([s_now]))
+    rate = ssm_alpha_bound(ROBOT, q[0], v[0], STANDING, SsmParameters())
+    stop = replanner.on_beta(OLD, s_now, Q_GOAL, STANDING, speed_now=rate * float(np.abs(v).max()), waited=2.0,
+                             held=True)
+    stopping = rate * float(np.max(np.abs(v[0]) / (0.5 * LIM.acceleration)))
+    lead = replanner.options.stop_lead + 0.5 * stopping
+    assert stop.from_rest and s_now < stop.junction < s_now + rate * lead - 0.005
+    assert stop.junction == pytest.approx(replanner.cost.reached(OLD, s_now, STANDING, lead, replanner.stay(2.0)))

@@ -109,6 +109,30 @@ def test_people_stay_for_the_stay_and_move_on_along_their_velocities():
                                                                     moving=False)
 
 
+def test_reached_is_where_the_bound_lets_a_crawling_robot_get_in_that_time():
+    # nobody near: full speed, never past the end
+    assert COST.reached(OLD, 0.5, None, 0.3) == pytest.approx(0.8)
+    assert COST.reached(OLD, OLD.duration - 0.1, None, 0.3) == pytest.approx(OLD.duration)
+    for s0 in (0.5, 0.7, 0.8):                   # towards the person reaching over the path: slowing down
+        got = COST.reached(OLD, s0, NEAR, 0.3)
+        s, t = s0, 0.0                           # the reference: the scaling layer's bound, 0.1 ms steps
+        while t < 0.3 - 1e-12:
+            q, dq, _ = OLD.sample(np.array([s]))
+            s, t = s + max(ssm_alpha_bound(ROBOT, q[0], dq[0], NEAR, SSM), 0.02) * 1e-4, t + 1e-4
+        q, dq, _ = OLD.sample(np.array([s0]))
+        at_present_rate = s0 + 0.3 * ssm_alpha_bound(ROBOT, q[0], dq[0], NEAR, SSM)
+        # within 5 % of the way made (each step takes the bound at its start: a little ahead; 12 % with
+        # the first walk's steps alone, which span the whole 0.3 s of nominal time)
+        assert s - 1e-9 <= got <= s + 0.05 * (s - s0), (s0, got, s)
+        assert got < at_present_rate - 0.005, (s0, got, at_present_rate)
+    # a person who stays where the bound is zero: the robot does not get on while they stay (within the
+    # interpolation across the step it waits in: its 15 mm of path spread over its 5 s)
+    s = np.arange(0.0, OLD.duration, 0.01)
+    q, dq, _ = OLD.sample(s)
+    k = int(np.flatnonzero([ssm_alpha_bound(ROBOT, a, b, NEAR, SSM) == 0.0 for a, b in zip(q, dq)])[0])
+    assert s[k + 2] <= COST.reached(OLD, s[k + 2], NEAR, 0.3, stay=5.0) < s[k + 2] + 0.001
+
+
 def test_a_robot_that_may_not_approach_a_person_who_stays_waits_until_they_go():
     # the shuttle runs into the no-approach distance of a person reaching over it (bound 0) at s_in; a
     # short move from rest that ends 10 ms of shuttle past s_in may not be finished while they stay: it

@@ -63,8 +63,9 @@ class TimeCostOptions:
 @numba.njit(cache=True)
 def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
                     human_vel, human_known, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
-                    floor, wait_step):
-    """Sum of dts[k] / alpha_k along the samples, the people moved on by the time already predicted; from
+                    floor, wait_step, ends):
+    """Sum of dts[k] / alpha_k along the samples, the people moved on by the time already predicted (and,
+    in ends[k], the sum up to the end of sample k: when the robot is predicted to get there); from
     `stay` on (within a sample too) at full speed. A sample that would take longer than wait_step is
     waited at in steps of wait_step, each with the people moved on by then (up to extrapolation): someone
     walking away clears the robot's way after a moment, not after the whole stretch their position of
@@ -76,6 +77,7 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
     for k in range(qs.shape[0]):
         if n_h == 0 or total >= stay:
             total += dts[k]
+            ends[k] = total
             continue
         points, vel = chain_points_and_velocities(qs[k], dqs[k], placement, parent, local, joint, ancestry)
         left = 1.0                 # the fraction of this sample still to travel
@@ -104,6 +106,7 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
                 step = min(step, wait_step)
             total += step
             left = 0.0 if step >= need else left - step * alpha / dts[k]
+        ends[k] = total
     return total
 
 
@@ -209,15 +212,51 @@ class SsmTimeCost:
         self.evaluations += 1
         if humans is None or humans.count == 0 or samples.q.shape[0] == 0:
             return samples.nominal
+        return float(self._walk(samples, humans, stay, moving)[-1]) + samples.overhead
+
+    def _walk(self, samples: PathSamples, humans: HumanCapsules, stay: float, moving: bool) -> np.ndarray:
+        """When the robot is predicted to reach the end of each sample (s from the first one's start)."""
         r = self.robot
         placement, parent, local, joint = r.chain
         ssm, o = self.ssm, self.options
-        total = _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
-                                placement, parent, local, joint, r.ancestry, r.radii, humans.segments,
-                                humans.radii, humans.velocities, humans.velocity_known, *ssm.kernel_constants,
-                                ssm.tracking_margin,
-                                o.extrapolation if moving else 0.0, float(stay), o.alpha_floor, o.wait_step)
-        return float(total) + samples.overhead
+        ends = np.empty(samples.q.shape[0])
+        _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
+                        placement, parent, local, joint, r.ancestry, r.radii, humans.segments,
+                        humans.radii, humans.velocities, humans.velocity_known, *ssm.kernel_constants,
+                        ssm.tracking_margin, o.extrapolation if moving else 0.0, float(stay), o.alpha_floor,
+                        o.wait_step, ends)
+        return ends
+
+    def reached(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None, seconds: float,
+                stay: float = np.inf, samples: int = 20) -> float:
+        """The path parameter the robot is predicted to have reached `seconds` from now, going on from s_from
+        at the SSM's bound (the one the scaling layer holds it to; people moved on as in the cost). A robot
+        crawling towards a person slows down further as they close in: at its present rate it would be
+        predicted further on than it gets. The stretch ahead (at most `seconds` of nominal time) is walked
+        in `samples` steps, then again over the part the robot gets through: each step takes the bound at
+        its start, and a crawl gets through a few of the first walk's steps."""
+        end = min(trajectory.duration, s_from + seconds)
+        if humans is None or humans.count == 0 or end <= s_from:
+            return end
+        got = self._reach(trajectory, s_from, end, humans, seconds, stay, samples)
+        closer = s_from + 1.5 * (got - s_from) + 1e-4
+        if closer < end:
+            again = self._reach(trajectory, s_from, closer, humans, seconds, stay, samples)
+            if again < closer:
+                return again
+        return got
+
+    def _reach(self, trajectory: Trajectory, s_from: float, s_to: float, humans: HumanCapsules, seconds: float,
+               stay: float, samples: int) -> float:
+        """reached() over [s_from, s_to] in `samples` steps (s_to when the time does not run out there)."""
+        s = np.linspace(s_from, s_to, samples + 1)
+        q, dq, _ = trajectory.sample(s[:-1])
+        ends = self._walk(PathSamples(q, dq, np.diff(s)), humans, stay, True)
+        k = int(np.searchsorted(ends, seconds))
+        if k >= ends.size:
+            return s_to
+        began = ends[k - 1] if k > 0 else 0.0
+        return float(s[k] + (s[k + 1] - s[k]) * (seconds - began) / max(ends[k] - began, 1e-12))
 
     def path_time(self, waypoints: np.ndarray, humans: HumanCapsules | None, stay: float = np.inf,
                   moving: bool = True, from_rest: bool = True) -> float:
