@@ -343,9 +343,10 @@ class Replanner:
         v_nominal = np.abs(old.sample(float(s_now))[1])
         stopping = rate * float(np.max(v_nominal / (0.5 * self.limits.acceleration)))     # s of the robot's time
         lead = self.options.stop_lead + 0.5 * stopping                                    # with a linear stop
-        # where the crawl gets to by then: at most its present rate, and less where the SSM slows it further
-        s_stop = min(old.duration, s_now + rate * lead,
-                     self.cost.reached(old, s_now, humans, lead, self.stay(waited)))
+        # where the crawl gets to by then: at most its present rate, less where the SSM slows it further, and
+        # never within the robot's own stopping distance (the scaler could not stop it there)
+        crawl = min(s_now + rate * lead, self.cost.reached(old, s_now, humans, lead, self.stay(waited)))
+        s_stop = min(old.duration, max(s_now + rate * 0.5 * stopping, crawl))
         result = self._rest_plan(old, s_stop, q_goal, humans, reason, waited)
         return replace(result, junction=s_stop, plan_s=time.perf_counter() - started,
                        predicted=result.predicted + self.options.stop_lead + stopping)
