@@ -126,7 +126,7 @@ def test_reached_is_where_the_bound_lets_a_crawling_robot_get_in_that_time():
         assert s - 1e-9 <= got <= s + 0.05 * (s - s0), (s0, got, s)
         assert got < at_present_rate - 0.005, (s0, got, at_present_rate)
     # a person who stays where the bound is zero: the robot does not get on while they stay (within the
-    # interpolation across the step it waits in: its 15 mm of path spread over its 5 s)
+    # interpolation across the step it waits in: its 0.015 s of nominal path spread over its 5 s)
     s = np.arange(0.0, OLD.duration, 0.01)
     q, dq, _ = OLD.sample(s)
     k = int(np.flatnonzero([ssm_alpha_bound(ROBOT, a, b, NEAR, SSM) == 0.0 for a, b in zip(q, dq)])[0])

@@ -1,7 +1,8 @@
 """The SSM-aware time cost: how long a path takes when the scaling layer holds it to the ISO/TS 15066 limit.
 
 One cost for the whole planning layer: planning and shortening a path, choosing between keeping the old
-trajectory and taking a new one, and the simulation's planner all call ``SsmTimeCost``.
+trajectory and taking a new one, and the simulation's planner all call ``SsmTimeCost``; so does the stop
+plan for a crawling robot, for where the crawl gets before its plan can come (``SsmTimeCost.reached``).
 
 A path is walked sample by sample at its nominal joint velocity (the velocity the time law asks for at
 full speed). At every sample the scaling layer's own SSM bound gives the largest alpha the people allow
