@@ -37,7 +37,19 @@ def wait_status(prefix, pattern, timeout):
         if re.search(pattern, text, re.S):
             return text
         time.sleep(0.5)
-    raise AssertionError(f"status never matched {pattern!r}:\n{text}")
+    raise AssertionError(f"status never matched {pattern!r}:\n{text}\n{log_tails(prefix)}")
+
+
+def log_tails(prefix, lines=15):
+    """The last lines of every log in the cell's run folder (supervisord's and each program's): the fixture
+    removes the folder after the test, and a status that never came says nothing of why by itself."""
+    tails = []
+    for log in sorted(run_dir(prefix).glob("*.log")):
+        try:
+            tails.append(f"--- {log.name}:\n" + "".join(log.read_text(errors="replace").splitlines(True)[-lines:]))
+        except OSError as exc:
+            tails.append(f"--- {log.name}: {exc}")
+    return "\n".join(tails)
 
 
 @pytest.fixture
