@@ -63,6 +63,9 @@ def _path_deceleration(dq_ds, d2q_ds2, sdot, acceleration):
 
 
 STOP_REACH = 0.5          # nominal s: how far ahead a plan for a crawling robot may start (``ScalingLayer.take``)
+# the fraction of the joints' deceleration a stop for a plan from rest uses (``ScalingLayer._stop_cap``); the
+# planner puts the plan's start where such a stop can end (``shared.planning.replanner``)
+STOP_DECELERATION = 0.5
 REST_SPEED = 0.02         # rad/s (fastest joint): below it the robot counts as at rest (the planner's too)
 
 
@@ -178,12 +181,13 @@ class ScalingLayer:
 
     def _stop_cap(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
         """The path speed that brings the robot to rest at the pending plan's start: sqrt(2 d r) for the
-        remaining r (nominal s) at half the joints' deceleration d along the path (inf: none pending)."""
+        remaining r (nominal s) at STOP_DECELERATION of the joints' deceleration d along the path (inf: none
+        pending)."""
         if self.pending is None:
             return math.inf
         deceleration = _path_deceleration(np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
                                           self.sdot, self.robot.limits.acceleration)
-        return math.sqrt(max(0.0, 2.0 * 0.5 * deceleration * (self.pending[1] - self.s)))
+        return math.sqrt(max(0.0, 2.0 * STOP_DECELERATION * deceleration * (self.pending[1] - self.s)))
 
     def _advance(self, traj: Trajectory, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> None:
         """s moves on by sdot T; at a pending plan's start the robot comes to rest and the plan is taken, or,
