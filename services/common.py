@@ -171,7 +171,7 @@ def run_paced(period: float, tick, stop: threading.Event) -> None:
     spinning (that would hold the GIL while a callback waits); an overrun re-syncs instead of bursting.
     Python hands the GIL over every 5 ms by default, which would let any callback thread delay a tick that
     long: the switch interval is set to 0.5 ms. The thread runs with its process's scheduling, which the
-    process took at start (``open_service``, or the driver's and emulator's own start-up). A thread of its
+    process took after its warm-up (``serve``, or the driver's and emulator's own start-up). A thread of its
     own is named in the OS after its Python name (``prepare_loop_thread``)."""
     prepare_loop_thread()
     deadline = time.monotonic()
@@ -201,13 +201,11 @@ def run_synced(period: float, tick, stop: threading.Event, ready: threading.Even
 
 def open_service(name: str, args: argparse.Namespace):
     """(cell config, shell) of a service, or None after printing a clear error (the caller exits 2). The
-    process takes its scheduling first (``shared.scheduling.realtime``), so that every thread it starts,
-    Zenoh's included, has it: a safety-chain thread waiting for the GIL must not wait behind a thread of
-    its own process that a busy machine has preempted."""
+    process stays in the normal scheduling class here: it takes its own (``shared.scheduling.realtime``)
+    in ``serve``, after its warm-up (a compile in SCHED_FIFO starves the driver's SYNC cycle)."""
     from shared.config import load_config
     from shared.core.errors import HrcError
 
-    realtime(name)
     try:
         config = load_config(getattr(args, "config", None))
         return config, ServiceShell(name, args)
@@ -217,10 +215,13 @@ def open_service(name: str, args: argparse.Namespace):
 
 
 def serve(shell: ServiceShell, ready: str, loop, on_stop=None) -> int:
-    """Stop on SIGTERM / SIGINT, announce the service (it is ready), print its ready line, run
-    loop(stop) until stopped, close. on_stop() is called from the signal handler (e.g. to wake a worker)."""
+    """Take the service's scheduling (every thread of the process, after its warm-up: see
+    ``shared.scheduling.realtime``), stop on SIGTERM / SIGINT, announce the service (it is ready), print
+    its ready line with the scheduling, run loop(stop) until stopped, close. on_stop() is called from the
+    signal handler (e.g. to wake a worker)."""
     import signal
 
+    scheduling = realtime(shell.name)
     stop = threading.Event()
 
     def handler(*_):
@@ -231,7 +232,7 @@ def serve(shell: ServiceShell, ready: str, loop, on_stop=None) -> int:
     signal.signal(signal.SIGTERM, handler)
     signal.signal(signal.SIGINT, handler)
     shell.announce()
-    print(ready, flush=True)
+    print(f"{ready}, {scheduling}", flush=True)
     loop(stop)
     shell.close()
     return 0

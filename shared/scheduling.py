@@ -46,12 +46,31 @@ def cpus_for(name: str, available: set[int]) -> set[int] | None:
 
 
 def realtime(name: str) -> str:
-    """Put the calling thread (and the threads it starts later) in SCHED_FIFO at the priority of `name` and,
-    with HRC_PIN_CPUS=1, on the CPUs ``cpus_for`` gives it; returns what was applied, for the start-up
-    line. Where the OS refuses (no CAP_SYS_NICE, a container's limits) the thread stays in the normal class
-    and the cell relies on niceness alone (planner +10, monitor +5 in supervisord and hrc demo): said, not
+    """Put every thread of the calling process (and the threads they start later) in SCHED_FIFO at the
+    priority of `name` and, with HRC_PIN_CPUS=1, on the CPUs ``cpus_for`` gives it; returns what was
+    applied, for the start-up line. Every thread, not only the caller: a safety-chain thread waiting for the
+    GIL must not wait behind a thread of its own process (Zenoh's, canopen's) that a busy machine has
+    preempted.
+
+    Call it after the service's warm-up, never before: a SCHED_FIFO process that compiles its kernels into
+    numba's empty cache runs CPU-bound for tens of seconds, and two of them (scaler, tracker_ingest) use up
+    the real-time budget of a 2-core machine (sched_rt_runtime_us, 950 ms a second); the kernel then
+    throttles every SCHED_FIFO thread for the rest of each second, the driver's SYNC cycle included.
+    Measured on a cold cache beside a CPU-bound process: SYNC gaps of 59.8 ms one second, over 60 ms the
+    next, and every drive faulted on its SYNC time-out (0x8100) before the cell was up.
+
+    Where the OS refuses (no CAP_SYS_NICE, a container's limits) the threads stay in the normal class and
+    the cell relies on niceness alone (planner +10, monitor +5 in supervisord and hrc demo): said, not
     hidden."""
     return f"{_fifo(name)}, {_pin(name)}"
+
+
+def _threads() -> list[int]:
+    """The native ids of every thread of this process (Linux: /proc/self/task); [0] (the caller) elsewhere."""
+    try:
+        return sorted(int(tid) for tid in os.listdir("/proc/self/task"))
+    except OSError:
+        return [0]
 
 
 def _fifo(name: str) -> str:
@@ -59,7 +78,11 @@ def _fifo(name: str) -> str:
     if priority is None:
         return "normal scheduling"
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        for tid in _threads():
+            try:
+                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+            except ProcessLookupError:              # a thread that ended meanwhile
+                pass
         return f"SCHED_FIFO {priority}"
     except (AttributeError, OSError) as exc:
         return f"normal scheduling (SCHED_FIFO {priority} refused: {getattr(exc, 'strerror', None) or exc})"
@@ -73,7 +96,11 @@ def _pin(name: str) -> str:
         cpus = cpus_for(name, available)
         if cpus is None:
             return "any CPU" + (" (one available)" if len(available) < 2 else "")
-        os.sched_setaffinity(0, cpus)
+        for tid in _threads():
+            try:
+                os.sched_setaffinity(tid, cpus)
+            except ProcessLookupError:
+                pass
         return f"CPU {','.join(map(str, sorted(cpus)))}"
     except (AttributeError, OSError) as exc:
         return f"any CPU (affinity refused: {getattr(exc, 'strerror', None) or exc})"

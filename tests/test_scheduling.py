@@ -51,6 +51,53 @@ def test_realtime_says_what_it_applied_and_leaves_other_services_in_the_normal_c
     assert out[1].endswith("True") and "SCHED_FIFO 50" in out[1]          # applied, or refused and said so
 
 
+def test_realtime_reaches_the_threads_the_process_started_before_it():
+    code = textwrap.dedent("""
+        import os, threading
+        from shared.scheduling import realtime
+        gate = threading.Event()
+        thread = threading.Thread(target=gate.wait)       # like Zenoh's threads, started before the warm-up
+        thread.start()
+        said = realtime("scaler")
+        fifo = said.startswith("SCHED_FIFO")
+        print(said, os.sched_getscheduler(thread.native_id) == (os.SCHED_FIFO if fifo else os.SCHED_OTHER), fifo)
+        gate.set()
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parents[1]).stdout.split()
+    if out[-1] == "False":
+        print("SCHED_FIFO refused here: the thread is checked to stay in the normal class instead")
+    assert out[-2] == "True"
+
+
+def test_a_service_warms_up_in_the_normal_class_and_takes_its_scheduling_when_it_serves():
+    # a compile in SCHED_FIFO on a cold cache used up the real-time budget and faulted every drive (0x8100)
+    code = textwrap.dedent("""
+        import argparse, os
+        import services.common as common
+
+        class Shell:
+            def __init__(self, name, args):
+                self.name = name
+            def announce(self):
+                pass
+            def close(self):
+                pass
+
+        common.ServiceShell = Shell
+        _, shell = common.open_service("scaler", argparse.Namespace(config=None))
+        print(os.sched_getscheduler(0) == os.SCHED_OTHER)
+        seen = []
+        common.serve(shell, "ready", lambda stop: seen.append(os.sched_getscheduler(0)))
+        print(seen[0] == os.SCHED_FIFO)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parents[1]).stdout.splitlines()
+    assert out[0] == "True"                                      # open_service: still the normal class
+    assert out[1].startswith("ready, SCHED_FIFO 50") or out[1].startswith("ready, normal scheduling (SCHED_FIFO 50 refused")
+    assert out[2] == str(out[1].startswith("ready, SCHED_FIFO"))  # the loop runs in what serve took
+
+
 def test_the_driver_gets_the_last_cpu_and_the_rest_of_the_chain_the_others():
     assert cpus_for("robot_driver", {0, 1}) == {1} and cpus_for("hwsim", {0, 1}) == {0}
     assert cpus_for("scaler", {0, 1}) == {0} and cpus_for("tracker_ingest", {0, 1, 2, 3}) == {0, 1, 2}
