@@ -9,7 +9,11 @@ Prints progress with an estimate of the time left. Writes a plot (compare.png) i
 is one JSON object (overall and per kind: "kinds": {kind: {strategy: shuttles per minute}}; "ratios":
 {kind or "overall": {"full/scale_only": [ratio, low, high], "full/zones": [...]}}, the paired bootstrap
 95 % interval of evidence.stats: how far the ratio would move with another draw of scenarios. The paper's
-phases are one scripted scenario, the same in every seed, so their interval has no width).
+phases are one scripted scenario, the same in every seed, so their interval has no width; "empty_cell": the
+shuttles per minute with nobody in the cell, the most any strategy can do; "won_back": {kind or "overall":
+(full - scale_only) / (empty_cell - scale_only)}, the share of what the people cost the scaling layer
+alone that the planning layer wins back: a ratio's room depends on the kind, and this says how much of
+it is used).
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
                             [--kinds two_humans,random_walk] [--seed 0]
@@ -78,6 +82,15 @@ def aggregate(rows: list[dict], horizon: float) -> dict:
 
 
 PAIRS = (("full", "scale_only"), ("full", "zones"))
+
+
+def won_back(per_strategy: dict, empty: float) -> float | None:
+    """(full - scale_only) / (empty - scale_only) in shuttles per minute: the share of the throughput the
+    people cost the scaling layer alone that the full architecture wins back (None where they cost it
+    nothing)."""
+    full, scale = per_strategy["full"]["shuttles_per_min"], per_strategy["scale_only"]["shuttles_per_min"]
+    lost = empty - scale
+    return round((full - scale) / lost, 3) if lost > 1e-9 else None
 
 
 def ratios(rows: list[dict]) -> dict:
@@ -165,15 +178,22 @@ def main() -> int:
     from shared.safety.parameters import SsmParameters
     horizon = SsmParameters().horizon
     strategies = aggregate(rows, horizon)
+    _init()
+    nobody = _WORKER.empty_cell(args.duration).summary()          # per minute as aggregate() counts it
+    empty = round(nobody["shuttle_progress"] * 60.0 / nobody["duration_s"], 3)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "scenarios.json").write_text(json.dumps(rows))
     per_kind, intervals = {}, {}
+    print(f"empty cell: {empty:.2f}/min (nobody in it: the most any strategy can do); won back: the share of "
+          f"what the people cost scale_only that full gets back")
     for kind in kinds:
         of_kind = [r for r in rows if r["kind"] == kind]
         per = per_kind[kind] = aggregate(of_kind, horizon)
+        share = won_back(per, empty)
         print(f"{kind:<12} " + "  ".join(f"{s}: {per[s]['shuttles_per_min']:6.2f}/min stopped "
                                           f"{per[s]['stopped_fraction']:.2f} viol {per[s]['violations']}"
-                                          for s in STRATEGIES))
+                                          for s in STRATEGIES)
+              + ("" if share is None else f"  won back {100 * share:.0f} %"))
         intervals[kind] = ratios(of_kind)
     intervals["overall"] = ratios(rows)
     plot(rows, args.out, horizon, intervals)
@@ -188,6 +208,9 @@ def main() -> int:
                       "speedup_vs_zones": round(full / zones, 3) if zones else None,
                       "speedup_vs_scale_only": round(full / scale, 3) if scale else None,
                       "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in STRATEGIES} for k in kinds},
+                      "empty_cell": empty,
+                      "won_back": {k: won_back(per_kind[k], empty) for k in kinds}
+                      | {"overall": won_back(strategies, empty)},
                       "ratios": {name: {pair: None if isinstance(r, str) else r.as_list() for pair, r in pairs.items()}
                                  for name, pairs in intervals.items()}}))
     return 0

@@ -121,6 +121,17 @@ def paper_phases(period: float = 6.0) -> ScriptedHuman:
     ])
 
 
+class EmptyCell:
+    """Nobody in the cell (tracked, so the scaling layer runs at full speed): the reference every strategy
+    is held against, the most any of them can do in a scenario's time."""
+
+    def at(self, t: float) -> HumanCapsules:
+        return HumanCapsules.empty()
+
+    def phase(self, t: float) -> str:
+        return "empty cell"
+
+
 # ------------------------------------------------------------------------------- seeded random scenarios
 class Crowd:
     """Several scripted humans at once: their capsules together; the phase is the first one's."""

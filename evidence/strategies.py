@@ -6,14 +6,15 @@
   around the humans), each path search charged the planner service's wall-clock budget for it (80 ms)
   on the simulated clock: repeatable, and no kinder than the cell, where searches stop at that budget.
 Every run is judged by the independent monitor's rule (evidence.sim). ``Strategies`` builds the robot, the
-collision model and the planner once per process and runs any (strategy, scenario) on them.
+collision model and the planner once per process and runs any (strategy, scenario) on them, and the
+shuttle in an empty cell (``empty_cell``): the most any strategy can do in a scenario's time.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from evidence.scenarios import Q_GOAL, Q_START, make_scenario
+from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
 from evidence.sim import SimResult, run_shuttle
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
 from shared.config import CellConfig
@@ -59,3 +60,10 @@ class Strategies:
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
                                charge_planning=CELL_BUDGET, monitor=self.monitor)
         raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES}")
+
+    def empty_cell(self, duration: float) -> SimResult:
+        """The shuttle with nobody in the cell for `duration` s (the scaling layer, at full speed): what the
+        people cost a strategy is measured against it (bench/compare.py: the share of it won back)."""
+        cfg = self.config
+        layer = ScalingLayer(self.robot, cfg.ssm, cfg.scaling)
+        return run_shuttle(self.robot, cfg, EmptyCell(), Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor)

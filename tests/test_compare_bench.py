@@ -29,6 +29,14 @@ def test_a_strategy_that_did_nothing_gives_a_reason_not_a_crash():
     assert ratios["full/zones"].startswith("no ratio: ") and "did nothing" in ratios["full/zones"]
 
 
+def test_won_back_is_the_share_of_what_the_people_cost_scaling_alone():
+    won_back = load_compare().won_back
+    per = {"scale_only": {"shuttles_per_min": 16.0}, "full": {"shuttles_per_min": 19.0}}
+    assert abs(won_back(per, 25.0) - 3.0 / 9.0) < 1e-3                       # 3 of the 9 lost
+    assert won_back(per | {"full": {"shuttles_per_min": 15.0}}, 25.0) < 0    # worse than scaling alone
+    assert won_back(per, 16.0) is None                                        # the people cost nothing
+
+
 def run(*args: str, tmp_path: Path) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, str(ROOT / "bench" / "compare.py"), "--out", str(tmp_path), *args],
                           capture_output=True, text=True, timeout=300, cwd=ROOT)
@@ -46,5 +54,8 @@ def test_one_kind_runs_and_its_ratios_come_with_intervals(tmp_path):
     assert set(result["kinds"]) == {"standing"} and set(result["ratios"]) == {"standing", "overall"}
     low_mid_high = result["ratios"]["overall"]["full/scale_only"]
     assert low_mid_high[1] <= low_mid_high[0] <= low_mid_high[2]
+    # nobody in the cell: the robot shuttles at full speed, never slower than any strategy with a person in it
+    assert result["empty_cell"] >= max(result["kinds"]["standing"].values())
+    assert set(result["won_back"]) == {"standing", "overall"}
     assert (tmp_path / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(json.loads((tmp_path / "scenarios.json").read_text())) == 2
