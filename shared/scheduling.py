@@ -73,16 +73,29 @@ def _threads() -> list[int]:
         return [0]
 
 
+def _every_thread(apply) -> None:
+    """apply(tid) to every thread of the process, again while new ones appear (a thread that a thread not yet
+    changed starts meanwhile inherits the old setting; one started later inherits the new one). A thread
+    that ends meanwhile is passed over; any other refusal raises (OSError)."""
+    done: set[int] = set()
+    for _ in range(3):
+        new = [tid for tid in _threads() if tid not in done]
+        if not new:
+            return
+        for tid in new:
+            try:
+                apply(tid)
+            except ProcessLookupError:              # a thread that ended meanwhile
+                pass
+            done.add(tid)
+
+
 def _fifo(name: str) -> str:
     priority = PRIORITY.get(name)
     if priority is None:
         return "normal scheduling"
     try:
-        for tid in _threads():
-            try:
-                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
-            except ProcessLookupError:              # a thread that ended meanwhile
-                pass
+        _every_thread(lambda tid: os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority)))
         return f"SCHED_FIFO {priority}"
     except (AttributeError, OSError) as exc:
         return f"normal scheduling (SCHED_FIFO {priority} refused: {getattr(exc, 'strerror', None) or exc})"
@@ -96,11 +109,7 @@ def _pin(name: str) -> str:
         cpus = cpus_for(name, available)
         if cpus is None:
             return "any CPU" + (" (one available)" if len(available) < 2 else "")
-        for tid in _threads():
-            try:
-                os.sched_setaffinity(tid, cpus)
-            except ProcessLookupError:
-                pass
+        _every_thread(lambda tid: os.sched_setaffinity(tid, cpus))
         return f"CPU {','.join(map(str, sorted(cpus)))}"
     except (AttributeError, OSError) as exc:
         return f"any CPU (affinity refused: {getattr(exc, 'strerror', None) or exc})"
