@@ -47,6 +47,10 @@ def test_runs_to_the_end_with_zero_violations(report):
     cycle = summary["scaling_cycle"]                     # the scaler's own compute, every cycle accounted for
     assert cycle["cycles"] > 1000 and sum(cycle["methods"].values()) == cycle["cycles"]
     assert cycle["compute_us"]["p50"] > 0 and cycle["methods"].get("presolved", 0) > 0
+    # the printed last line counts the replans taken and refused apart (one count of both read as taken)
+    printed = json.loads(run.stdout.strip().splitlines()[-2])
+    taken = sum(e["ok"] for e in summary["replans"])
+    assert (printed["replans_accepted"], printed["replans_refused"]) == (taken, len(summary["replans"]) - taken)
     # every refusal says why, with the old and the new trajectory's predicted times (or the planning error,
     # or the blocked goal)
     for entry in summary["replans"]:

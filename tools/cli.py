@@ -268,9 +268,10 @@ def _demo_processes(args: argparse.Namespace, human) -> int:
     finally:
         if server is not None:
             server.stop()
+    accepted = sum(1 for e in summary["replans"] if e["ok"])
     print(json.dumps({k: v for k, v in summary.items() if k not in ("replan_stall_ms", "replans")}
-                     | {"replans": len(summary["replans"]), "replan_stall_ms": {
-                         k: summary["replan_stall_ms"][k] for k in ("median", "max", "goal_blocked")}}))
+                     | {"replans_accepted": accepted, "replans_refused": len(summary["replans"]) - accepted,
+                        "replan_stall_ms": {k: summary["replan_stall_ms"][k] for k in ("median", "max", "goal_blocked")}}))
     print(f"hrc demo: report in {args.out}/ (summary.json, trace.csv, figures: {', '.join(summary['figures'])})")
     if summary["violations"] is None:
         print("hrc demo: error: no summary from the safety monitor", file=sys.stderr)
