@@ -56,6 +56,7 @@ from shared.drives.prbt import (
     MODE_IP,
     NODE_IDS,
     PERIOD,
+    describe_emcy,
     to_counts,
     to_rad,
 )
@@ -185,7 +186,7 @@ class CanMaster:
         with self.lock:
             if entry.code:
                 self.feedback_raw[k].emcy = entry.code
-        log.warning("node %d EMCY 0x%04X", self.nodes[k].id, entry.code)
+        log.warning("node %d %s", self.nodes[k].id, describe_emcy(entry.code))
 
     def following_errors(self) -> np.ndarray | None:
         """The drives' last reported following errors (rad, 0x60F4), or None when none arrived since the
@@ -301,8 +302,11 @@ class Driver:
     def _report_latency(self) -> None:
         """The chains measured since the last report, and a warning when their p99 exceeds T_r."""
         lag, samples, following_error = self.drive_lag.report()
+        with self.core_lock:
+            stopped_by = self.core.stopped_by
         self._publish(self.drive_lag_pub, DriveLagReport(source="robot_driver", lag=lag, samples=samples,
-                                                         following_error=following_error, bound=self.drive_lag.bound))
+                                                         following_error=following_error, bound=self.drive_lag.bound,
+                                                         stopped_by=stopped_by))
         lag_verdict = self.drive_lag.check()
         if lag_verdict is not None:
             self._publish_event(lag_verdict)

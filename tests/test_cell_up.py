@@ -89,6 +89,8 @@ def test_a_user_session(cell):
         os.kill(pid, signal.SIGKILL)
         text = wait_status(prefix, r"robot:\s+stopped", timeout=10)
         assert "monitor:" in text
+        # and why, with what to do (the driver says it in its report, once a second, while it holds the stop)
+        text = wait_status(prefix, r"stopped:\s+no command for \d+ ms; `hrc recover`", timeout=10)
         new_pid = None
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:

@@ -141,6 +141,24 @@ def test_recovery_only_when_asked_and_safe():
     assert out.mode is Mode.RUNNING and all(d.interpolating for d in cell.drives)
 
 
+def test_why_the_drives_are_stopped_is_kept_until_they_run_again():
+    cell = Cell()
+    enable(cell)
+    assert cell.core.stopped_by == ""
+    cell.drives[2].raise_fault(0x8100)
+    cell.emcy[2] = 0x8100                                     # its EMCY, as the CAN master hands it on
+    out = cell.step(cell.q)
+    assert out.mode is Mode.STOPPED
+    assert cell.core.stopped_by == "joint 3: EMCY 0x8100 (no SYNC within the drive's time-out)"
+    for _ in range(5):                                        # still stopped: still said, for `hrc status`
+        cell.step(cell.q)
+    assert cell.core.stopped_by.startswith("joint 3: EMCY 0x8100")
+    cell.core.request("recover")
+    for _ in range(30):
+        out = cell.step(cell.q)
+    assert out.mode is Mode.RUNNING and cell.core.stopped_by == ""
+
+
 def test_an_early_command_gives_the_setpoint_the_next_cycle_will_send():
     cell = Cell()
     assert cell.core.command(Q0, cell.t) is None               # not running yet: nothing goes out early

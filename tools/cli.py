@@ -638,9 +638,11 @@ def cmd_status(args: argparse.Namespace) -> int:
         print(f"cell {args.prefix} at {args.connect}")
         print("  services: " + ", ".join(f"{s} {'up' if s in alive else 'down'}" for s in SERVICES if s != "cli"))
         js = latest.get(JointState)
+        lag = latest.get(DriveLagReport)
         print(f"  robot:    {js.drive_state if js else 'no joint state'}"
               + (f", q = {[round(float(v), 3) for v in js.q]}" if js else ""))
-        lag = latest.get(DriveLagReport)
+        if lag is not None and lag.stopped_by:
+            print(f"  stopped:  {lag.stopped_by}; `hrc recover` once its cause is gone")
         print("  drives:   " + (f"lag p99 {', '.join(f'{x * 1e3:.1f}' for x in lag.lag)} ms (bound "
                                  f"{lag.bound * 1e3:.0f} ms; 0 = not moving), following error max "
                                  f"{lag.following_error.max() * 1e3:.2f} mrad" if lag else "no drive report"))

@@ -26,7 +26,7 @@ import numba
 import numpy as np
 
 from shared.drives.cia402 import State, next_controlword, state_from_statusword
-from shared.drives.prbt import PERIOD
+from shared.drives.prbt import PERIOD, describe_emcy
 from shared.robot.model import JointLimits
 
 
@@ -163,6 +163,11 @@ class DriverCore:
         self._recover = False
         self.stop_reason = ""
 
+    @property
+    def stopped_by(self) -> str:
+        """Why the drives are stopped (the stop event's text), '' while they are not."""
+        return self.stop_reason if self.mode is Mode.STOPPED else ""
+
     # ------------------------------------------------------------------------------------------ inputs
     def command(self, q: np.ndarray, now: float, qd: np.ndarray | None = None) -> np.ndarray | None:
         """Take a new command: position q (rad) and velocity qd (rad/s; None: estimated from the last
@@ -198,7 +203,7 @@ class DriverCore:
             if fb.heartbeat_age > self.heartbeat_timeout:
                 return "heartbeat_lost", f"joint {k + 1}: no heartbeat for {fb.heartbeat_age * 1000:.0f} ms"
             if fb.emcy:
-                return "emcy", f"joint {k + 1}: EMCY 0x{fb.emcy:04X}"
+                return "emcy", f"joint {k + 1}: {describe_emcy(fb.emcy)}"
             if st in (State.FAULT, State.FAULT_REACTION_ACTIVE):
                 return "drive_fault", f"joint {k + 1}: drive in {st.value}"
         return None

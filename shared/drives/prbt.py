@@ -50,6 +50,17 @@ ERROR_REGISTER_BITS = {EMCY_FOLLOWING: 0x01, EMCY_LIMIT: 0x01, EMCY_SYNC_TIMEOUT
                        EMCY_RPDO_TIMEOUT: 0x11, EMCY_DRIVE_FAULT: 0x01}   # 0x10: communication error
 
 
+EMCY_MEANING = {EMCY_FOLLOWING: "following error beyond its window", EMCY_LIMIT: "setpoint beyond the position limits",
+                EMCY_SYNC_TIMEOUT: "no SYNC within the drive's time-out", EMCY_RPDO_TIMEOUT: "no new setpoint",
+                EMCY_DRIVE_FAULT: "drive fault"}
+
+
+def describe_emcy(code: int) -> str:
+    """An EMCY code as an operator reads it: 'EMCY 0x8100 (no SYNC within the drive's time-out)'."""
+    meaning = EMCY_MEANING.get(code)
+    return f"EMCY 0x{code:04X}" + (f" ({meaning})" if meaning else "")
+
+
 def error_register(code: int) -> int:
     """The error register (0x1001) that goes with an EMCY code: 0 after a reset, else bit 0 (generic) and
     the class bit the code belongs to (communication for a lost SYNC or setpoint)."""

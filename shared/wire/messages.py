@@ -253,17 +253,20 @@ class DriveLagReport(Message):
     """The robot driver's drive diagnostics since its last report, per joint: lag (s, p99 of how far the
     measured position ran behind the driver's own setpoints while the joint moved; 0 where it did not),
     samples (how many lag measurements), following_error (rad, the largest |0x60F4| the drive reported),
-    and bound (s, the configured ssm.drive_lag the lag is checked against)."""
+    bound (s, the configured ssm.drive_lag the lag is checked against), and stopped_by: why the driver
+    holds the drives stopped ('' while it does not; the stop's own event is sent once, this every second,
+    so `hrc status` can say it at any time)."""
 
     KIND: ClassVar[str] = "drive_lag"
     SPEC: ClassVar[dict[str, Spec]] = {"source": S, "lag": Q, "samples": Spec("farray", (DOF,), minimum=0.0),
                                        "following_error": Spec("farray", (DOF,), minimum=0.0),
-                                       "bound": Spec("float", minimum=0.0)}
+                                       "bound": Spec("float", minimum=0.0), "stopped_by": S}
     source: str
     lag: np.ndarray
     samples: np.ndarray
     following_error: np.ndarray
     bound: float
+    stopped_by: str = ""
 
 
 @dataclass(frozen=True)
