@@ -56,7 +56,7 @@ class SimRecord:
 @dataclass
 class ReplanEvent:
     t: float
-    reason: str                  # 'horizon', 'beta' or 'goal'
+    reason: str                  # 'horizon', 'beta', 'slow' or 'goal'
     ok: bool
     compute_ms: float
     detail: str = ""

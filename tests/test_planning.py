@@ -6,7 +6,7 @@ import contextlib
 import numpy as np
 import pytest
 
-from evidence.scenarios import Q_GOAL, Q_START, body_segments
+from evidence.scenarios import Q_GOAL, Q_START, body_segments, paper_phases
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
@@ -404,3 +404,29 @@ def test_a_crawl_that_the_ssm_slows_further_is_stopped_where_it_gets_by_the_plan
                              held=True)
     stopping = rate * float(np.max(np.abs(v[0]) / (0.5 * LIM.acceleration)))
     assert stop.junction == pytest.approx(s_now + rate * 0.5 * stopping)
+
+
+def test_a_path_predicted_slow_ahead_of_a_robot_at_speed_is_replanned_by_the_planning_layer():
+    """The paper's phase 4: a goal planned 40 ms before the person stops stepping in, and followed at speed
+    while they stand in its way. The longer they stand, the longer the prediction has them stay; once the
+    rest of the path is predicted more than slow_excess over its nominal time, the planning layer asks
+    itself for a replan (on_slow) and takes the merge round them, which is faster against the person as
+    they really stay, too."""
+    phases = paper_phases(6.0)
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=1)), SsmParameters(), options=ReplanOptions(seed=2))
+    plan = replanner.plan_goal(Q_GOAL, Q_START, phases.at(19.16), 9)
+    standing = phases.at(19.3)
+
+    def speed(s):                 # the robot at its nominal speed there
+        return float(np.abs(plan.sample(s)[1]).max())
+
+    assert replanner.on_slow(plan, 0.3, Q_START, standing, speed(0.3), 0.2) is None      # not predicted slow yet
+    taken = replanner.on_slow(plan, 0.9, Q_START, standing, speed(0.9), 0.8)
+    assert taken.reason == "slow" and taken.detail.startswith("path predicted slow (2.9")
+    assert taken.predicted < 0.9 * taken.baseline and not taken.from_rest
+    stays = 22.8 - 19.9           # the person leaves at 22.8 s
+    assert (replanner.cost.trajectory_time(taken.trajectory, 0.9, standing, stays)
+            < replanner.cost.trajectory_time(plan, 0.9, standing, stays))
+    # a robot the SSM has already slowed is the scaling layer's to ask for (beta); nobody near: nothing
+    assert replanner.on_slow(plan, 0.9, Q_START, standing, 0.3 * speed(0.9), 0.8) is None
+    assert replanner.on_slow(plan, 0.9, Q_START, ASIDE, speed(0.9), 0.8) is None

@@ -36,11 +36,13 @@ COLLISION = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
 class RecordingReplanner:
     """Answers every call at once and records it: the loop's cadence is what is under test here."""
 
-    def __init__(self, horizon=None, beta_fails: bool = False, horizon_fails: bool = False) -> None:
+    def __init__(self, horizon=None, beta_fails: bool = False, horizon_fails: bool = False, slow=None,
+                 slow_fails: bool = False) -> None:
         self.calls: list[str] = []
         self.searches = 0
         self.forgotten = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
+        self.slow, self.slow_fails = slow, slow_fails
         self.collision, self.ssm = COLLISION, SsmParameters()      # what the loop asks whether a goal is blocked
         self.open_actions = self.actions = 0
 
@@ -83,6 +85,12 @@ class RecordingReplanner:
             raise ReplanFailed("blocked, no way round")
         return self._result("horizon") if self.horizon else None
 
+    def on_slow(self, old, s, goal, humans, speed, waited, held):
+        self.calls.append("slow")
+        if self.slow_fails:
+            raise ReplanFailed("path predicted slow, kept the old trajectory")
+        return self._result("slow") if self.slow else None
+
 
 def inputs(**changes) -> PlanningInputs:
     base = dict(goal=Q_GOAL, new_goal=False, q=Q_START, humans=None, human_sample=0, following=(OLD, 0.2),
@@ -118,11 +126,11 @@ def test_beta_is_answered_at_most_once_a_cooldown_and_before_the_horizon():
     loop = PlanningLoop(RecordingReplanner(horizon=True), beta_cooldown=0.5)
     assert loop.step(0.0, inputs(beta=True, human_sample=1)).action == "beta"
     assert loop.step(0.1, inputs(beta=True, human_sample=1)).action == "horizon"   # beta cools down
-    assert loop.step(0.2, inputs(beta=True, human_sample=1)) is None               # same sample: nothing
+    assert loop.step(0.2, inputs(beta=True, human_sample=1)) is None     # same sample: the path ahead is not slow
     assert loop.replanner.held is False
     assert loop.step(0.5, inputs(beta=True, human_sample=1, held=True)).action == "beta"
     assert loop.replanner.held is True          # whether the SSM holds the robot's speed goes to the replanner
-    assert loop.replanner.calls == ["beta", "horizon", "beta"]
+    assert loop.replanner.calls == ["beta", "horizon", "slow", "beta"]
 
 
 def test_every_action_is_one_budgeted_action_of_the_replanner_even_when_it_fails():
@@ -139,7 +147,7 @@ def test_without_beta_replans_the_request_is_ignored():
 
 
 def test_the_horizon_is_checked_once_a_sample_at_most_every_period_and_backs_off_after_a_refusal():
-    loop = PlanningLoop(RecordingReplanner(horizon=True), horizon_period=0.02, beta_cooldown=0.5)
+    loop = PlanningLoop(RecordingReplanner(horizon=True), horizon_period=0.02, beta_cooldown=0.5, slow_period=None)
     assert loop.step(0.00, inputs(human_sample=1)).action == "horizon"
     assert loop.step(0.01, inputs(human_sample=2)) is None                 # within the period
     assert loop.step(0.02, inputs(human_sample=2)).action == "horizon"
@@ -149,6 +157,25 @@ def test_the_horizon_is_checked_once_a_sample_at_most_every_period_and_backs_off
     assert loop.step(0.06, inputs(human_sample=4)) is None                 # backing off half a cooldown
     assert loop.step(0.29, inputs(human_sample=5)).action == "horizon"
     assert loop.replanner.calls == ["horizon"] * 4
+
+
+def test_a_path_ahead_is_checked_for_a_slow_prediction_every_period_after_the_others_and_backs_off_after_a_refusal():
+    loop = PlanningLoop(RecordingReplanner(), horizon_period=0.02, beta_cooldown=0.5, slow_period=0.25)
+    assert loop.step(0.00, inputs(human_sample=1)) is None          # the horizon is clear, the path ahead not slow
+    assert loop.step(0.10, inputs(human_sample=1)) is None          # within the period: not asked again
+    loop.replanner.slow = True
+    taken = loop.step(0.25, inputs(human_sample=1))
+    assert taken.action == "slow" and taken.result.reason == "slow" and taken.searches == 1
+    loop.replanner.slow_fails = True
+    refused = loop.step(0.50, inputs(human_sample=1))
+    assert refused.action == "slow" and refused.result is None and "kept the old trajectory" in refused.refused
+    assert loop.step(0.80, inputs(human_sample=1)) is None          # backing off a beta cooldown after a refusal
+    assert loop.step(1.00, inputs(human_sample=1)).action == "slow"
+    assert loop.replanner.calls == ["horizon", "slow", "slow", "slow", "slow"]
+    # beta and a new horizon sample come first; the paper's ablation (no replan requests) asks for none
+    assert loop.step(1.60, inputs(beta=True, human_sample=2)).action == "beta"
+    ablation = PlanningLoop(RecordingReplanner(slow=True), beta_replans=False)
+    assert ablation.step(0.0, inputs(human_sample=1)) is None and ablation.replanner.calls == ["horizon"]
 
 
 def test_a_finished_trajectory_is_not_replanned():

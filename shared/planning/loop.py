@@ -11,7 +11,11 @@ how long it has been held) and takes at most one action, in this order:
    same wait, and the refusal says so without a search;
 3. a new human sample, at most every ``horizon_period``: the horizon check (Alg. 1) and a merge when the
    path ahead is blocked and the way round is predicted faster; after a refused one, the horizon is left
-   alone for half a beta cooldown (a blocked horizon is not hammered every sample).
+   alone for half a beta cooldown (a blocked horizon is not hammered every sample);
+4. at most every ``slow_period``, the path ahead predicted slow while the robot still moves at speed
+   (``Replanner.on_slow``: the planning layer's own replan request, reason 'slow'); after a refused one,
+   not for a beta cooldown. A plan is only as good as the prediction it was made on: a goal planned while
+   a person was still stepping in assumed they walk on, and they stopped in its way.
 
 Every prediction assumes the people stay at least as long as they have stood still (``StillClock``) or
 the robot has been held, whichever is longer, on top of the replanner's patience: someone who has stood
@@ -71,7 +75,7 @@ def held_by_ssm(alpha: float, safe_alpha: float) -> bool:
 
 @dataclass(frozen=True)
 class PlanningOutcome:
-    """One action of the loop. action: 'goal', 'beta' or 'horizon'. result: the new trajectory (a goal from
+    """One action of the loop. action: 'goal', 'beta', 'horizon' or 'slow'. result: the new trajectory (a goal from
     rest comes as a ReplanResult with from_rest and junction 0), None when there is none: `refused` then says
     why (None: nothing needed doing, the horizon was clear). searches: path searches the action ran (the
     simulation charges planning time by them)."""
@@ -119,15 +123,18 @@ def idle_time(gap: float, period: float, longest: float = IDLE_LONGEST) -> float
 
 
 class PlanningLoop:
-    """The cadence above around one Replanner. beta_replans False: the paper's ablation (beta ignored).
-    still_speed: below it people count as standing (StillClock; None: not used)."""
+    """The cadence above around one Replanner. beta_replans False: the paper's ablation (no replan requests,
+    the scaling layer's or the planning layer's own). still_speed: below it people count as standing
+    (StillClock; None: not used). slow_period (s): how often the path ahead is checked for a slow
+    prediction (None: never)."""
 
     def __init__(self, replanner: Replanner, horizon_period: float = 0.02, beta_cooldown: float = 0.5,
-                 beta_replans: bool = True, still_speed: float | None = 0.1) -> None:
+                 beta_replans: bool = True, still_speed: float | None = 0.1, slow_period: float | None = 0.25) -> None:
         self.replanner = replanner
         replanner.forget()                 # a new run: no paths remembered from another one
         self.horizon_period, self.beta_cooldown, self.beta_replans = horizon_period, beta_cooldown, beta_replans
-        self.next_beta = self.next_horizon = -np.inf
+        self.slow_period = slow_period
+        self.next_beta = self.next_horizon = self.next_slow = -np.inf
         self.last_sample: int | None = None
         self.still = StillClock(still_speed) if still_speed is not None else None
         self.last_still_sample: int | None = None
@@ -174,7 +181,17 @@ class PlanningLoop:
             except ReplanFailed as exc:
                 self.next_horizon = now + self.beta_cooldown / 2
                 return PlanningOutcome("horizon", refused=self._why(str(exc), inputs))
-            return None if result is None else PlanningOutcome("horizon", result)
+            if result is not None:
+                return PlanningOutcome("horizon", result)
+        if self.beta_replans and self.slow_period is not None and now >= self.next_slow:
+            self.next_slow = now + self.slow_period
+            try:
+                result = self.replanner.on_slow(trajectory, s, inputs.goal, inputs.humans, inputs.speed,
+                                                inputs.waited, inputs.held)
+            except ReplanFailed as exc:
+                self.next_slow = now + self.beta_cooldown
+                return PlanningOutcome("slow", refused=str(exc))
+            return None if result is None else PlanningOutcome("slow", result)
         return None
 
     def _block(self, inputs: PlanningInputs) -> GoalBlock | None:

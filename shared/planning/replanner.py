@@ -69,7 +69,9 @@ class ReplanOptions:
     cell where people are known to stay at a station may set more); rrt_budget (s): RRT-Connect's time
     when it has to seed the search; worth_searching (s): a new goal's direct line is taken without a
     search unless the people are predicted to slow it by more than this (the search itself takes up to
-    its budget while the robot waits for its plan); action_budget (s): wall clock for a whole planning
+    its budget while the robot waits for its plan); slow_excess (s): the planning layer asks itself for a
+    replan (``on_slow``) where the rest of the path followed at speed is predicted to lose more than this
+    to the SSM; action_budget (s): wall clock for a whole planning
     action, searches and the rest (None: none; the simulation bounds by counts), see ``begin``; seed: the
     search's seed (each goal gets its own stream, derived from the seed and the goal, so the same query
     gives the same path in any order, see ``_rng``); search, cost:
@@ -85,6 +87,7 @@ class ReplanOptions:
     patience: float = 1.5
     rrt_budget: float = 0.2
     worth_searching: float = 0.25
+    slow_excess: float = 1.0
     action_budget: float | None = None
     seed: int = 0
     search: SearchOptions = SearchOptions()
@@ -413,8 +416,29 @@ class Replanner:
             result = self.replan(old, s_now, q_goal, humans, "horizon", s_branch, waited)
         return keep_or_replace(result, baseline, 0.0, started, f"path blocked at s={blocked:.2f}")
 
+    def on_slow(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                speed_now: float | None = None, waited: float = 0.0, held: bool = False) -> ReplanResult | None:
+        """The planning layer's own replan request, for a path predicted slow *ahead* while the robot still
+        moves at speed. None when the robot is already slowed (below half its nominal speed: beta's case, the
+        scaling layer asks there), when nobody is near enough to block anything, or when the rest of the old
+        trajectory is predicted to lose less than slow_excess (s) to the SSM (the people staying patience +
+        waited); else as on_beta, reason 'slow': a replan only where it is predicted to pay, ReplanFailed
+        saying why not. Its case: a goal planned while a person was still stepping in, predicted along their
+        velocity, and followed at speed after they stopped in its way (the paper's phase 4, a goal planned
+        40 ms before the person stopped: predicted 2.66 s, took 4.22 s, the robot crawled into their slowdown
+        for 1.5 s before the scaling layer asked)."""
+        if out_of_reach(self.collision, humans) or self._rate(old, s_now, speed_now) < 0.5:
+            return None
+        nominal = old.duration - s_now
+        predicted = self.predicted_time(old, s_now, humans, waited)
+        if predicted - nominal < self.options.slow_excess:
+            return None
+        return self.on_beta(old, s_now, q_goal, humans, speed_now, waited, held, reason="slow",
+                            why=f"path predicted slow ({predicted:.2f} s for {nominal:.2f} s nominal)")
+
     def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-                speed_now: float | None = None, waited: float = 0.0, held: bool = False) -> ReplanResult:
+                speed_now: float | None = None, waited: float = 0.0, held: bool = False, reason: str = "beta",
+                why: str = "replan request") -> ReplanResult:
         """A replan that is worth it (min_gain), or ReplanFailed saying why the old trajectory stays.
 
         speed_now: the robot's actual joint speed (rad/s, max over joints; None: moving at the nominal
@@ -425,13 +449,14 @@ class Replanner:
         continuous in nominal time, so the new part starts with the old nominal velocity: the branch point
         is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
         new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time).
-        held: the robot's speed is the SSM's bound (or it brakes), not a ramp below it."""
+        held: the robot's speed is the SSM's bound (or it brakes), not a ramp below it. reason and why: the
+        result's reason and what the decision's detail calls the request (on_slow's own)."""
         started = time.perf_counter()
-        result, baseline = self._start(old, s_now, speed_now, q_goal, humans, "beta", waited, held)
+        result, baseline = self._start(old, s_now, speed_now, q_goal, humans, reason, waited, held)
         if result is None:
             v_now = old.sample(float(s_now))[1]
             stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))
             s_branch = min(old.duration, s_now + self.options.lead + stopping)
-            result = self.replan(old, s_now, q_goal, humans, "beta", s_branch, waited)
+            result = self.replan(old, s_now, q_goal, humans, reason, s_branch, waited)
         gain = required_gain(baseline, self.options.min_gain, self.options.min_saving)
-        return keep_or_replace(result, baseline, gain, started, "replan request")
+        return keep_or_replace(result, baseline, gain, started, why)
