@@ -391,7 +391,7 @@ def test_a_crawl_that_the_ssm_slows_further_is_stopped_where_it_gets_by_the_plan
     rate = ssm_alpha_bound(ROBOT, q[0], v[0], STANDING, SsmParameters())
     stop = replanner.on_beta(OLD, s_now, Q_GOAL, STANDING, speed_now=rate * float(np.abs(v).max()), waited=2.0,
                              held=True)
-    stopping = rate * float(np.max(np.abs(v[0]) / (0.5 * LIM.acceleration)))
+    stopping = rate * float(np.max(np.abs(v[0]) / LIM.acceleration))   # the joints' planning deceleration
     lead = replanner.options.stop_lead + 0.5 * stopping
     assert stop.from_rest and s_now < stop.junction < s_now + rate * lead - 0.005
     assert stop.junction == pytest.approx(replanner.cost.reached(OLD, s_now, STANDING, lead, replanner.stay(2.0)))
@@ -402,7 +402,7 @@ def test_a_crawl_that_the_ssm_slows_further_is_stopped_where_it_gets_by_the_plan
     assert ssm_alpha_bound(ROBOT, q[0], v[0], STANDING, SsmParameters()) == 0.0
     stop = replanner.on_beta(OLD, s_now, Q_GOAL, STANDING, speed_now=rate * float(np.abs(v).max()), waited=2.0,
                              held=True)
-    stopping = rate * float(np.max(np.abs(v[0]) / (0.5 * LIM.acceleration)))
+    stopping = rate * float(np.max(np.abs(v[0]) / LIM.acceleration))   # the joints' planning deceleration
     assert stop.junction == pytest.approx(s_now + rate * 0.5 * stopping)
 
 

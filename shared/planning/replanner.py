@@ -339,7 +339,7 @@ class Replanner:
         robot crawl; a crawling robot can stop in a few millimetres and then leave in any direction. The prediction
         counts the crawl to that point. Where the crawl gets by then is the time cost's (``SsmTimeCost.reached``), never
         further than its present rate: the SSM slows a crawl towards a person further, and at the present rate the robot
-        crawled on for 150-200 ms after its plan had come (hrc demo, phase 3: stall 380-400 ms; 330-340 ms now). A start
+        crawled on for 150-200 ms after its plan had come (hrc demo, phase 3: stall 380-400 ms; 300-320 ms now). A start
         the robot has passed when the plan comes cannot be taken, so stop_lead errs long. Raises ReplanFailed."""
         started = time.perf_counter()
         v_nominal = np.abs(old.sample(float(s_now))[1])

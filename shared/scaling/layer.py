@@ -63,9 +63,11 @@ def _path_deceleration(dq_ds, d2q_ds2, sdot, acceleration):
 
 
 STOP_REACH = 0.5          # nominal s: how far ahead a plan for a crawling robot may start (``ScalingLayer.take``)
-# the fraction of the joints' deceleration a stop for a plan from rest uses (``ScalingLayer._stop_cap``); the
-# planner puts the plan's start where such a stop can end (``shared.planning.replanner``)
-STOP_DECELERATION = 0.5
+# the fraction of the joints' deceleration (max_acceleration, 3.49 rad/s^2, inside the 6 rad/s^2 of the
+# braking floor) a stop for a plan from rest uses (``ScalingLayer._stop_cap``); the planner puts the plan's
+# start where such a stop can end (``shared.planning.replanner``). Half of it made that stop take twice as
+# long: 75 of the 340 ms a replan request stalled the robot in hrc demo, and the plan's start further on.
+STOP_DECELERATION = 1.0
 REST_SPEED = 0.02         # rad/s (fastest joint): below it the robot counts as at rest (the planner's too)
 
 
@@ -180,29 +182,45 @@ class ScalingLayer:
         return None
 
     def _stop_cap(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
-        """The path speed that brings the robot to rest at the pending plan's start: sqrt(2 d r) for the
-        remaining r (nominal s) at STOP_DECELERATION of the joints' deceleration d along the path (inf: none
-        pending)."""
+        """The path speed that brings the robot to rest at the pending plan's start, for the remaining r
+        (nominal s) at STOP_DECELERATION of the joints' deceleration along the path, d (inf: none pending).
+        The discrete stop, not the continuous sqrt(2 d r): speeds n d T, n = ..., 2, 1, cover d T^2 n (n + 1) / 2,
+        so the cap is sqrt(2 d r + (d T / 2)^2) - d T / 2 and its last speed before rest is at most d T (the
+        continuous one ends at about 2 d T: a step to rest harder than the drives brake at the full d)."""
         if self.pending is None:
             return math.inf
-        deceleration = _path_deceleration(np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
-                                          self.sdot, self.robot.limits.acceleration)
-        return math.sqrt(max(0.0, 2.0 * STOP_DECELERATION * deceleration * (self.pending[1] - self.s)))
+        deceleration = STOP_DECELERATION * _path_deceleration(
+            np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64), self.sdot,
+            self.robot.limits.acceleration)
+        half_step = 0.5 * deceleration * self.params.period
+        remaining = max(0.0, self.pending[1] - self.s)
+        return math.sqrt(2.0 * deceleration * remaining + half_step * half_step) - half_step
 
     def _advance(self, traj: Trajectory, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> None:
-        """s moves on by sdot T; at a pending plan's start the robot comes to rest and the plan is taken, or,
-        when the drives could not stop it within this period (the braking floor at the new path speed is
-        above 0), the plan is dropped, saying why."""
+        """s moves on by sdot T. A pending plan's start is arrived at with this period's speed (at most d T
+        there, ``_stop_cap``), and the next step takes the plan, standing at its start (``_arrived``): every step of
+        the stop brakes by at most d T. When the drives could not bring that speed to rest within a period (the braking
+        floor at it is above 0), the plan is dropped, saying why. (Taking the plan in this step instead put the
+        robot at rest one period early: a step from the speed before, up to 2 d T, to rest.)"""
         s_next = min(self.s + self.sdot * self.params.period, traj.duration)
         if self.pending is not None and s_next >= self.pending[1] - 1e-9:
             plan, s_stop = self.pending
             if self.braking_floor(dq_ds, d2q_ds2) > 0.0:
                 self.pending, self.dropped = None, f"could not stop at s={s_stop:.3f} for plan {plan.version}"
             else:
-                self.set_trajectory(plan, 0.0)
-                self.sdot = 0.0
+                self.s = s_stop
                 return
         self.s = s_next
+
+    def _arrived(self) -> bool:
+        """Take the pending plan once the robot has arrived at its start (``_advance``); True when taken: that
+        step stands at the start (zero velocity), so a plan that leaves the other way starts from rest, not
+        from a reversal of 2 d T in one period."""
+        if self.pending is None or self.s < self.pending[1] - 1e-9:
+            return False
+        self.set_trajectory(self.pending[0], 0.0)
+        self.sdot = 0.0
+        return True
 
     def hold(self, q: np.ndarray, version: int = -1) -> None:
         """Stand still at q (a one-knot-interval trajectory of zero motion)."""
@@ -255,6 +273,7 @@ class ScalingLayer:
         is carried to the commanded point); None means the robot is where the path says.
         """
         start = time.perf_counter()
+        at_rest = self._arrived()
         traj = self.trajectory
         if traj is None:
             q_hold = np.zeros(self.robot.nq) if q_measured is None else np.asarray(q_measured, dtype=float)
@@ -285,6 +304,8 @@ class ScalingLayer:
         floor = self.braking_floor(dq, ddq) if running else 0.0
         if floor > alpha:
             alpha, method = floor, method + "+braking"
+        if at_rest:
+            alpha, method = 0.0, method + "+at rest"
         if self.pending is not None and status is StepStatus.RUNNING and safe_alpha < cap \
                 and float(np.abs(dq).max()) * alpha < REST_SPEED:
             plan, s_stop = self.pending   # the SSM holds it short of the start, where it would wait for as long as
