@@ -424,8 +424,9 @@ class Replanner:
         trajectory is predicted to lose less than slow_excess (s) to the SSM (the people staying patience +
         waited); else as on_beta, reason 'slow': a replan only where it is predicted to pay, ReplanFailed
         saying why not. Its case: a goal planned while a person was still stepping in, predicted along their
-        velocity, and followed at speed after they stopped in its way (the paper's phase 4, a goal planned
-        40 ms before the person stopped: predicted 2.66 s, took 4.22 s, the robot crawled into their slowdown
+        velocity, and followed at speed after they stopped in its way; the longer they stand, the longer the
+        prediction has them stay (the paper's phase 4, a goal planned 40 ms before the person stopped:
+        predicted 2.66 s, 4.22 s against the person as they stayed; the robot crawled into their slowdown
         for 1.5 s before the scaling layer asked)."""
         if out_of_reach(self.collision, humans) or self._rate(old, s_now, speed_now) < 0.5:
             return None

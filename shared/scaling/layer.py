@@ -185,8 +185,8 @@ class ScalingLayer:
         """The path speed that brings the robot to rest at the pending plan's start, for the remaining r
         (nominal s) at STOP_DECELERATION of the joints' deceleration along the path, d (inf: none pending).
         The discrete stop, not the continuous sqrt(2 d r): speeds n d T, n = ..., 2, 1, cover d T^2 n (n + 1) / 2,
-        so the cap is sqrt(2 d r + (d T / 2)^2) - d T / 2 and its last speed before rest is at most d T (the
-        continuous one ends at about 2 d T: a step to rest harder than the drives brake at the full d)."""
+        so the cap is sqrt(2 d r + (d T / 2)^2) - d T / 2: its speeds fall by at most d T a period and the step
+        that arrives is at most d T (the continuous law arrives at up to (1 + sqrt 5) d T, 3.2 d T)."""
         if self.pending is None:
             return math.inf
         deceleration = STOP_DECELERATION * _path_deceleration(
@@ -201,7 +201,7 @@ class ScalingLayer:
         there, ``_stop_cap``), and the next step takes the plan, standing at its start (``_arrived``): every step of
         the stop brakes by at most d T. When the drives could not bring that speed to rest within a period (the braking
         floor at it is above 0), the plan is dropped, saying why. (Taking the plan in this step instead put the
-        robot at rest one period early: a step from the speed before, up to 2 d T, to rest.)"""
+        robot at rest one period early: a step from the speed before, up to 2 d T here, to rest.)"""
         s_next = min(self.s + self.sdot * self.params.period, traj.duration)
         if self.pending is not None and s_next >= self.pending[1] - 1e-9:
             plan, s_stop = self.pending
