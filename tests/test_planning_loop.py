@@ -174,6 +174,8 @@ def test_a_path_ahead_is_checked_for_a_slow_prediction_every_period_after_the_ot
     assert loop.replanner.calls == ["horizon", "slow", "slow", "slow", "slow"]
     # beta and a new horizon sample come first; the paper's ablation (no replan requests) asks for none
     assert loop.step(1.60, inputs(beta=True, human_sample=2)).action == "beta"
+    loop.replanner.horizon = True
+    assert loop.step(1.70, inputs(human_sample=3)).action == "horizon"
     ablation = PlanningLoop(RecordingReplanner(slow=True), beta_replans=False)
     assert ablation.step(0.0, inputs(human_sample=1)) is None and ablation.replanner.calls == ["horizon"]
 
