@@ -48,7 +48,15 @@ class Strategies:
 
     def run(self, strategy: str, kind: str, seed: int, duration: float) -> SimResult:
         """One strategy on one seeded scenario."""
-        human = make_scenario(kind, seed, duration)
+        return self._run(strategy, make_scenario(kind, seed, duration), duration)
+
+    def empty_cell(self, duration: float) -> SimResult:
+        """The shuttle with nobody in the cell for `duration` s (the scaling layer, at full speed): what the
+        people cost a strategy is measured against it (bench/compare.py: the share of it won back)."""
+        return self._run("scale_only", EmptyCell(), duration)
+
+    def _run(self, strategy: str, human, duration: float) -> SimResult:
+        """One strategy with these people (anything with ``at(t)`` and ``phase(t)``, as run_shuttle takes)."""
         cfg = self.config
         if strategy == "zones":
             layer = ZoneScalingLayer(self.robot, self.zones, cfg.ssm, cfg.scaling)
@@ -60,10 +68,3 @@ class Strategies:
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
                                charge_planning=CELL_BUDGET, monitor=self.monitor)
         raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES}")
-
-    def empty_cell(self, duration: float) -> SimResult:
-        """The shuttle with nobody in the cell for `duration` s (the scaling layer, at full speed): what the
-        people cost a strategy is measured against it (bench/compare.py: the share of it won back)."""
-        cfg = self.config
-        layer = ScalingLayer(self.robot, cfg.ssm, cfg.scaling)
-        return run_shuttle(self.robot, cfg, EmptyCell(), Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor)
