@@ -157,6 +157,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     whatever the machine's load). monitor: the judge's monitor (default: a SafetyMonitor of this robot;
     pass one to reuse it across runs)."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
+    if replanner is None or not beta_replans:
+        layer.await_plan = 0.0        # nobody answers a replan request: never stand still awaiting one
     judge = CommandJudge(robot, config, monitor)
     loop = PlanningLoop(replanner, beta_cooldown=beta_cooldown, beta_replans=beta_replans) \
         if replanner is not None else None
@@ -196,7 +198,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         following = None if pending_leg or layer.pending is not None or layer.s >= layer.trajectory.duration \
             else (layer.trajectory, layer.s)       # a plan the scaler is stopping for: nothing to follow yet
         inputs = PlanningInputs(ends[(leg + 1) % 2], pending_leg, layer.trajectory.sample(layer.s)[0], humans, k,
-                                following, speed_now, beta, held.waited(t), layer.trajectory.version + 1, ssm_held)
+                                following, speed_now, beta, held.waited(t), layer.trajectory.version + 1, ssm_held,
+                                layer.awaiting)
         started = time.perf_counter()
         outcome = loop.step(t, inputs)
         elapsed = time.perf_counter() - started

@@ -143,7 +143,8 @@ class PlannerService:
             version = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen) + 1
             inputs = PlanningInputs(goal.q, new_goal, q, humans, self.human_seq, following, speed,
                                     status is not None and status.beta, self.held.waited(now), version,
-                                    status is not None and held_by_ssm(status.alpha, status.safe_alpha))
+                                    status is not None and held_by_ssm(status.alpha, status.safe_alpha),
+                                    status.stop_s if status is not None else None)
         if new_goal:
             self.goal_id = goal.goal_id
         started = time.perf_counter()

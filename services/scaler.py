@@ -9,6 +9,8 @@ the braking that followed overshot the stop). Rules of the shell:
 * no trajectory yet, or none taken: it commands the measured position (hold), so the driver can enable;
 * a new trajectory version is taken without a jump: a fresh plan (base_version -1) when the robot is at
   its start; a merged one when the follower has not passed its junction (it continues at the same s);
+* a replan request raised while the robot crawls brings it to rest, where it awaits the plan (the status's
+  stop_s says where; the core's rule, ``ScalingLayer._await``; not with --no-await);
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
   (the core's rule); an invalid or malformed message counts as no message;
 * while the driver reports that the robot is not following (stopped, enabling: JointState.enabled false)
@@ -130,11 +132,13 @@ class Scaler:
             s=step.s, alpha=step.alpha, safe_alpha=step.safe_alpha, beta=step.beta, q_command=step.q_command,
             trajectory_version=step.trajectory_version, status=step.status.value, method=step.method,
             min_separation=finite(step.min_separation), min_margin=finite(step.min_margin),
-            compute_us=step.compute_us, seq=self.seq, stamp=now)))
+            compute_us=step.compute_us, stop_s=self.layer.awaiting, seq=self.seq, stamp=now)))
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = service_parser("scaler", __doc__)
+    parser.add_argument("--no-await", action="store_true",
+                        help="never stand still awaiting a replan (the planner's --no-beta answers none)")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     opened = open_service("scaler", args)
@@ -143,6 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     config, shell = opened
     layer = ScalingLayer(default_robot(), config.ssm, config.scaling)
     layer.warm_up()                  # compile before the first deadline, not at it
+    if args.no_await:
+        layer.await_plan = 0.0
     scaler = Scaler(shell, layer)
     return serve(shell, f"scaler: {1 / config.scaling.period:.0f} Hz on the drives' SYNC, solver "
                         f"{config.scaling.solver}, keys {shell.keys.prefix}/",

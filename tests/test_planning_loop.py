@@ -71,9 +71,9 @@ class RecordingReplanner:
         self.calls.append("replan")
         return self._result(reason)
 
-    def on_beta(self, old, s, goal, humans, speed, waited, held):
+    def on_beta(self, old, s, goal, humans, speed, waited, held, stop_at=None):
         self.calls.append("beta")
-        self.waited, self.held = waited, held
+        self.waited, self.held, self.stop_at = waited, held, stop_at
         if self.beta_fails:
             raise ReplanFailed("not 10 % faster")
         return self._result("beta")

@@ -55,7 +55,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     interface, channel = choose_bus()
     keys = KeySpace(PREFIX)
     cell = CellProcesses(out / "logs", PREFIX, interface, channel, config_path, seed,
-                         extra_args={"planner": ["--no-beta"]} if no_beta else {})
+                         extra_args={"planner": ["--no-beta"], "scaler": ["--no-await"]} if no_beta else {})
     say = (lambda *a: None) if quiet else (lambda text: print(text, flush=True))
     say(f"hrc demo: starting the cell (emulator + 5 services, CAN {interface}{' ' + channel if channel else ''}, "
         f"Zenoh {cell.endpoint}); logs in {out / 'logs'}")

@@ -6,7 +6,8 @@ how long it has been held) and takes at most one action, in this order:
 
 1. a new goal: from rest, ``Replanner.plan_goal`` (the direct line unless the searched path is predicted
    faster); while a trajectory is being followed, a merge into it (Alg. 2, reason 'goal');
-2. a replan request (beta raised), at most every ``beta_cooldown``: ``Replanner.on_beta``, unless the goal
+2. a replan request (beta raised), at most every ``beta_cooldown`` (a robot brought to rest to await its plan,
+   ``stop_at``, is answered at once, once for each wait): ``Replanner.on_beta``, unless the goal
    itself is out of reach while the people stay (``shared.planning.blocked``): every path then ends in the
    same wait, and the refusal says so without a search;
 3. a new human sample, at most every ``horizon_period``: the horizon check (Alg. 1) and a merge when the
@@ -33,7 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from shared.core.humans import HumanCapsules
+from shared.core.humans import STANDING_SPEED, HumanCapsules
 from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.blocked import GoalBlock, goal_block
 from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
@@ -52,7 +53,9 @@ class PlanningInputs:
     scaler follows and its path parameter s, None when it follows none of ours or has finished it.
     speed: the robot's joint speed (rad/s, max over joints; None: unknown). beta: the scaler asks for a
     replan. waited: how long it has been asking (s, HoldClock). version: the number a new trajectory from
-    rest gets (above every version the scaler has followed)."""
+    rest gets (above every version the scaler has followed). held: the robot's speed is the SSM's bound
+    (``held_by_ssm``). stop_at: the s of the followed trajectory where the scaler has brought (or brings) the
+    robot to rest to await the plan it asked for (``ScalingLayer.awaiting``; None: it does not wait)."""
 
     goal: np.ndarray | None
     new_goal: bool
@@ -65,6 +68,7 @@ class PlanningInputs:
     waited: float
     version: int
     held: bool = False
+    stop_at: float | None = None
 
 
 def held_by_ssm(alpha: float, safe_alpha: float) -> bool:
@@ -92,7 +96,7 @@ class StillClock:
     tracker does not know, starts it again. Someone who has stood for a while is likely to stand a while
     longer, so the predictions assume the people stay at least this long on top of their patience."""
 
-    def __init__(self, speed: float = 0.1) -> None:
+    def __init__(self, speed: float = STANDING_SPEED) -> None:
         self.speed = speed
         self.count = -1
         self.clock = HoldClock()           # the same timing as the robot's hold, fed "standing" instead of beta
@@ -129,12 +133,14 @@ class PlanningLoop:
     prediction (None: never)."""
 
     def __init__(self, replanner: Replanner, horizon_period: float = 0.02, beta_cooldown: float = 0.5,
-                 beta_replans: bool = True, still_speed: float | None = 0.1, slow_period: float | None = 0.25) -> None:
+                 beta_replans: bool = True, still_speed: float | None = STANDING_SPEED,
+                 slow_period: float | None = 0.25) -> None:
         self.replanner = replanner
         replanner.forget()                 # a new run: no paths remembered from another one
         self.horizon_period, self.beta_cooldown, self.beta_replans = horizon_period, beta_cooldown, beta_replans
         self.slow_period = slow_period
         self.next_beta = self.next_horizon = self.next_slow = -np.inf
+        self.answered: float | None = None   # the last stop_at a replan request was answered for
         self.last_sample: int | None = None
         self.still = StillClock(still_speed) if still_speed is not None else None
         self.last_still_sample: int | None = None
@@ -162,14 +168,16 @@ class PlanningLoop:
         if inputs.following is None:
             return None
         trajectory, s = inputs.following
-        if self.beta_replans and inputs.beta and now >= self.next_beta:
-            self.next_beta = now + self.beta_cooldown
+        waits = inputs.stop_at is not None and inputs.stop_at != self.answered    # a new wait is answered at once
+        if self.beta_replans and inputs.beta and (now >= self.next_beta or waits):
+            self.next_beta, self.answered = now + self.beta_cooldown, inputs.stop_at
             block = self._block(inputs)
             if block is not None:          # no path gets there before the people move: nothing to search
                 return PlanningOutcome("beta", refused=f"not searched: {block.describe()}")
             try:
                 return PlanningOutcome("beta", self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans,
-                                                                      inputs.speed, inputs.waited, inputs.held))
+                                                                      inputs.speed, inputs.waited, inputs.held,
+                                                                      stop_at=inputs.stop_at))
             except ReplanFailed as exc:          # (the goal is not blocked: asked just above)
                 return PlanningOutcome("beta", refused=str(exc))
         if inputs.human_sample != self.last_sample and now >= self.next_horizon:

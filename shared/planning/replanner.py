@@ -363,12 +363,16 @@ class Replanner:
 
     def _start(self, old: Trajectory, s_now: float, speed_now: float | None, q_goal: np.ndarray,
                humans: HumanCapsules | None, reason: str, waited: float,
-               held: bool) -> tuple[ReplanResult | None, float]:
-        """Where a new trajectory starts, by the robot's state: at rest, from rest where it stands; crawling
+               held: bool, stop_at: float | None = None) -> tuple[ReplanResult | None, float]:
+        """Where a new trajectory starts, by the robot's state: brought to rest by the scaler to await it
+        (stop_at, ``ScalingLayer.awaiting``), from rest there; at rest, from rest where it stands; crawling
         (below `crawl` of its nominal speed, and held there by the SSM: not speeding up again), from rest
         where the scaler stops it. Returns (that plan, the old trajectory's prediction from the
         same state), or (None, the baseline) for a robot moving near its nominal speed (a merge, the
         caller's; both sides then in nominal time)."""
+        if stop_at is not None and s_now - 1e-9 <= stop_at <= old.duration:
+            return (self._rest_plan(old, stop_at, q_goal, humans, reason, waited),
+                    self._baseline(old, stop_at, humans, waited, 0.0))
         at_rest = speed_now is not None and speed_now < self.options.rest_speed
         rate = 0.0 if at_rest else self._rate(old, s_now, speed_now)
         if at_rest:
@@ -439,7 +443,7 @@ class Replanner:
 
     def on_beta(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                 speed_now: float | None = None, waited: float = 0.0, held: bool = False, reason: str = "beta",
-                why: str = "replan request") -> ReplanResult:
+                why: str = "replan request", stop_at: float | None = None) -> ReplanResult:
         """A replan that is worth it (min_gain), or ReplanFailed saying why the old trajectory stays.
 
         speed_now: the robot's actual joint speed (rad/s, max over joints; None: moving at the nominal
@@ -451,9 +455,11 @@ class Replanner:
         is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
         new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time).
         held: the robot's speed is the SSM's bound (or it brakes), not a ramp below it. reason and why: the
-        result's reason and what the decision's detail calls the request (on_slow's own)."""
+        result's reason and what the decision's detail calls the request (on_slow's own). stop_at: where the
+        scaler brings the robot to rest to await this plan (``ScalingLayer.awaiting``): the plan starts from
+        rest there, and the old trajectory is predicted from rest there too."""
         started = time.perf_counter()
-        result, baseline = self._start(old, s_now, speed_now, q_goal, humans, reason, waited, held)
+        result, baseline = self._start(old, s_now, speed_now, q_goal, humans, reason, waited, held, stop_at)
         if result is None:
             v_now = old.sample(float(s_now))[1]
             stopping = float(np.max(np.abs(v_now) / (self.limits.acceleration * 0.9)))

@@ -11,7 +11,8 @@ full speed). At every sample the scaling layer's own SSM bound gives the largest
 (an edge's length divided by the scaling factor expected along it), here as time, with the people moving:
 
 * people with a tracked velocity are moved on along it for as long as the robot has been predicted to
-  travel, up to ``extrapolation`` seconds, then stay there; people without one stay where they are and
+  travel, up to ``extrapolation`` seconds, then stay there (a body part slower than ``drift_speed`` stays
+  where it is: a person shifting their stance does not walk on); people without one stay where they are and
   approach at the ISO 13855 speed inside the limit (``shared.safety.ssm``), as the standard treats them;
 * people are assumed to stay in the cell for ``stay`` seconds of the prediction and to be gone after it.
   Both candidates of a keep-or-replace decision get the same ``stay``: a person who stays long makes the
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from shared.core.humans import HumanCapsules
+from shared.core.humans import STANDING_SPEED, HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
@@ -52,18 +53,20 @@ class TimeCostOptions:
     crossing 0.998x -> 1.000x, random walk 0.987x -> 0.991x, two people 1.0018x -> 1.0015x, the paper
     unchanged; on 16 others: crossing 0.995x -> 0.999x, random walk 0.975x -> 0.996x, standing 3.154x ->
     3.160x); wait_step (s): how long the prediction waits at a slow sample before it looks again at the
-    people moved on."""
+    people moved on; drift_speed (m/s): a capsule whose ends both move slower than this is not moved on
+    (``shared.core.humans.STANDING_SPEED``)."""
 
     spacing: float = 0.05
     trajectory_step: float = 0.05
     alpha_floor: float = 0.02
     extrapolation: float = 2.0
     wait_step: float = 0.1
+    drift_speed: float = STANDING_SPEED
 
 
 @numba.njit(cache=True)
 def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
-                    human_vel, human_known, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
+                    human_vel, human_drift, human_known, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
                     floor, wait_step, ends):
     """Sum of dts[k] / alpha_k along the samples, the people moved on by the time already predicted (and,
     in ends[k], the sum up to the end of sample k: when the robot is predicted to get there); from
@@ -90,7 +93,7 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
             for j in range(n_h):
                 for e in range(2):
                     for c in range(3):
-                        moved[j, e, c] = human_seg[j, e, c] + (shift * human_vel[j, e, c] if human_known[j] else 0.0)
+                        moved[j, e, c] = human_seg[j, e, c] + (shift * human_drift[j, e, c] if human_known[j] else 0.0)
             _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
                                                         vel.reshape(n_links, 2, 3), moved, human_rad, human_vel,
                                                         human_known, horizon, fixed, near_d, v_near, v_far)
@@ -223,10 +226,18 @@ class SsmTimeCost:
         ends = np.empty(samples.q.shape[0])
         _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
                         placement, parent, local, joint, r.ancestry, r.radii, humans.segments,
-                        humans.radii, humans.velocities, humans.velocity_known, *ssm.kernel_constants,
+                        humans.radii, humans.velocities, self._drift(humans), humans.velocity_known,
+                        *ssm.kernel_constants,
                         ssm.tracking_margin, o.extrapolation if moving else 0.0, float(stay), o.alpha_floor,
                         o.wait_step, ends)
         return ends
+
+    def _drift(self, humans: HumanCapsules) -> np.ndarray:
+        """The velocities the people are moved on along (m/s, (H, 2, 3)): the tracked ones, but zero for a
+        capsule whose ends both move slower than ``drift_speed``."""
+        velocities = np.ascontiguousarray(humans.velocities, dtype=float)
+        slow = np.linalg.norm(velocities, axis=2).max(axis=1) < self.options.drift_speed
+        return np.where(slow[:, None, None], 0.0, velocities) if slow.any() else velocities
 
     def reached(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None, seconds: float,
                 stay: float = np.inf, samples: int = 20) -> float:

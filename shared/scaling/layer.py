@@ -119,6 +119,11 @@ class ScalingLayer:
         self.beta = False
         self.pending: tuple[Trajectory, float] | None = None   # a plan from rest that starts ahead, at that s
         self.dropped: str | None = None      # why the last pending plan was dropped (the service logs it)
+        # the s where the robot is brought to rest to await the plan it asked for (None: not awaiting), and for how long
+        # it may stand there (s of robot time; 0: never awaits, where no planning layer answers)
+        self.awaiting: float | None = None
+        self.await_plan = self.params.await_plan
+        self._awaited = 0.0
 
     def warm_up(self) -> None:
         """Run every compiled path once (kinematics, SSM rows, solvers, verification, sampling), so that a
@@ -138,7 +143,7 @@ class ScalingLayer:
         self.trajectory = trajectory
         self.s = float(min(max(s, 0.0), trajectory.duration))
         self.beta = False
-        self.pending = None
+        self.pending = self.awaiting = None
 
     def take(self, trajectory: Trajectory, from_rest: bool, junction: float, q_here: np.ndarray | None,
              start_tolerance: float) -> str | None:
@@ -181,35 +186,59 @@ class ScalingLayer:
         self.pending, self.dropped = (trajectory, best), None
         return None
 
+    def _stop_deceleration(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
+        """The path deceleration (1/s^2) of a stop for a plan: STOP_DECELERATION of the joints' deceleration
+        along the path (``_path_deceleration``)."""
+        return STOP_DECELERATION * _path_deceleration(
+            np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64), self.sdot,
+            self.robot.limits.acceleration)
+
+    def _target(self) -> float | None:
+        """Where the robot is being brought to rest: the pending plan's start, else the s where it awaits the
+        plan it asked for (None: neither)."""
+        return self.pending[1] if self.pending is not None else self.awaiting
+
     def _stop_cap(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
-        """The path speed that brings the robot to rest at the pending plan's start, for the remaining r
-        (nominal s) at STOP_DECELERATION of the joints' deceleration along the path, d (inf: none pending).
+        """The path speed that brings the robot to rest at its target (``_target``: a pending plan's start, or
+        where it awaits a plan), for the remaining r (nominal s) at the stop deceleration d (inf: no target).
         The discrete stop, not the continuous sqrt(2 d r): speeds n d T, n = ..., 2, 1, cover d T^2 n (n + 1) / 2,
         so the cap is sqrt(2 d r + (d T / 2)^2) - d T / 2: its speeds fall by at most d T a period and the step
         that arrives is at most d T (the continuous law arrives at up to (1 + sqrt 5) d T, 3.2 d T)."""
-        if self.pending is None:
+        target = self._target()
+        if target is None:
             return math.inf
-        deceleration = STOP_DECELERATION * _path_deceleration(
-            np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64), self.sdot,
-            self.robot.limits.acceleration)
+        deceleration = self._stop_deceleration(dq_ds, d2q_ds2)
         half_step = 0.5 * deceleration * self.params.period
-        remaining = max(0.0, self.pending[1] - self.s)
+        remaining = max(0.0, target - self.s)
         return math.sqrt(2.0 * deceleration * remaining + half_step * half_step) - half_step
 
+    def _stop_distance(self, speed: float, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
+        """Nominal s that the discrete stop of ``_stop_cap`` covers after a period at `speed` (the path speed,
+        1/s): its next speeds u, u - d T, ..., d T with u = speed - d T cover u (u + d T) / 2d."""
+        deceleration = self._stop_deceleration(dq_ds, d2q_ds2)
+        if deceleration <= 0.0:
+            return math.inf
+        u = max(0.0, speed - deceleration * self.params.period)
+        return u * (u + deceleration * self.params.period) / (2.0 * deceleration)
+
     def _advance(self, traj: Trajectory, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> None:
-        """s moves on by sdot T. A pending plan's start is arrived at with this period's speed (at most d T
-        there, ``_stop_cap``), and the next step takes the plan, standing at its start (``_arrived``): every step of
-        the stop brakes by at most d T. When the drives could not bring that speed to rest within a period (the braking
-        floor at it is above 0), the plan is dropped, saying why. (Taking the plan in this step instead put the
-        robot at rest one period early: a step from the speed before, up to 2 d T here, to rest.)"""
+        """s moves on by sdot T. The target (``_target``) is arrived at with this period's speed (at most d T
+        there, ``_stop_cap``); a pending plan is taken in the next step, standing at its start (``_arrived``), and
+        a robot awaiting a plan stands there: every step of the stop brakes by at most d T. When the drives could
+        not bring that speed to rest within a period (the braking floor at it is above 0), the plan is dropped
+        (saying why) or the wait given up. (Taking the plan in this step instead put the robot at rest one period
+        early: a step from the speed before, up to 2 d T here, to rest.)"""
         s_next = min(self.s + self.sdot * self.params.period, traj.duration)
-        if self.pending is not None and s_next >= self.pending[1] - 1e-9:
-            plan, s_stop = self.pending
-            if self.braking_floor(dq_ds, d2q_ds2) > 0.0:
-                self.pending, self.dropped = None, f"could not stop at s={s_stop:.3f} for plan {plan.version}"
-            else:
-                self.s = s_stop
+        target = self._target()
+        if target is not None and s_next >= target - 1e-9:
+            if self.braking_floor(dq_ds, d2q_ds2) <= 0.0:
+                self.s = target
                 return
+            if self.pending is not None:
+                plan, self.pending = self.pending[0], None
+                self.dropped = f"could not stop at s={target:.3f} for plan {plan.version}"
+            else:
+                self.awaiting = None
         self.s = s_next
 
     def _arrived(self) -> bool:
@@ -221,6 +250,24 @@ class ScalingLayer:
         self.set_trajectory(self.pending[0], 0.0)
         self.sdot = 0.0
         return True
+
+    def _await(self, asked: bool, alpha: float, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> None:
+        """The wait for a plan the robot asked for. When beta rises while the robot crawls (alpha at most
+        alpha_release) and a planning layer answers (await_plan > 0), the robot is brought to rest where the
+        discrete stop from this step's speed ends (``_stop_distance``), and stands there for its plan, which
+        starts from rest there (the status says where: ``awaiting``). A plan that has to start further on, where
+        a crawling robot would have got to by the time it comes, made the robot crawl on for 100-150 ms after it
+        had come (hrc demo). The wait ends with the new trajectory (``set_trajectory``), when beta falls, or after
+        await_plan seconds (a refused request: the robot then goes on at the SSM's speed)."""
+        if self.awaiting is not None:
+            self._awaited += self.params.period
+            if not self.beta or self._awaited > self.await_plan:
+                self.awaiting = None
+        elif self.beta and not asked and self.await_plan > 0.0 and self.pending is None \
+                and alpha <= self.params.alpha_release:
+            self.awaiting = min(self.trajectory.duration,
+                                self.s + alpha * self.params.period + self._stop_distance(alpha, dq_ds, d2q_ds2))
+            self._awaited = 0.0
 
     def hold(self, q: np.ndarray, version: int = -1) -> None:
         """Stand still at q (a one-knot-interval trajectory of zero motion)."""
@@ -306,16 +353,20 @@ class ScalingLayer:
             alpha, method = floor, method + "+braking"
         if at_rest:
             alpha, method = 0.0, method + "+at rest"
-        if self.pending is not None and status is StepStatus.RUNNING and safe_alpha < cap \
-                and float(np.abs(dq).max()) * alpha < REST_SPEED:
+        held_short = status is StepStatus.RUNNING and safe_alpha < cap and float(np.abs(dq).max()) * alpha < REST_SPEED
+        if self.pending is not None and held_short:
             plan, s_stop = self.pending   # the SSM holds it short of the start, where it would wait for as long as
             self.pending = None           # the person stays: dropped, so that a plan from where it stands can follow
             self.dropped = (f"held by the SSM at s={self.s:.3f}, short of the start of plan {plan.version} "
                             f"at s={s_stop:.3f}")
+        elif self.awaiting is not None and held_short:
+            self.awaiting = self.s + alpha * self.params.period      # it awaits its plan where the SSM holds it
+        asked = self.beta
         if status is StepStatus.RUNNING and safe_alpha <= self.params.alpha_min:
             self.beta = True
         elif status is not StepStatus.RUNNING or safe_alpha >= self.params.alpha_release:
             self.beta = False
+        self._await(asked, alpha if running else 0.0, dq, ddq)
         self.sdot = alpha if running else 0.0
         self._advance(traj, dq, ddq)
         traj = self.trajectory

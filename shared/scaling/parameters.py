@@ -18,7 +18,9 @@ class ScalingParameters:
     """period (s): control period. alpha_min / alpha_release: beta hysteresis thresholds on the safe bound.
     human_timeout (s): human data older than this stops the robot (5 periods at 100 Hz).
     acceleration_weight: price of one unit of acceleration slack (in units of the limit) against alpha.
-    solver: 'piqp' (closed form as fallback) or 'closed_form'."""
+    solver: 'piqp' (closed form as fallback) or 'closed_form'. await_plan (s): how long a robot that asked for a
+    replan while crawling stands, at rest where it stopped, for the plan from there (``ScalingLayer._await``;
+    0: never, where no planning layer answers). The planner's answers came within 100-190 ms in hrc demo."""
 
     period: float = 0.01
     alpha_min: float = 0.2
@@ -26,6 +28,7 @@ class ScalingParameters:
     human_timeout: float = 0.05
     acceleration_weight: float = 100.0
     solver: str = "piqp"
+    await_plan: float = 0.3
 
     def __post_init__(self) -> None:
         check_numbers(self, "scaling", skip=("solver",))
@@ -38,6 +41,8 @@ class ScalingParameters:
             raise ConfigError(f"scaling.human_timeout: must be positive, got {self.human_timeout}")
         if self.acceleration_weight <= 0.0:
             raise ConfigError(f"scaling.acceleration_weight: must be positive, got {self.acceleration_weight}")
+        if self.await_plan < 0.0:
+            raise ConfigError(f"scaling.await_plan: must be >= 0 s, got {self.await_plan}")
         if self.solver not in SOLVERS:
             raise ConfigError(f"scaling.solver: expected one of {SOLVERS}, got {self.solver!r}")
 

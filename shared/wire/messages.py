@@ -165,13 +165,14 @@ class JointCommand(Message):
 
 @dataclass(frozen=True)
 class ScalerStatus(Message):
-    """What the scaling layer did in one cycle (see shared.scaling.layer.ScalingStep)."""
+    """What the scaling layer did in one cycle (see shared.scaling.layer.ScalingStep); stop_s: the s where it
+    brings the robot to rest to await the replan it asked for (ScalingLayer.awaiting; None: it does not wait)."""
 
     KIND: ClassVar[str] = "scaler_status"
     SPEC: ClassVar[dict[str, Spec]] = {
         "s": F, "alpha": F, "safe_alpha": F, "beta": B, "q_command": Q, "trajectory_version": Spec("int", minimum=-1),
         "status": S, "method": S, "min_separation": Spec("float", optional=True),
-        "min_margin": Spec("float", optional=True), "compute_us": F}
+        "min_margin": Spec("float", optional=True), "compute_us": F, "stop_s": Spec("float", optional=True)}
     s: float
     alpha: float
     safe_alpha: float
@@ -183,6 +184,7 @@ class ScalerStatus(Message):
     min_separation: float | None
     min_margin: float | None
     compute_us: float
+    stop_s: float | None = None     # where the robot is brought to rest to await the replan it asked for
 
 
 @dataclass(frozen=True)
