@@ -258,6 +258,19 @@ def test_a_crawling_robot_held_by_the_ssm_is_stopped_a_little_ahead_and_planned_
     assert layer.trajectory is stop.trajectory and np.allclose(step.q_command, OLD.sample(stop.junction)[0])
 
 
+def test_a_robot_brought_to_rest_to_await_its_plan_is_planned_for_from_rest_where_it_stops():
+    """The scaler stops a crawling robot that asked for a replan and awaits the plan (stop_at,
+    ScalingLayer.awaiting): the plan starts from rest exactly there, and the old trajectory is predicted from
+    rest there too (it has to get back up to speed), whatever the robot's speed when the planner looked."""
+    replanner = Replanner(CM, PLANNER, SsmParameters())
+    crawl = 0.1 * float(np.abs(OLD.sample(0.3)[1]).max())
+    plan = replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, speed_now=crawl, waited=2.0, held=True, stop_at=0.304)
+    assert plan.from_rest and plan.junction == 0.304 and plan.reason == "beta"
+    assert np.allclose(plan.trajectory.positions[0], OLD.sample(0.304)[0]) and not plan.trajectory.velocities[0].any()
+    assert plan.baseline > replanner.predicted_time(OLD, 0.304, STANDING, 2.0)     # the old one from rest
+    assert plan.predicted < plan.baseline
+
+
 def test_trajectory_message_roundtrip_gives_the_same_law():
     result = merged_round(0.0, ARM_ACROSS)
     msg = decode(encode(trajectory_to_msg(result.trajectory, goal_id=4, reason="horizon", junction=result.junction,

@@ -133,6 +133,20 @@ def test_beta_is_answered_at_most_once_a_cooldown_and_before_the_horizon():
     assert loop.replanner.calls == ["beta", "horizon", "slow", "beta"]
 
 
+def test_a_robot_stopped_to_await_its_plan_is_answered_at_once_and_once_for_each_wait():
+    """The scaler brings a crawling robot to rest for the replan it asks for (stop_at): that request is answered
+    in the next turn even within the cooldown of a refused one, with the stop handed to the replanner, and not
+    again for the same wait."""
+    loop = PlanningLoop(RecordingReplanner(beta_fails=True), beta_cooldown=0.5, slow_period=None)
+    assert loop.step(0.0, inputs(beta=True)).action == "beta" and loop.replanner.stop_at is None
+    assert loop.step(0.1, inputs(beta=True, stop_at=0.31)).action == "beta"        # a new wait: at once
+    assert loop.replanner.stop_at == 0.31
+    assert loop.step(0.2, inputs(beta=True, stop_at=0.31)) is None                   # the same wait: not again
+    assert loop.step(0.3, inputs(beta=True, stop_at=0.35)).action == "beta" and loop.replanner.stop_at == 0.35
+    assert loop.replanner.calls == ["beta", "beta", "horizon", "beta"]
+    assert PlanningLoop(RecordingReplanner(), beta_replans=False).step(0.0, inputs(beta=True, stop_at=0.31)) is None
+
+
 def test_every_action_is_one_budgeted_action_of_the_replanner_even_when_it_fails():
     loop = PlanningLoop(RecordingReplanner(beta_fails=True))
     assert loop.step(0.0, inputs(beta=True, human_sample=1)).refused == "not 10 % faster"
@@ -306,6 +320,33 @@ def test_the_planner_service_plans_a_goal_and_answers_beta_through_the_loop(repl
     events = shell.published(keys.safety_events, SafetyEvent)
     assert events[-1].event in ("trajectory_beta", "replan_refused")     # answered, one way or the other
     assert "predicted" in events[-1].text            # the decision says both predicted times
+
+
+def test_the_planner_service_plans_from_where_the_scaler_awaits_its_plan(replanner):
+    """The scaler's status says where it brings the crawling robot to rest to await its replan (stop_s): the
+    answer is a plan from rest there, or a refusal that compares it from there; a new wait is answered at once,
+    within the cooldown of the last answer."""
+    shell, service = planner_given_a_goal(replanner, 7)
+    keys = shell.keys
+    goal = shell.published(keys.trajectory, TrajectoryMsg)[-1]
+    arm = HumanCapsules.from_arrays([[[-0.85, -0.05, 0.5], [-0.4, 0.0, 0.5]]], [0.05], np.zeros((1, 2, 3)), [True])
+
+    def awaiting(now: float, stop_s: float) -> SafetyEvent:
+        shell.deliver(keys.human_state, humans_to_msg(arm, True, now))
+        shell.deliver(keys.scaler_status, ScalerStatus(
+            s=stop_s - 0.01, alpha=0.05, safe_alpha=0.05, beta=True, q_command=Q_START, trajectory_version=goal.version,
+            status="running", method="piqp+stopping", min_separation=None, min_margin=None, compute_us=50.0,
+            stop_s=stop_s))
+        service.work_once(now)
+        return shell.published(keys.safety_events, SafetyEvent)[-1]
+
+    first = awaiting(1.0, 0.32)
+    assert first.event in ("trajectory_beta", "replan_refused") and "from rest" in first.text, first.text
+    again = awaiting(1.1, 0.33)                 # a new wait: answered at once, within the cooldown
+    assert again.seq > first.seq and "from rest" in again.text, again.text
+    if again.event == "trajectory_beta":
+        plan = shell.published(keys.trajectory, TrajectoryMsg)[-1]
+        assert plan.base_version == -1 and np.allclose(plan.positions[0], service.published[goal.version].sample(0.33)[0])
 
 
 def test_the_planner_service_drops_bad_bytes_and_goes_on(replanner):

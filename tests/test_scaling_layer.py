@@ -237,3 +237,56 @@ def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_i
         lay.step(person, 0.0)
     assert lay.take(fresh, True, 0.0, q_here=old.sample(lay.s)[0], start_tolerance=0.02) is None
     assert lay.trajectory is fresh
+
+
+def _crawling_beside_a_person(await_plan: float = 0.3):
+    """The shuttle at s = 1.0, crawling at the SSM's bound (0.17) towards a person 0.65 m ahead of the flange,
+    where the bound is 0.18 and falling: a replan request is due."""
+    lim = ROBOT.limits
+    old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
+    q, dq, _ = old.sample(1.0)
+    points, velocities = ROBOT.capsule_motion(q, dq)
+    ahead = points[-1, 1] + 0.65 * velocities[-1, 1] / np.linalg.norm(velocities[-1, 1])
+    person = HumanCapsules(np.array([[ahead, ahead]]), np.array([0.1]), np.zeros((1, 2, 3)), np.array([True]))
+    lay = ScalingLayer(ROBOT, SsmParameters(), ScalingParameters(await_plan=await_plan))
+    lay.set_trajectory(old)
+    lay.s, lay.sdot = 1.0, 0.17
+    return lay, old, person
+
+
+def test_a_crawling_robot_that_asks_for_a_replan_stops_and_awaits_the_plan_where_it_stands():
+    """Beta rising while the robot crawls brings it to rest where the discrete stop from its speed ends
+    (never braking harder than the joints' planning deceleration in a period), and it stands exactly there,
+    saying where (``awaiting``), until its plan from rest there comes and is taken; with no plan, it goes on
+    at the SSM's speed after await_plan, and does not stop again while the same request stands."""
+    lay, old, person = _crawling_beside_a_person()
+    lim = ROBOT.limits
+    one_period = lim.acceleration.max() * 0.01
+    velocity = old.sample(lay.s)[1] * lay.sdot
+    first = lay.step(person, 0.0)
+    assert first.beta and lay.awaiting is not None and lay.awaiting > first.s
+    stop_at = lay.awaiting
+    steps = [first]
+    for _ in range(15):
+        steps.append(lay.step(person, 0.0))
+    for step in steps:
+        assert np.abs(step.qd_command - velocity).max() <= one_period + 1e-9
+        assert step.s <= stop_at + 1e-12 and step.trajectory_version == 1
+        velocity = step.qd_command
+    assert lay.awaiting == stop_at and steps[-1].s == stop_at and not steps[-1].qd_command.any()
+    assert "+stopping" in steps[2].method
+    here = old.sample(stop_at)[0]
+    assert np.abs(steps[-1].q_command - here).max() < 1e-12
+    plan = straight_line_trajectory(here, Q_START, lim.velocity, lim.acceleration, version=2)
+    assert lay.take(plan, True, 0.0, q_here=here, start_tolerance=1e-3) is None
+    assert lay.trajectory is plan and lay.awaiting is None
+
+    lay, old, person = _crawling_beside_a_person()          # no plan comes: it waits await_plan, then goes on
+    steps = [lay.step(person, 0.0) for _ in range(60)]
+    waiting = [k for k, step in enumerate(steps) if lay.params.period * k <= 0.3 and step.sdot == 0.0]
+    assert waiting and all(step.beta for step in steps)
+    assert steps[-1].sdot > 0.0 and steps[-1].s > steps[waiting[-1]].s and lay.awaiting is None
+
+    lay, old, person = _crawling_beside_a_person(await_plan=0.0)  # nobody answers: it never stands to wait
+    steps = [lay.step(person, 0.0) for _ in range(20)]
+    assert steps[0].beta and lay.awaiting is None and all(step.sdot > 0.0 for step in steps)

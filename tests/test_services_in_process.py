@@ -207,3 +207,36 @@ def test_the_monitor_checks_states_paired_with_people_and_counts_the_rest_unchec
     report = shell.published(keys.monitor, MonitorReport)[-1]
     assert report.checks == service.checks and report.unchecked == service.unchecked and report.violations == 0
     assert shell.published(keys.safety_events, SafetyEvent)[-1].event == "monitor_summary"
+
+
+def test_the_scaler_says_where_it_awaits_the_replan_it_asked_for_and_takes_the_plan_from_there():
+    """A crawling robot that asks for a replan is stopped, and the status says where (stop_s): the planner's plan
+    from rest there is taken at once. Before the request, and once the plan is taken, stop_s is None."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+    scaler.tick(now)
+    q, dq, _ = traj.sample(1.0)
+    points, velocities = ROBOT.capsule_motion(q, dq)
+    ahead = points[-1, 1] + 0.65 * velocities[-1, 1] / np.linalg.norm(velocities[-1, 1])
+    person = HumanCapsules.from_arrays([[ahead, ahead]], [0.1], np.zeros((1, 2, 3)), [True])
+    scaler.layer.s, scaler.layer.sdot = 1.0, 0.17                # crawling towards the person
+    for _ in range(20):
+        now += 0.01
+        shell.deliver(keys.human_state, humans_to_msg(person, True, now))
+        scaler.tick(now)
+    statuses = shell.published(keys.scaler_status, ScalerStatus)
+    assert statuses[0].stop_s is None and statuses[-1].beta and statuses[-1].alpha == 0.0
+    stop_s = statuses[-1].stop_s
+    assert stop_s is not None and statuses[-1].s == stop_s and stop_s == scaler.layer.awaiting
+    here = traj.sample(stop_s)[0]
+    shell.deliver(keys.joint_state, joint_state(here))
+    plan = straight_line_trajectory(here, Q_START, LIM.velocity, LIM.acceleration, version=2)
+    shell.deliver(keys.trajectory, trajectory_to_msg(plan, 1, "beta", 0.0, -1))
+    now += 0.01
+    shell.deliver(keys.human_state, humans_to_msg(person, True, now))
+    scaler.tick(now)
+    last = shell.published(keys.scaler_status, ScalerStatus)[-1]
+    assert scaler.version == 2 and last.trajectory_version == 2 and last.stop_s is None

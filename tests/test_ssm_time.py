@@ -109,6 +109,17 @@ def test_people_stay_for_the_stay_and_move_on_along_their_velocities():
                                                                     moving=False)
 
 
+def test_a_person_shifting_their_stance_is_predicted_where_they_stand():
+    """A body slower than STANDING_SPEED (0.12 m/s towards the path here) is not moved on along its velocity:
+    a person shifting their stance or leaning in does not walk anywhere (one predicted 0.25 m further in made a
+    goal planned while they stepped in go straight into their slowdown). With a lower drift speed they are."""
+    shifting = person(-1.2, 0.0, 1.0, (-0.4, 0.0, 0.8), velocity=(0.12, 0.0, 0.0))
+    where_they_are = COST.stretched(COST.trajectory_samples(OLD, 0.0), shifting, moving=False)
+    assert COST.trajectory_time(OLD, 0.0, shifting) == pytest.approx(where_they_are)
+    drifting = SsmTimeCost(ROBOT, SSM, TimeCostOptions(drift_speed=0.1))
+    assert drifting.trajectory_time(OLD, 0.0, shifting) > where_they_are + 0.05
+
+
 def test_reached_is_where_the_bound_lets_a_crawling_robot_get_in_that_time():
     # nobody near: full speed, never past the end
     assert COST.reached(OLD, 0.5, None, 0.3) == pytest.approx(0.8)
