@@ -54,7 +54,7 @@ def test_runs_to_the_end_with_zero_violations(report):
     # every refusal says why, with the old and the new trajectory's predicted times (or the planning error,
     # or the blocked goal)
     for entry in summary["replans"]:
-        assert entry["reason"] in ("horizon", "beta") and entry["compute_ms"] is not None
+        assert entry["reason"] in ("horizon", "beta", "slow") and entry["compute_ms"] is not None
         assert entry["ok"] or re.search(r"predicted \d+\.\d\d s, not (\d+ % )?faster than the old \d+\.\d\d s",
                                         entry["detail"]) \
             or "Error" in entry["detail"] or "merge" in entry["detail"] \
@@ -86,7 +86,8 @@ def test_runs_to_the_end_with_zero_violations(report):
         alpha_min = CellConfig().scaling.alpha_min
         held = sum(1 for r in rows if 13.8 <= float(r["t"]) < 18.0 and float(r["alpha"]) < alpha_min)
         assert detours and held <= 50, (summary["replans"], arrivals, detours, held)      # 0.5 s at 100 Hz
-    phase4 = [e for e in taken if 18.0 <= e["t"] < 22.8 and e["reason"] == "beta"]
+    phase4 = [e for e in taken if 18.0 <= e["t"] < 22.8 and e["reason"] in ("beta", "slow")]   # (or the planner's
+    # own request, for the path ahead predicted slow: before the scaling layer had to ask)
     moved_on = False
     if phase4:
         version = int(re.search(r"version (\d+)", phase4[0]["detail"]).group(1))
