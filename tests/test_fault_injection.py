@@ -65,3 +65,14 @@ def test_an_emcy_is_timed_when_it_reached_the_socket_not_when_a_busy_campaign_re
     assert (n3, c3) == (3, 0x8250)
     assert before - 0.45 < t3 < after - 0.35
     assert before <= t4 <= after and before <= t5 <= after
+
+
+def test_a_person_shown_nearer_is_seen_in_the_first_status_that_has_them_nearer():
+    """The jump fault's judge (tools.faultcheck.nearer_seen): two thirds of the jump nearer than before; where
+    the scaler had nobody in its problem before (no separation), the first separation at all."""
+    from tools.faultcheck import nearer_seen
+    walking = [(0.01, 0.95), (0.02, 0.94), (0.03, 0.93)]            # the person walking up: not the jump
+    assert nearer_seen(1.0, walking, 0.3) is None
+    assert nearer_seen(1.0, walking + [(0.04, 0.72)], 0.3) == 0.04
+    assert nearer_seen(None, [(0.004, 0.81), (0.014, 0.80)], 0.3) == 0.004
+    assert nearer_seen(None, [], 0.3) is None

@@ -8,6 +8,7 @@ and records the measured joint states. Here:
   d_min) applied to the measured joint states against the *true* human (the scripted person the campaign
   sends, not the tracker's view of them), so a fault that blinds the tracker or the monitor itself is still
   judged;
+* ``nearer_seen``: when the scaler took in a person shown nearer than they are (the jump fault);
 * ``stop_timeline``: what the scaler did and how fast the robot went after an injection, for a stop that
   missed its bound (the verdict's notes carry it, so a failure on a busy machine can be read afterwards);
 * ``FaultVerdict``: the whole verdict for one fault, as the campaign prints it and the tests assert it.
@@ -60,6 +61,19 @@ def moving_at(times: np.ndarray, speeds: np.ndarray, t: float, still: float = ST
     times = np.asarray(times, dtype=float)
     k = int(np.searchsorted(times, t, side="right")) - 1
     return k >= 0 and float(np.asarray(speeds)[k]) >= still
+
+
+def nearer_seen(before: float | None, separations: list[tuple[float, float]], jump: float) -> float | None:
+    """When (s, the statuses' clock) the scaler first took in a person shown `jump` (m) nearer than they are:
+    the first status after the injection whose smallest separation (separations: (stamp, m) in order) is
+    nearer than before it by two thirds of the jump. before: the last status's before the injection, None
+    where it had nobody in its problem (no SSM rows: the status says no separation): then the first
+    separation at all is the nearer person taken in. (That case was judged as a stop that never came, and
+    the campaign failed a scaler that had taken the person in within 4 ms.) None: not seen."""
+    for stamp, separation in separations:
+        if before is None or separation < before - 2.0 * jump / 3.0:
+            return stamp
+    return None
 
 
 def truth_violations(monitor: SafetyMonitor, samples: list[tuple[float, np.ndarray, np.ndarray]],

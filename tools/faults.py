@@ -45,7 +45,7 @@ from shared.wire.keys import KeySpace
 from shared.wire.messages import JointState, ScalerStatus
 from tools.actors import FeedFault, HumanFeed, Recorder, Shuttle
 from tools.cell import service_info
-from tools.faultcheck import FaultVerdict, moving_at, standstill_after, stop_timeline, truth_violations
+from tools.faultcheck import FaultVerdict, moving_at, nearer_seen, standstill_after, stop_timeline, truth_violations
 from tools.launch import free_port
 from tools.report import Recording
 
@@ -377,11 +377,11 @@ class Campaign:
                 v.stop_s = round(min(r[0] for r in reactions) + brake, 3)
                 v.notes.append("stop_s = SYNC-watchdog EMCY + braking from the last measured speed at the "
                                "drives' deceleration (without SYNC the drives send no TPDO to measure it by)")
-        elif v.name == "human_jump" and before is not None and before.min_separation is not None:
-            nearer = [s for s in statuses if s.min_separation is not None
-                      and s.min_separation < before.min_separation - 2 * JUMP / 3]
-            if nearer:
-                reactions.append((nearer[0].stamp - t_inject, "scaler: the nearer person is in the scaling problem"))
+        elif v.name == "human_jump" and before is not None:
+            seen = nearer_seen(before.min_separation, [(s.stamp, s.min_separation) for s in statuses
+                                                       if s.min_separation is not None], JUMP)
+            if seen is not None:
+                reactions.append((seen - t_inject, "scaler: the nearer person is in the scaling problem"))
         else:
             stop = standstill_after(times[during], speeds[during], t_inject)
             v.stop_s = None if stop is None else round(stop, 3)
