@@ -42,6 +42,7 @@ def test_the_shipped_config_is_the_built_in_default():
     ("scaling: {period: 0}", "scaling.period"),
     ("scaling: {alpha_min: 0.5, alpha_release: 0.4}", "alpha_min"),
     ("scaling: {solver: magic}", "scaling.solver"),
+    ("scaling: {await_plan: -0.1}", "scaling.await_plan"),
     ("cell: {prefix: 'a/*'}", "prefix"),
     ("mystery: {}", "unknown section"),
     ("ssm: [1, 2]", "ssm: expected a mapping"),
