@@ -47,6 +47,10 @@ def reexec_in_namespace(argv: list[str], pass_fds: tuple[int, ...] = ()) -> int 
     return subprocess.call(in_new_namespace(argv), pass_fds=pass_fds)
 
 
+# --no-beta, the paper's ablation: the planner answers no replan request, so the scaler never stands to await one
+NO_BETA_ARGS = {"planner": ["--no-beta"], "scaler": ["--no-await"]}
+
+
 def run(out: Path, duration: float, phase_length: float, config_path: Path | None, seed: int, no_beta: bool,
         quiet: bool, robot, config, human=None, human_name: str = "", view_fd: int | None = None) -> dict:
     """The experiment on the real processes; returns the summary (written to out/summary.json). human:
@@ -55,7 +59,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     interface, channel = choose_bus()
     keys = KeySpace(PREFIX)
     cell = CellProcesses(out / "logs", PREFIX, interface, channel, config_path, seed,
-                         extra_args={"planner": ["--no-beta"], "scaler": ["--no-await"]} if no_beta else {})
+                         extra_args=NO_BETA_ARGS if no_beta else {})
     say = (lambda *a: None) if quiet else (lambda text: print(text, flush=True))
     say(f"hrc demo: starting the cell (emulator + 5 services, CAN {interface}{' ' + channel if channel else ''}, "
         f"Zenoh {cell.endpoint}); logs in {out / 'logs'}")
