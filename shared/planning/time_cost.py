@@ -66,17 +66,23 @@ class TimeCostOptions:
 
 @numba.njit(cache=True)
 def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
-                    human_vel, human_drift, human_known, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
+                    human_vel, human_known, drift_speed, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
                     floor, wait_step, ends):
     """Sum of dts[k] / alpha_k along the samples, the people moved on by the time already predicted (and,
     in ends[k], the sum up to the end of sample k: when the robot is predicted to get there); from
     `stay` on (within a sample too) at full speed. A sample that would take longer than wait_step is
     waited at in steps of wait_step, each with the people moved on by then (up to extrapolation): someone
     walking away clears the robot's way after a moment, not after the whole stretch their position of
-    now would give (a sample at the alpha floor stands for 50 times its nominal time)."""
+    now would give (a sample at the alpha floor stands for 50 times its nominal time). A capsule whose ends
+    both move slower than drift_speed stays where it is (decided once, here, not per candidate in Python)."""
     n_links = radii.shape[0]
     n_h = human_seg.shape[0]
     moved = np.empty_like(human_seg)
+    drifts = np.zeros(n_h, dtype=np.bool_)      # moved on: a known velocity, an end at drift_speed or faster
+    for j in range(n_h):
+        for e in range(2):
+            speed = np.sqrt(human_vel[j, e, 0] ** 2 + human_vel[j, e, 1] ** 2 + human_vel[j, e, 2] ** 2)
+            drifts[j] = drifts[j] or (human_known[j] and speed >= drift_speed)
     total = 0.0
     for k in range(qs.shape[0]):
         if n_h == 0 or total >= stay:
@@ -93,7 +99,7 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
             for j in range(n_h):
                 for e in range(2):
                     for c in range(3):
-                        moved[j, e, c] = human_seg[j, e, c] + (shift * human_drift[j, e, c] if human_known[j] else 0.0)
+                        moved[j, e, c] = human_seg[j, e, c] + (shift * human_vel[j, e, c] if drifts[j] else 0.0)
             _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
                                                         vel.reshape(n_links, 2, 3), moved, human_rad, human_vel,
                                                         human_known, horizon, fixed, near_d, v_near, v_far)
@@ -226,18 +232,11 @@ class SsmTimeCost:
         ends = np.empty(samples.q.shape[0])
         _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
                         placement, parent, local, joint, r.ancestry, r.radii, humans.segments,
-                        humans.radii, humans.velocities, self._drift(humans), humans.velocity_known,
+                        humans.radii, humans.velocities, humans.velocity_known, o.drift_speed,
                         *ssm.kernel_constants,
                         ssm.tracking_margin, o.extrapolation if moving else 0.0, float(stay), o.alpha_floor,
                         o.wait_step, ends)
         return ends
-
-    def _drift(self, humans: HumanCapsules) -> np.ndarray:
-        """The velocities the people are moved on along (m/s, (H, 2, 3)): the tracked ones, but zero for a
-        capsule whose ends both move slower than ``drift_speed``."""
-        velocities = np.ascontiguousarray(humans.velocities, dtype=float)
-        slow = np.linalg.norm(velocities, axis=2).max(axis=1) < self.options.drift_speed
-        return np.where(slow[:, None, None], 0.0, velocities) if slow.any() else velocities
 
     def reached(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None, seconds: float,
                 stay: float = np.inf, samples: int = 20) -> float:
