@@ -15,8 +15,14 @@ shuttles per minute with nobody in the cell, the most any strategy can do; "won_
 alone that the planning layer wins back: a ratio's room depends on the kind, and this says how much of
 it is used).
 
+--foresight adds a fourth column, a bound rather than a strategy (evidence.foresight): full with the planning
+layer told the scripted people's own future instead of its constant-velocity forecast. Its ratios
+"foresight/scale_only" and "full/foresight" and "won_back_foresight" say how much of the room a perfect
+prediction of human motion would use, so what is left beyond it is the planner's search and rules, or
+physics (the people simply in the way).
+
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
-                            [--kinds two_humans,random_walk] [--seed 0]
+                            [--kinds two_humans,random_walk] [--seed 0] [--foresight]
 
 (--kinds: only these kinds, in turn, seeds counted from --seed: `--scenarios 200 --kinds two_humans` runs
 200 two-person scenarios.)
@@ -39,7 +45,7 @@ sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import SCENARIO_KINDS  # noqa: E402
 from evidence.stats import paired_ratio  # noqa: E402
-from evidence.strategies import STRATEGIES, Strategies  # noqa: E402
+from evidence.strategies import BOUNDS, STRATEGIES, Strategies  # noqa: E402
 
 _WORKER: Strategies | None = None
 
@@ -50,10 +56,10 @@ def _init() -> None:
     _WORKER = Strategies(scene=load_scene(ROOT / "deploy" / "scene.yaml"))
 
 
-def _run(task: tuple[str, int, float]) -> dict:
-    kind, seed, duration = task
+def _run(task: tuple[str, int, float, tuple[str, ...]]) -> dict:
+    kind, seed, duration, strategies = task
     out = {"kind": kind, "seed": seed}
-    for strategy in STRATEGIES:
+    for strategy in strategies:
         started = time.perf_counter()
         res = _WORKER.run(strategy, kind, seed, duration)
         s = res.summary()
@@ -66,8 +72,10 @@ def _run(task: tuple[str, int, float]) -> dict:
 
 
 def aggregate(rows: list[dict], horizon: float) -> dict:
+    """Per strategy (those the rows have): shuttles per minute, time stopped, the smallest margin (m),
+    violations and command exceedances, wall time per scenario."""
     result = {}
-    for strategy in STRATEGIES:
+    for strategy in columns(rows):
         runs = [r[strategy] for r in rows]
         minutes = sum(r["duration_s"] for r in runs) / 60.0
         margins = [r["min_margin_m_s"] for r in runs if r["min_margin_m_s"] is not None]
@@ -81,14 +89,19 @@ def aggregate(rows: list[dict], horizon: float) -> dict:
     return result
 
 
-PAIRS = (("full", "scale_only"), ("full", "zones"))
+PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"), ("full", "foresight"))
 
 
-def won_back(per_strategy: dict, empty: float) -> float | None:
+def columns(rows: list[dict]) -> tuple[str, ...]:
+    """The strategies (and bounds) these rows were run with, in the table's order."""
+    return tuple(s for s in STRATEGIES + BOUNDS if rows and s in rows[0])
+
+
+def won_back(per_strategy: dict, empty: float, strategy: str = "full") -> float | None:
     """(full - scale_only) / (empty - scale_only) in shuttles per minute: the share of the throughput the
-    people cost the scaling layer alone that the full architecture wins back (None where they cost it
-    nothing)."""
-    full, scale = per_strategy["full"]["shuttles_per_min"], per_strategy["scale_only"]["shuttles_per_min"]
+    people cost the scaling layer alone that the full architecture (or `strategy`) wins back (None where
+    they cost it nothing)."""
+    full, scale = per_strategy[strategy]["shuttles_per_min"], per_strategy["scale_only"]["shuttles_per_min"]
     lost = empty - scale
     return round((full - scale) / lost, 3) if lost > 1e-9 else None
 
@@ -99,6 +112,8 @@ def ratios(rows: list[dict]) -> dict:
     or, where there is none (the second strategy did nothing at all), the reason."""
     out = {}
     for a, b in PAIRS:
+        if a not in columns(rows) or b not in columns(rows):
+            continue
         try:
             out[f"{a}/{b}"] = paired_ratio([r[a]["shuttles"] for r in rows], [r[b]["shuttles"] for r in rows],
                                            np.random.default_rng(0))
@@ -115,12 +130,14 @@ def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
     kinds = sorted({r["kind"] for r in rows})
     per_kind = {k: aggregate([r for r in rows if r["kind"] == k], horizon) for k in kinds}
     fig, axes = plt.subplots(1, 3, figsize=(18, 4.5), gridspec_kw={"width_ratios": [1, 1, 0.8]})
-    width = 0.27
+    shown_strategies = columns(rows)
+    width = 0.8 / len(shown_strategies)
     x = np.arange(len(kinds))
-    for i, strategy in enumerate(STRATEGIES):
-        axes[0].bar(x + (i - 1) * width, [per_kind[k][strategy]["shuttles_per_min"] for k in kinds], width,
+    for i, strategy in enumerate(shown_strategies):
+        offset = (i - (len(shown_strategies) - 1) / 2) * width
+        axes[0].bar(x + offset, [per_kind[k][strategy]["shuttles_per_min"] for k in kinds], width,
                     label=strategy)
-        axes[1].bar(x + (i - 1) * width, [per_kind[k][strategy]["stopped_fraction"] for k in kinds], width,
+        axes[1].bar(x + offset, [per_kind[k][strategy]["stopped_fraction"] for k in kinds], width,
                     label=strategy)
     for ax, title in zip(axes, ("shuttles per minute (higher is better)", "fraction of time stopped")):
         ax.set_xticks(x, kinds)
@@ -143,7 +160,7 @@ def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
     axes[2].set_xticks(np.arange(len(names)), names, rotation=20)
     axes[2].set_title("full / scale_only, paired bootstrap 95 % interval")
     fig.suptitle(f"{len(rows)} seeded scenarios; violations (monitor): "
-                 + ", ".join(f"{s} {sum(r[s]['violations'] for r in rows)}" for s in STRATEGIES))
+                 + ", ".join(f"{s} {sum(r[s]['violations'] for r in rows)}" for s in shown_strategies))
     fig.tight_layout()
     fig.savefig(out / "compare.png", dpi=80)
     plt.close(fig)
@@ -158,6 +175,8 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0, help="first scenario seed")
     parser.add_argument("--kinds", default=",".join(sorted(SCENARIO_KINDS)),
                         help="comma-separated scenario kinds, run in turn (default: all)")
+    parser.add_argument("--foresight", action="store_true",
+                        help="also run full told the people's scripted future: the bound on better prediction")
     args = parser.parse_args()
     if args.scenarios < 1 or args.duration <= 0 or args.workers < 1:
         parser.error("--scenarios and --workers must be >= 1, --duration > 0")
@@ -165,7 +184,8 @@ def main() -> int:
     unknown = [k for k in kinds if k not in SCENARIO_KINDS]
     if unknown or not kinds:
         parser.error(f"--kinds: unknown or none {unknown or args.kinds!r}; known: {', '.join(sorted(SCENARIO_KINDS))}")
-    tasks = [(kinds[k % len(kinds)], args.seed + k, args.duration) for k in range(args.scenarios)]
+    run = STRATEGIES + (BOUNDS if args.foresight else ())
+    tasks = [(kinds[k % len(kinds)], args.seed + k, args.duration, run) for k in range(args.scenarios)]
     started = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=_init) as pool:
         rows = []
@@ -189,30 +209,33 @@ def main() -> int:
     for kind in kinds:
         of_kind = [r for r in rows if r["kind"] == kind]
         per = per_kind[kind] = aggregate(of_kind, horizon)
-        share = won_back(per, empty)
+        shares = {s: won_back(per, empty, s) for s in run if s not in ("zones", "scale_only")}
         print(f"{kind:<12} " + "  ".join(f"{s}: {per[s]['shuttles_per_min']:6.2f}/min stopped "
                                           f"{per[s]['stopped_fraction']:.2f} viol {per[s]['violations']}"
-                                          for s in STRATEGIES)
-              + ("" if share is None else f"  won back {100 * share:.0f} %"))
+                                          for s in run)
+              + "".join(f"  {s} won back {100 * share:.0f} %" for s, share in shares.items() if share is not None))
         intervals[kind] = ratios(of_kind)
     intervals["overall"] = ratios(rows)
     plot(rows, args.out, horizon, intervals)
     print("ratios of shuttles per minute with their paired bootstrap 95 % intervals:")
     for name, pairs in intervals.items():
         for pair, r in pairs.items():
-            print(f"  {name:<12} {pair:<16} {r if isinstance(r, str) else r.describe()}")
+            print(f"  {name:<12} {pair:<20} {r if isinstance(r, str) else r.describe()}")
     print(f"{len(rows)} scenarios x {args.duration:.0f} s in {time.perf_counter() - started:.0f} s on "
           f"{args.workers} workers; plot and per-scenario results in {args.out}")
     full, zones, scale = (strategies[s]["shuttles_per_min"] for s in ("full", "zones", "scale_only"))
-    print(json.dumps({"bench": "compare", "scenarios": len(rows), "strategies": strategies,
-                      "speedup_vs_zones": round(full / zones, 3) if zones else None,
-                      "speedup_vs_scale_only": round(full / scale, 3) if scale else None,
-                      "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in STRATEGIES} for k in kinds},
-                      "empty_cell": empty,
-                      "won_back": {k: won_back(per_kind[k], empty) for k in kinds}
-                      | {"overall": won_back(strategies, empty)},
-                      "ratios": {name: {pair: None if isinstance(r, str) else r.as_list() for pair, r in pairs.items()}
-                                 for name, pairs in intervals.items()}}))
+    summary = {"bench": "compare", "scenarios": len(rows), "strategies": strategies,
+               "speedup_vs_zones": round(full / zones, 3) if zones else None,
+               "speedup_vs_scale_only": round(full / scale, 3) if scale else None,
+               "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in run} for k in kinds},
+               "empty_cell": empty,
+               "won_back": {k: won_back(per_kind[k], empty) for k in kinds} | {"overall": won_back(strategies, empty)}}
+    if args.foresight:
+        summary["won_back_foresight"] = ({k: won_back(per_kind[k], empty, "foresight") for k in kinds}
+                                         | {"overall": won_back(strategies, empty, "foresight")})
+    summary["ratios"] = {name: {pair: None if isinstance(r, str) else r.as_list() for pair, r in pairs.items()}
+                         for name, pairs in intervals.items()}
+    print(json.dumps(summary))
     return 0
 
 

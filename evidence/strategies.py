@@ -4,7 +4,10 @@
 * scale_only: the scaling layer on the fixed straight shuttle (the paper's ablation);
 * full: the scaling layer and the planning layer (horizon replans, beta replans, every shuttle planned
   around the humans), each path search charged the planner service's wall-clock budget for it (80 ms)
-  on the simulated clock: repeatable, and no kinder than the cell, where searches stop at that budget.
+  on the simulated clock: repeatable, and no kinder than the cell, where searches stop at that budget;
+* foresight (a bound, not a strategy a cell can run; ``bench/compare.py --foresight``): full, with the
+  planning layer told the scripted people's own future instead of its constant-velocity forecast
+  (``evidence.foresight``): the most a better prediction of human motion could add to full.
 Every run is judged by the independent monitor's rule (evidence.sim). ``Strategies`` builds the robot, the
 collision model and the planner once per process and runs any (strategy, scenario) on them, and the
 shuttle in an empty cell (``empty_cell``): the most any strategy can do in a scenario's time.
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from evidence.foresight import FORESIGHT_HORIZON, FORESIGHT_STAY, Foresight
 from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
 from evidence.sim import SimResult, run_shuttle
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
@@ -22,13 +26,15 @@ from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.path_search import CELL_BUDGET
-from shared.planning.replanner import Replanner
+from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import Scene
+from shared.planning.time_cost import TimeCostOptions
 from shared.robot.model import default_robot
 from shared.safety.monitor import SafetyMonitor
 from shared.scaling.layer import ScalingLayer
 
 STRATEGIES = ("zones", "scale_only", "full")
+BOUNDS = ("foresight",)
 
 
 class Strategies:
@@ -39,6 +45,10 @@ class Strategies:
         self.collision = CollisionModel(self.robot, scene or Scene(floor_z=0.0), self.config.ssm.min_separation)
         self.replanner = Replanner(self.collision, JointPlanner(self.collision, PlannerOptions(seed=planner_seed)),
                                    self.config.ssm)
+        # the same planning layer, its forecast the script's own future (set per run) over a longer horizon
+        self.foreseeing = Replanner(self.collision, self.replanner.planner, self.config.ssm,
+                                    options=ReplanOptions(patience=FORESIGHT_STAY,
+                                                          cost=TimeCostOptions(extrapolation=FORESIGHT_HORIZON)))
         lim = self.robot.limits
         shuttle = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration)
         s = np.linspace(0.0, shuttle.duration, 200)
@@ -67,4 +77,9 @@ class Strategies:
         if strategy == "full":
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
                                charge_planning=CELL_BUDGET, monitor=self.monitor)
-        raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES}")
+        if strategy == "foresight":
+            foreseen = Foresight(human)
+            self.foreseeing.cost.forecaster = foreseen
+            return run_shuttle(self.robot, cfg, foreseen, Q_START, Q_GOAL, duration, replanner=self.foreseeing,
+                               charge_planning=CELL_BUDGET, monitor=self.monitor)
+        raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES + BOUNDS}")

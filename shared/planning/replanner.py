@@ -38,6 +38,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory, polyline_trajectory, straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
+from shared.planning.forecast import Forecaster
 from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach, people_passing
 from shared.planning.merge import merge
 from shared.planning.ompl_planner import JointPlanner, PlanningError
@@ -99,14 +100,17 @@ class Replanner:
     optional wall-clock budget) and OMPL's sampling where RRT-Connect seeds it."""
 
     def __init__(self, collision: CollisionModel, planner: JointPlanner, ssm: SsmParameters,
-                 horizon: HorizonOptions = HorizonOptions(), options: ReplanOptions = ReplanOptions()) -> None:
+                 horizon: HorizonOptions = HorizonOptions(), options: ReplanOptions = ReplanOptions(),
+                 forecaster: Forecaster | None = None) -> None:
+        """forecaster: where the time cost has the people go (None: ``ConstantVelocity``, see
+        ``shared.planning.forecast``)."""
         self.collision = collision
         self.planner = planner
         self.ssm = ssm
         self.horizon = horizon
         self.options = options
         self.limits = collision.robot.limits
-        self.cost = SsmTimeCost(collision.robot, ssm, options.cost)
+        self.cost = SsmTimeCost(collision.robot, ssm, options.cost, forecaster)
         self.search = PathSearch(collision, self.cost, options.search)
         self.searches = 0          # path searches run (the simulation charges planning time by them)
         self.finishing = 0.02      # s: recent wall time of an action's work besides its searches (see begin)

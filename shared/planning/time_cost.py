@@ -10,10 +10,11 @@ full speed). At every sample the scaling layer's own SSM bound gives the largest
 15066 less the tracking margin), and the sample takes dt / alpha. This is the cost of Tonola et al. 2025
 (an edge's length divided by the scaling factor expected along it), here as time, with the people moving:
 
-* people with a tracked velocity are moved on along it for as long as the robot has been predicted to
-  travel, up to ``extrapolation`` seconds, then stay there (a body part slower than ``drift_speed`` stays
-  where it is: a person shifting their stance does not walk on); people without one stay where they are and
-  approach at the ISO 13855 speed inside the limit (``shared.safety.ssm``), as the standard treats them;
+* the people are where a forecast (``shared.planning.forecast``) has them by the time the robot has been
+  predicted to travel, up to ``extrapolation`` seconds, then stay there. The default forecast moves people
+  with a tracked velocity on along it (a body part slower than ``drift_speed`` stays where it is: a person
+  shifting their stance does not walk on); people without one stay where they are and approach at the
+  ISO 13855 speed inside the limit (``shared.safety.ssm``), as the standard treats them;
 * people are assumed to stay in the cell for ``stay`` seconds of the prediction and to be gone after it.
   Both candidates of a keep-or-replace decision get the same ``stay``: a person who stays long makes the
   blocked old path slow and is gone round; a person who passes (tracked velocity) clears the old path in
@@ -37,6 +38,7 @@ import numpy as np
 
 from shared.core.humans import STANDING_SPEED, HumanCapsules
 from shared.core.trajectory import Trajectory
+from shared.planning.forecast import ConstantVelocity, Forecaster, PeopleForecast
 from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import _pair_ssm_kernel
@@ -53,8 +55,8 @@ class TimeCostOptions:
     crossing 0.998x -> 1.000x, random walk 0.987x -> 0.991x, two people 1.0018x -> 1.0015x, the paper
     unchanged; on 16 others: crossing 0.995x -> 0.999x, random walk 0.975x -> 0.996x, standing 3.154x ->
     3.160x); wait_step (s): how long the prediction waits at a slow sample before it looks again at the
-    people moved on; drift_speed (m/s): a capsule whose ends both move slower than this is not moved on
-    (``shared.core.humans.STANDING_SPEED``)."""
+    people moved on; drift_speed (m/s): in the default forecast (``ConstantVelocity``), a capsule whose ends
+    both move slower than this is not moved on (``shared.core.humans.STANDING_SPEED``)."""
 
     spacing: float = 0.05
     trajectory_step: float = 0.05
@@ -65,24 +67,19 @@ class TimeCostOptions:
 
 
 @numba.njit(cache=True)
-def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
-                    human_vel, human_known, drift_speed, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
+def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, frames, frame_vel, frame_step,
+                    human_rad, human_known, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
                     floor, wait_step, ends):
-    """Sum of dts[k] / alpha_k along the samples, the people moved on by the time already predicted (and,
-    in ends[k], the sum up to the end of sample k: when the robot is predicted to get there); from
-    `stay` on (within a sample too) at full speed. A sample that would take longer than wait_step is
-    waited at in steps of wait_step, each with the people moved on by then (up to extrapolation): someone
-    walking away clears the robot's way after a moment, not after the whole stretch their position of
-    now would give (a sample at the alpha floor stands for 50 times its nominal time). A capsule whose ends
-    both move slower than drift_speed stays where it is (decided once, here, not per candidate in Python)."""
+    """Sum of dts[k] / alpha_k along the samples, the people where the forecast has them by the time
+    already predicted (frames (F, M, 2, 3) every frame_step s, linear in between, the last held; and, in
+    ends[k], the sum up to the end of sample k: when the robot is predicted to get there); from `stay` on
+    (within a sample too) at full speed. A sample that would take longer than wait_step is waited at in
+    steps of wait_step, each with the people as forecast by then (up to extrapolation, the forecast's
+    horizon): someone walking away clears the robot's way after a moment, not after the whole stretch
+    their position of now would give (a sample at the alpha floor stands for 50 times its nominal time)."""
     n_links = radii.shape[0]
-    n_h = human_seg.shape[0]
-    moved = np.empty_like(human_seg)
-    drifts = np.zeros(n_h, dtype=np.bool_)      # moved on: a known velocity, an end at drift_speed or faster
-    for j in range(n_h):
-        for e in range(2):
-            speed = np.sqrt(human_vel[j, e, 0] ** 2 + human_vel[j, e, 1] ** 2 + human_vel[j, e, 2] ** 2)
-            drifts[j] = drifts[j] or (human_known[j] and speed >= drift_speed)
+    n_f, n_h = frames.shape[0], frames.shape[1]
+    moved = np.empty_like(frames[0])
     total = 0.0
     for k in range(qs.shape[0]):
         if n_h == 0 or total >= stay:
@@ -96,12 +93,16 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
                 total += left * dts[k]
                 break
             shift = min(total, extrapolation)
+            at = shift / frame_step
+            i = min(int(at), n_f - 1)
+            nxt = min(i + 1, n_f - 1)
+            frac = at - i if nxt > i else 0.0
             for j in range(n_h):
                 for e in range(2):
                     for c in range(3):
-                        moved[j, e, c] = human_seg[j, e, c] + (shift * human_vel[j, e, c] if drifts[j] else 0.0)
+                        moved[j, e, c] = frames[i, j, e, c] + frac * (frames[nxt, j, e, c] - frames[i, j, e, c])
             _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
-                                                        vel.reshape(n_links, 2, 3), moved, human_rad, human_vel,
+                                                        vel.reshape(n_links, 2, 3), moved, human_rad, frame_vel[i],
                                                         human_known, horizon, fixed, near_d, v_near, v_far)
             alpha = _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin)
             if alpha <= 0.0 and stay < np.inf:
@@ -180,12 +181,15 @@ class PathSamples:
 class SsmTimeCost:
     """Expected traversal times of paths and trajectories under the SSM (see the module docstring)."""
 
-    def __init__(self, robot: RobotModel, ssm: SsmParameters, options: TimeCostOptions = TimeCostOptions()) -> None:
+    def __init__(self, robot: RobotModel, ssm: SsmParameters, options: TimeCostOptions = TimeCostOptions(),
+                 forecaster: Forecaster | None = None) -> None:
         self.robot = robot
         self.ssm = ssm
         self.options = options
+        self.forecaster = forecaster or ConstantVelocity(options.drift_speed)
         self.limits = robot.limits
         self.evaluations = 0
+        self._forecasts: tuple[HumanCapsules, float, PeopleForecast] | None = None    # the latest, see forecast
 
     # ------------------------------------------------------------------------------------ sampling
     def segment_time(self, q0: np.ndarray, q1: np.ndarray) -> float:
@@ -224,18 +228,31 @@ class SsmTimeCost:
             return samples.nominal
         return float(self._walk(samples, humans, stay, moving)[-1]) + samples.overhead
 
+    def forecast(self, humans: HumanCapsules, moving: bool = True) -> PeopleForecast:
+        """The forecaster's frames of these people over the options' extrapolation (moving=False: held where
+        they are). A search costs hundreds of candidates against the same tracked people: the latest forecast
+        is kept for the same HumanCapsules object (frozen; a new snapshot is a new object)."""
+        horizon = self.options.extrapolation if moving else 0.0
+        kept = self._forecasts
+        if kept is not None and kept[0] is humans and kept[1] == horizon:
+            return kept[2]
+        made = self.forecaster.forecast(humans, horizon) if horizon > 0.0 else PeopleForecast.still(humans)
+        if made.frames.shape[1] != humans.count:
+            raise ValueError(f"the forecast has {made.frames.shape[1]} capsules, the tracked people {humans.count}")
+        self._forecasts = (humans, horizon, made)
+        return made
+
     def _walk(self, samples: PathSamples, humans: HumanCapsules, stay: float, moving: bool) -> np.ndarray:
         """When the robot is predicted to reach the end of each sample (s from the first one's start)."""
         r = self.robot
         placement, parent, local, joint = r.chain
         ssm, o = self.ssm, self.options
+        ahead = self.forecast(humans, moving)
         ends = np.empty(samples.q.shape[0])
         _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
-                        placement, parent, local, joint, r.ancestry, r.radii, humans.segments,
-                        humans.radii, humans.velocities, humans.velocity_known, o.drift_speed,
-                        *ssm.kernel_constants,
-                        ssm.tracking_margin, o.extrapolation if moving else 0.0, float(stay), o.alpha_floor,
-                        o.wait_step, ends)
+                        placement, parent, local, joint, r.ancestry, r.radii, ahead.frames, ahead.velocities,
+                        ahead.step, humans.radii, humans.velocity_known, *ssm.kernel_constants,
+                        ssm.tracking_margin, ahead.horizon, float(stay), o.alpha_floor, o.wait_step, ends)
         return ends
 
     def reached(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None, seconds: float,

@@ -1,0 +1,56 @@
+"""The bound on prediction: the planning layer told the scripted people's own future.
+
+The planning layer predicts people with a constant-velocity forecast (``shared.planning.forecast``): a
+person walking up is predicted to walk on, one who stops to have stopped only once they have. How much
+of what the people cost would a perfect prediction of human motion win back? ``Foresight`` answers it in
+the simulation: a forecaster whose frames are the script's own future (what the people *will* do), for
+the product's own planning layer, unchanged otherwise (the same search, cost, keep-or-replace rule,
+planning loop and scaling layer). No tracker can know this; the gap between the full architecture and
+the ``foresight`` strategy (``evidence.strategies``, ``bench/compare.py --foresight``) is the most any
+better prediction could add, and what is left beyond it is the search's and the rules' (or physics').
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+from shared.planning.forecast import PeopleForecast
+
+FORESIGHT_HORIZON = 6.0    # s: the future the forecast spans (longer than a shuttle leg under any slowdown)
+FRAME_STEP = 0.1           # s: at most this between its frames (the scripts move linearly between keyframes)
+# s: how long the foreseeing planner's predictions have the people stay. Its forecast already says when they
+# leave, so nobody is assumed gone before it ends; after it they stay where it left them.
+FORESIGHT_STAY = 1e9
+
+
+class Foresight:
+    """The people of a script, and a forecaster that knows their future. The simulation reads the people
+    through ``at(t)`` (which keeps the clock), the time cost asks ``forecast``: frames of the script from
+    that moment on."""
+
+    def __init__(self, script, step: float = FRAME_STEP) -> None:
+        self.script = script
+        self.step = step
+        self.now = 0.0
+        self._kept: tuple[tuple[float, float], PeopleForecast] | None = None
+
+    def at(self, t: float) -> HumanCapsules:
+        self.now = t
+        return self.script.at(t)
+
+    def phase(self, t: float) -> str:
+        return self.script.phase(t)
+
+    def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
+        if horizon <= 0.0 or humans.count == 0:
+            return PeopleForecast.still(humans)
+        key = (self.now, horizon)
+        if self._kept is not None and self._kept[0] == key:
+            return self._kept[1]
+        frames = int(np.ceil(horizon / self.step))
+        future = [self.script.at(self.now + horizon * k / frames) for k in range(frames + 1)]
+        made = PeopleForecast(np.stack([f.segments for f in future]), np.stack([f.velocities for f in future]),
+                              horizon / frames)
+        self._kept = (key, made)
+        return made

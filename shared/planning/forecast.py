@@ -1,0 +1,80 @@
+"""Where the tracked people are predicted to be while the robot travels: the planning layer's forecast.
+
+The SSM-aware time cost (``shared.planning.time_cost``) walks a path against the people *as they will be*
+when the robot gets to each sample. What "as they will be" means is a forecaster's job, kept apart from
+the cost so that a better prediction of human motion can replace the default without touching the cost:
+
+* ``ConstantVelocity``: the default, in the cell and in the simulation: every body part moves on along
+  its tracked velocity for the forecast's horizon, then stays there; a part slower than ``drift_speed``
+  (``shared.core.humans.STANDING_SPEED``: someone shifting their stance) and a part of unknown velocity
+  stay where they are;
+* any object with ``forecast(humans, horizon) -> PeopleForecast`` (``evidence.foresight`` gives the
+  simulation's scripted people their own future, the bound no prediction can beat).
+
+A forecast is frames of the capsules' end points at evenly spaced times from now; between two frames a
+capsule moves linearly (so two frames hold a constant-velocity forecast exactly), after the last it stays.
+For choosing between plans only, never for a safety decision: the scaling layer and the monitor use the
+people as tracked, with the standard's worst-case approach speeds. Pure: no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from shared.core.humans import STANDING_SPEED, HumanCapsules
+
+
+@dataclass(frozen=True)
+class PeopleForecast:
+    """frames (F, M, 2, 3): the M capsules' end points (m, robot base frame) at times 0, step, 2 step, ...
+    (s from now); velocities (F, M, 2, 3): their end-point velocities (m/s) from each frame on, what the SSM
+    takes as the approach speed (where velocity_known of the tracked humans says they are known)."""
+
+    frames: np.ndarray
+    velocities: np.ndarray
+    step: float
+
+    def __post_init__(self) -> None:
+        for name in ("frames", "velocities"):
+            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=np.float64))
+        if self.frames.ndim != 4 or self.frames.shape[0] < 1 or self.frames.shape[2:] != (2, 3):
+            raise ValueError(f"forecast frames must be (F >= 1, M, 2, 3), not {self.frames.shape}")
+        if self.velocities.shape != self.frames.shape:
+            raise ValueError("forecast velocities and frames disagree in shape")
+        if not self.step > 0.0:
+            raise ValueError(f"forecast step must be > 0 s, not {self.step}")
+
+    @property
+    def horizon(self) -> float:
+        """Seconds from now to the last frame (0: the people held where they are)."""
+        return (self.frames.shape[0] - 1) * self.step
+
+    @staticmethod
+    def still(humans: HumanCapsules) -> "PeopleForecast":
+        """The people held where they are now."""
+        return PeopleForecast(humans.segments[None], humans.velocities[None], 1.0)
+
+
+class Forecaster(Protocol):
+    def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
+        """The people's frames over the next `horizon` seconds (s), from the tracked `humans` of now."""
+
+
+@dataclass(frozen=True)
+class ConstantVelocity:
+    """Each capsule moves on along its tracked velocity for the horizon, then stays; a capsule whose ends
+    both move slower than drift_speed (m/s), or of unknown velocity, stays where it is."""
+
+    drift_speed: float = STANDING_SPEED
+
+    def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
+        if horizon <= 0.0 or humans.count == 0:
+            return PeopleForecast.still(humans)
+        fastest_end = np.linalg.norm(humans.velocities, axis=2).max(axis=1)
+        drifts = humans.velocity_known & (fastest_end >= self.drift_speed)
+        end = humans.segments + np.where(drifts[:, None, None], humans.velocities * horizon, 0.0)
+        return PeopleForecast(np.stack([humans.segments, end]), np.stack([humans.velocities, humans.velocities]),
+                              horizon)
