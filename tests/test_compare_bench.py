@@ -59,3 +59,16 @@ def test_one_kind_runs_and_its_ratios_come_with_intervals(tmp_path):
     assert set(result["won_back"]) == {"standing", "overall"}
     assert (tmp_path / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(json.loads((tmp_path / "scenarios.json").read_text())) == 2
+
+
+def test_foresight_adds_the_bound_with_its_ratios(tmp_path):
+    done = run("--scenarios", "1", "--kinds", "paper", "--duration", "1.0", "--workers", "1", "--foresight",
+               tmp_path=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert set(result["kinds"]["paper"]) == {"zones", "scale_only", "full", "foresight"}
+    assert {"foresight/scale_only", "full/foresight"} <= set(result["ratios"]["overall"])
+    assert set(result["won_back_foresight"]) == {"paper", "overall"}
+    assert "foresight" in json.loads((tmp_path / "scenarios.json").read_text())[0]
+    # without it, neither the column nor its ratios
+    assert load_compare().ratios([row(1.0, 1.0, 2.0)]).keys() == {"full/scale_only", "full/zones"}

@@ -7,6 +7,7 @@ from evidence.scenarios import Q_GOAL, Q_START, body_segments
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import polyline_trajectory, straight_line_trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.forecast import ConstantVelocity, PeopleForecast
 from shared.planning.path_search import PathSearch, SearchOptions
 from shared.planning.scene import load_scene
 from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
@@ -118,6 +119,59 @@ def test_a_person_shifting_their_stance_is_predicted_where_they_stand():
     assert COST.trajectory_time(OLD, 0.0, shifting) == pytest.approx(where_they_are)
     drifting = SsmTimeCost(ROBOT, SSM, TimeCostOptions(drift_speed=0.1))
     assert drifting.trajectory_time(OLD, 0.0, shifting) > where_they_are + 0.05
+
+
+def test_the_default_forecast_is_constant_velocity_and_holds_a_shifting_stance():
+    # two frames, the second `horizon` on along the velocity: linear in between is constant velocity exactly
+    ahead = ConstantVelocity().forecast(WALKING, 2.0)
+    assert ahead.frames.shape == (2, WALKING.count, 2, 3) and ahead.horizon == pytest.approx(2.0)
+    np.testing.assert_allclose(ahead.frames[1], WALKING.segments + 2.0 * WALKING.velocities)
+    shifting = person(-1.2, 0.0, 1.0, (-0.4, 0.0, 0.8), velocity=(0.12, 0.0, 0.0))
+    np.testing.assert_array_equal(ConstantVelocity().forecast(shifting, 2.0).frames[1], shifting.segments)
+    unknown = HumanCapsules.from_arrays(WALKING.segments, WALKING.radii)     # no tracked velocity: stays
+    np.testing.assert_array_equal(ConstantVelocity().forecast(unknown, 2.0).frames[-1], unknown.segments)
+    assert ConstantVelocity().forecast(WALKING, 0.0).horizon == 0.0
+
+
+class Frames:
+    """A forecaster of hand-made frames (times 0, step, ...): what a better prediction would plug in."""
+
+    def __init__(self, frames, step: float, velocities=None) -> None:
+        self.frames, self.step, self.calls = np.asarray(frames), step, 0
+        self.velocities = np.broadcast_to(0.0 if velocities is None else velocities, self.frames.shape)
+
+    def forecast(self, humans, horizon):
+        self.calls += 1
+        return PeopleForecast(self.frames, self.velocities, self.step)
+
+
+def test_a_forecast_of_many_frames_is_interpolated_between_them():
+    """Twenty-one frames of the walking person's constant-velocity motion give the two-frame forecast's time;
+    the same person forecast to turn back at once is out of the way sooner."""
+    times = np.arange(21) * 0.1
+    walk = WALKING.segments[None] + times[:, None, None, None] * WALKING.velocities[None]
+    cost = SsmTimeCost(ROBOT, SSM, forecaster=Frames(walk, 0.1, WALKING.velocities))
+    assert cost.trajectory_time(OLD, 0.0, WALKING) == pytest.approx(COST.trajectory_time(OLD, 0.0, WALKING), rel=1e-9)
+    back = WALKING.segments[None] - times[:, None, None, None] * WALKING.velocities[None]
+    turning = SsmTimeCost(ROBOT, SSM, forecaster=Frames(back, 0.1, -WALKING.velocities))
+    assert turning.trajectory_time(OLD, 0.0, WALKING) < COST.trajectory_time(OLD, 0.0, WALKING) - 0.05
+
+
+def test_one_forecast_serves_a_search_and_a_wrong_one_is_refused():
+    frames = Frames(NEAR.segments[None], 1.0)
+    cost = SsmTimeCost(ROBOT, SSM, forecaster=frames)
+    for _ in range(3):                               # the same tracked people: forecast once
+        cost.trajectory_time(OLD, 0.0, NEAR)
+    assert frames.calls == 1
+    cost.trajectory_time(OLD, 0.0, person(-1.0, 0.0, 1.0, (-0.4, 0.0, 0.8)))   # a new snapshot: forecast anew
+    assert frames.calls == 2
+    # a forecast of other people than those tracked is an error, not a silent mismatch
+    with pytest.raises(ValueError, match="capsules"):
+        SsmTimeCost(ROBOT, SSM, forecaster=Frames(NEAR.segments[None, :1], 1.0)).trajectory_time(OLD, 0.0, NEAR)
+    with pytest.raises(ValueError, match="step"):
+        PeopleForecast(NEAR.segments[None], NEAR.velocities[None], 0.0)
+    with pytest.raises(ValueError, match="shape"):
+        PeopleForecast(NEAR.segments[None], NEAR.velocities, 1.0)
 
 
 def test_reached_is_where_the_bound_lets_a_crawling_robot_get_in_that_time():

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from evidence.foresight import Foresight
 from evidence.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario
 from evidence.strategies import Strategies
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
@@ -111,3 +112,23 @@ def test_leg_progress_is_geometric_so_a_new_plan_keeps_the_way_made():
     assert leg_fraction(a, a, b) == 0.0 and leg_fraction(b, a, b) == 1.0
     assert leg_fraction(0.25 * b, a, b) == pytest.approx(0.25)
     assert leg_fraction(-b, a, b) == 0.0 and leg_fraction(a, a, a) == 0.0      # away from the goal; no leg
+
+
+def test_foresight_forecasts_the_scripts_own_future():
+    script = make_scenario("two_humans", 5, 8.0)
+    foreseen = Foresight(script)
+    now = foreseen.at(2.0)                         # the simulation reads the people: the clock is kept
+    ahead = foreseen.forecast(now, 1.0)
+    assert ahead.step <= 0.1 and ahead.horizon == pytest.approx(1.0)
+    for k in range(ahead.frames.shape[0]):
+        np.testing.assert_allclose(ahead.frames[k], script.at(2.0 + k * ahead.step).segments)
+    assert foreseen.forecast(now, 0.0).horizon == 0.0 and foreseen.phase(2.0) == script.phase(2.0)
+
+
+def test_the_foresight_bound_runs_safe_and_repeatably(strategies):
+    first = strategies.run("foresight", "paper", 0, 6.0).summary()
+    second = strategies.run("foresight", "paper", 0, 6.0).summary()
+    first.pop("compute_us"), second.pop("compute_us")
+    assert first == second and first["violations"] == 0 and first["command_exceedances"] == 0
+    with pytest.raises(ValueError, match="foresight"):
+        strategies.run("oracle", "paper", 0, 1.0)
