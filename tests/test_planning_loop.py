@@ -229,6 +229,29 @@ def test_an_action_budget_stops_the_searches_in_time_for_the_rest_of_the_action(
     assert 0.0 <= budgeted.finishing < 0.02        # learnt from what the rest took (at most the budget)
 
 
+def test_the_learnt_finishing_time_rises_at_once_and_falls_slowly(monkeypatch):
+    """A refused replan's rest is a millisecond, a taken one's the time laws of its trajectory (20-45 ms):
+    an average of both let the next taken plan's searches run into its time (hrc demo: replans 107-118 ms
+    against a 100 ms budget). The learnt time goes up at once to a longer rest, down a tenth of the gap."""
+    import shared.planning.replanner as module
+    clock = [100.0]
+    monkeypatch.setattr(module, "time", type("Clock", (), {"perf_counter": staticmethod(lambda: clock[0])}))
+    replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+                          options=ReplanOptions(action_budget=0.1))
+
+    def action(search: float, rest: float) -> float:
+        replanner.begin()
+        replanner.search.spent = search
+        clock[0] += search + rest
+        replanner.end()
+        return replanner.finishing
+
+    assert action(0.06, 0.045) == pytest.approx(0.045)                          # up at once
+    assert action(0.02, 0.001) == pytest.approx(0.045 + 0.1 * (0.001 - 0.045))  # down a tenth of the gap
+    assert action(0.0, 0.5) == pytest.approx(0.0406)                  # an action that did not search: unlearnt
+    assert action(0.01, 0.5) == pytest.approx(0.1)                    # at most the whole budget
+
+
 def test_a_merge_tries_further_junctions_only_within_the_action_budget(monkeypatch):
     """Every junction a merge tries times a whole law; in the cell a merge that failed at two junctions took
     685 ms. With an action budget, a try after the budget is spent is not made: the replan is refused
