@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/end_to_end.py
 	$(BIN)/python bench/cell_cpu.py
 	$(BIN)/python bench/compare.py
+	$(BIN)/python bench/forecast.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

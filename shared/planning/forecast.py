@@ -52,6 +52,15 @@ class PeopleForecast:
         """Seconds from now to the last frame (0: the people held where they are)."""
         return (self.frames.shape[0] - 1) * self.step
 
+    def at(self, shift: float) -> np.ndarray:
+        """The capsules' end points (M, 2, 3) `shift` seconds from now: linear between frames, the last held
+        after the horizon (what the time cost's kernel does at every step of its walk)."""
+        where = min(max(shift, 0.0), self.horizon) / self.step
+        i = min(int(where), self.frames.shape[0] - 1)
+        following = min(i + 1, self.frames.shape[0] - 1)
+        frac = where - i if following > i else 0.0
+        return self.frames[i] + frac * (self.frames[following] - self.frames[i])
+
     @staticmethod
     def still(humans: HumanCapsules) -> "PeopleForecast":
         """The people held where they are now."""

@@ -1,0 +1,85 @@
+"""The people's forecast as a function of time (PeopleForecast.at) and bench/forecast.py's command line and
+errors (the figures themselves are the benchmark's, not asserted)."""
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evidence.scenarios import make_scenario
+from shared.core.humans import HumanCapsules
+from shared.planning.forecast import ConstantVelocity, PeopleForecast
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load_bench():
+    spec = importlib.util.spec_from_file_location("forecast_bench", ROOT / "bench" / "forecast.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_forecast_is_linear_between_frames_and_holds_after_the_last():
+    frames = np.zeros((3, 1, 2, 3))
+    frames[1, :, :, 0], frames[2, :, :, 0] = 1.0, 1.5          # x: 0 -> 1 -> 1.5 m at 0, 0.5, 1 s
+    ahead = PeopleForecast(frames, np.zeros_like(frames), 0.5)
+    assert ahead.horizon == pytest.approx(1.0)
+    for shift, x in ((0.0, 0.0), (0.25, 0.5), (0.5, 1.0), (0.75, 1.25), (1.0, 1.5), (3.0, 1.5), (-1.0, 0.0)):
+        np.testing.assert_allclose(ahead.at(shift)[..., 0], x)
+    still = PeopleForecast.still(HumanCapsules.from_arrays(frames[0], [0.1]))
+    np.testing.assert_array_equal(still.at(2.0), frames[0])
+
+
+def test_the_errors_are_zero_for_a_forecast_that_knows_and_grow_for_one_that_does_not():
+    bench = load_bench()
+    script = make_scenario("crossing", 1, 6.0)
+
+    class Knows:       # the script's own future: no error at all
+        def forecast(self, humans, horizon):
+            return PeopleForecast(np.stack([humans.segments, script.at(self.now + horizon).segments]),
+                                  np.stack([humans.velocities] * 2), horizon)
+
+    class Clocked:     # the people, telling Knows the moment
+        def at(self, t):
+            knows.now = t
+            return script.at(t)
+
+    knows = Knows()
+    assert bench.capsule_errors(Clocked(), 6.0, 1.0, knows).max() < 1e-9
+    # someone crossing at 1.6 m/s: holding them where they are is off by about 1.6 m a second later
+    still = bench.capsule_errors(script, 6.0, 1.0, bench.Still())
+    assert still.size > 0 and 1.0 < np.median(still) <= 1.6 + 1e-9
+    assert np.median(bench.capsule_errors(script, 6.0, 1.0, ConstantVelocity())) < np.median(still)
+    assert bench.summarise(np.zeros(0)) is None
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(ROOT / "bench" / "forecast.py"), *args],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+
+
+def test_bad_arguments_are_refused_with_a_reason(tmp_path):
+    assert "--horizons" in run("--horizons", "1,x").stderr
+    assert "--kinds: unknown ['nope']" in run("--kinds", "nope").stderr
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    done = run("--kinds", "", "--motion", str(broken))
+    assert done.returncode == 2 and "--motion" in done.stderr and "broken.json" in done.stderr
+
+
+def test_kinds_and_motion_files_come_out_per_forecaster_and_horizon():
+    done = run("--seeds", "1", "--duration", "3", "--kinds", "crossing", "--horizons", "0.5,1",
+               "--motion", str(ROOT / "docs" / "motions" / "reach_stays.json"))
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert set(result["errors"]) == {"crossing", "reach_stays.json"}
+    for per_forecaster in result["errors"].values():
+        assert set(per_forecaster) == {"still", "constant velocity", "constant velocity, every part"}
+        for horizons in per_forecaster.values():
+            assert set(horizons) == {"0.5", "1.0"}
+            assert all(0.0 <= mean and 0.0 <= p95 for mean, p95 in horizons.values())
