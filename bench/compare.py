@@ -144,21 +144,30 @@ def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
         ax.set_title(title)
         ax.legend(fontsize=8)
     names = [k for k in kinds + ["overall"] if not isinstance(intervals[k]["full/scale_only"], str)]
-    ratio = [intervals[k]["full/scale_only"] for k in names]
-    mid = np.array([r.ratio for r in ratio])
     top = 1.3                       # a kind far above (a person standing in the path) is written, not drawn
-    shown = mid <= top
-    axes[2].errorbar(np.arange(len(names))[shown], mid[shown],
-                     yerr=[(mid - [r.low for r in ratio])[shown], ([r.high for r in ratio] - mid)[shown]],
-                     fmt="o", color="tab:green", capsize=4)
-    for k in np.flatnonzero(~shown):
-        axes[2].annotate(f"{ratio[k].ratio:.2f}x [{ratio[k].low:.2f}, {ratio[k].high:.2f}]", (k, top),
-                         xytext=(0, -14), textcoords="offset points", ha="center", fontsize=8, color="tab:green",
-                         arrowprops={"arrowstyle": "-|>", "color": "tab:green"})
+    drawn = [("full/scale_only", "tab:green", 0.0)]
+    if "foresight/scale_only" in intervals["overall"]:
+        drawn.append(("foresight/scale_only", "tab:red", 0.15))
+    lowest = 0.95
+    for pair, colour, offset in drawn:
+        where = [k for k, name in enumerate(names) if not isinstance(intervals[name][pair], str)]
+        ratio = [intervals[names[k]][pair] for k in where]
+        mid = np.array([r.ratio for r in ratio])
+        shown = mid <= top
+        axes[2].errorbar(np.array(where, dtype=float)[shown] + offset, mid[shown],
+                         yerr=[(mid - [r.low for r in ratio])[shown], ([r.high for r in ratio] - mid)[shown]],
+                         fmt="o", color=colour, capsize=4, label=pair)
+        for k in np.flatnonzero(~shown):
+            axes[2].annotate(f"{ratio[k].ratio:.2f}x [{ratio[k].low:.2f}, {ratio[k].high:.2f}]", (where[k], top),
+                             xytext=(0, -14 - 12 * (offset > 0)), textcoords="offset points", ha="center",
+                             fontsize=8, color=colour, arrowprops={"arrowstyle": "-|>", "color": colour})
+        lowest = min([lowest] + [r.low - 0.01 for r in ratio])
     axes[2].axhline(1.0, color="tab:orange", lw=1)
-    axes[2].set_ylim(min([0.95] + [r.low - 0.01 for r in ratio]), top)
+    axes[2].set_ylim(lowest, top)
     axes[2].set_xticks(np.arange(len(names)), names, rotation=20)
-    axes[2].set_title("full / scale_only, paired bootstrap 95 % interval")
+    axes[2].set_title("against scale_only, paired bootstrap 95 % interval")
+    if len(drawn) > 1:
+        axes[2].legend(fontsize=8, loc="lower right")
     fig.suptitle(f"{len(rows)} seeded scenarios; violations (monitor): "
                  + ", ".join(f"{s} {sum(r[s]['violations'] for r in rows)}" for s in shown_strategies))
     fig.tight_layout()
