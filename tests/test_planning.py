@@ -11,6 +11,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock, ReplanFailed
+from shared.planning.forecast import ConstantVelocity, PeopleForecast
 from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach, people_passing
 from shared.planning.ompl_planner import (
     GoalInCollision,
@@ -290,11 +291,11 @@ def test_a_free_shuttle_is_planned_as_the_exact_trapezoid():
     assert np.allclose(q, OLD.sample(np.linspace(0, OLD.duration, 50))[0], atol=1e-9)
 
 
-def test_people_extrapolate_at_their_known_velocities_only():
+def test_people_are_forecast_at_their_known_velocities_only():
     seg = np.array([[[0.0, 0, 0], [0, 0, 1.0]], [[1.0, 0, 0], [1.0, 0, 1.0]]])
     people = HumanCapsules(seg, np.array([0.1, 0.1]), np.full((2, 2, 3), 0.5), np.array([True, False]))
-    later = people.extrapolated(2.0)
-    assert np.allclose(later.segments[0], seg[0] + 1.0) and np.allclose(later.segments[1], seg[1])
+    later = ConstantVelocity().forecast(people, 2.0).at(2.0)
+    assert np.allclose(later[0], seg[0] + 1.0) and np.allclose(later[1], seg[1])
 
 
 def test_a_person_crossing_out_of_the_path_is_waited_for_and_one_standing_in_it_is_not():
@@ -303,9 +304,13 @@ def test_a_person_crossing_out_of_the_path_is_waited_for_and_one_standing_in_it_
     leaving = HumanCapsules(seg, ARM_ACROSS.radii, np.tile([0.0, -2.0, 0.0], (2, 2, 1)), np.ones(2, bool))
     check = horizon_check(OLD, 0.0, CM, leaving, replanner.horizon)
     assert check.first_infeasible is not None                  # blocked now ...
-    assert people_passing(OLD, 0.0, check, leaving, CM)       # ... but gone by the time the robot is there
+    forecast = replanner.cost.forecast
+    assert people_passing(OLD, 0.0, check, leaving, CM, forecast(leaving))   # ... but gone when the robot is there
     assert replanner.on_horizon(OLD, 0.0, Q_GOAL, leaving) is None
-    assert not people_passing(OLD, 0.0, check, ARM_ACROSS, CM)
+    assert not people_passing(OLD, 0.0, check, ARM_ACROSS, CM, forecast(ARM_ACROSS))
+    # the planning layer's forecast decides: one that holds them where they are does not let them pass
+    held = PeopleForecast.still(leaving)
+    assert not people_passing(OLD, 0.0, check, leaving, CM, held)
 
 
 def test_nearby_starts_to_one_goal_are_planned_alike():

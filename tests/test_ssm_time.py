@@ -35,7 +35,8 @@ WALKING = person(-1.6, 0.0, 0.0, (-0.4, 0.0, 0.8), velocity=(0.8, 0.0, 0.0))
 
 def reference_time(traj, humans, options=TimeCostOptions()) -> float:
     """The definition, written out sample by sample with the scaling layer's own bound: a sample slower
-    than wait_step is waited at in steps of wait_step, each with the people moved on by then."""
+    than wait_step is waited at in steps of wait_step, each with the people moved on by then (along their
+    velocities, every part: these people walk faster than the standing speed)."""
     s = np.arange(0.0, traj.duration, options.trajectory_step)
     q, dq, _ = traj.sample(s)
     dt = np.diff(np.append(s, traj.duration))
@@ -44,7 +45,9 @@ def reference_time(traj, humans, options=TimeCostOptions()) -> float:
         left = 1.0
         while left > 0.0:
             shift = min(total, options.extrapolation)
-            alpha = max(ssm_alpha_bound(ROBOT, qk, dqk, humans.extrapolated(shift), SSM), options.alpha_floor)
+            moved = HumanCapsules(humans.segments + shift * humans.velocities, humans.radii, humans.velocities,
+                                  humans.velocity_known)
+            alpha = max(ssm_alpha_bound(ROBOT, qk, dqk, moved, SSM), options.alpha_floor)
             need = left * dtk / alpha
             step = min(need, options.wait_step) if shift < options.extrapolation else need
             total += step

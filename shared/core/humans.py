@@ -44,12 +44,6 @@ class HumanCapsules:
     def count(self) -> int:
         return int(self.radii.shape[0])
 
-    def extrapolated(self, dt: float) -> "HumanCapsules":
-        """Where the capsules will be after dt seconds at their current velocities (capsules of unknown
-        velocity stay where they are). For choosing between plans only, never for a safety decision."""
-        moved = self.segments + np.where(self.velocity_known[:, None, None], self.velocities * dt, 0.0)
-        return HumanCapsules(moved, self.radii, self.velocities, self.velocity_known)
-
     @staticmethod
     def empty() -> "HumanCapsules":
         return HumanCapsules(np.zeros((0, 2, 3)), np.zeros(0), np.zeros((0, 2, 3)), np.zeros(0, dtype=bool))

@@ -1,7 +1,7 @@
 """Alg. 1 of the paper: the horizon check. The next configurations of the trajectory from the current path
 parameter, all checked at once against the latest human capsules; the first infeasible one, if any. And
-whether the people who block it are passing: with their tracked velocities, gone by the time the robot
-gets there (then waiting is quicker than a detour).
+whether the people who block it are passing: in the planning layer's forecast of them, gone by the time the
+robot gets there (then waiting is quicker than a detour).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from shared.core.geometry import capsule_pair_distances
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.forecast import PeopleForecast
 
 
 @dataclass(frozen=True)
@@ -70,17 +71,17 @@ def horizon_check(trajectory: Trajectory, s: float, collision: CollisionModel, h
 
 
 def people_passing(old: Trajectory, s_now: float, check: HorizonResult, humans: HumanCapsules | None,
-               collision: CollisionModel) -> bool:
-    """The horizon is blocked now, but the people in the way are moving out of it: with their tracked
-    velocities, at the nominal time the robot would reach each blocked sample, none blocks any more
-    (a person crossing the path). Waiting for them (the scaling layer slows the robot as needed) is
-    then quicker than a detour."""
+                   collision: CollisionModel, ahead: PeopleForecast) -> bool:
+    """The horizon is blocked now, but the people in the way are moving out of it: where the planning
+    layer's forecast of them (``ahead``, the time cost's own) has them at the nominal time the robot would
+    reach each blocked sample, none blocks any more (a person crossing the path). Waiting for them (the
+    scaling layer slows the robot as needed) is then quicker than a detour."""
     if humans is None or not humans.velocity_known.any():
         return False
     blocked = check.s[check.first_infeasible:]
     q = old.sample(blocked)[0]
     for qk, sk in zip(q, blocked):
-        later = humans.extrapolated(float(sk - s_now))
+        later = HumanCapsules(ahead.at(float(sk - s_now)), humans.radii, humans.velocities, humans.velocity_known)
         if collision.clearances(qk[None, :], later)[0] <= collision.margins.tolerance:
             return False
     return True

@@ -418,7 +418,8 @@ class Replanner:
         check = horizon_check(old, s_now, self.collision, humans, self.horizon)
         # blocked where the robot already is: no branch ahead can help (the scaling layer holds the robot;
         # a beta replan plans the way out, and only when it is predicted to pay)
-        if check.first_infeasible in (None, 0) or people_passing(old, s_now, check, humans, self.collision):
+        if check.first_infeasible in (None, 0) or people_passing(old, s_now, check, humans, self.collision,
+                                                                 self.cost.forecast(humans)):
             return None
         blocked = float(check.s[check.first_infeasible])
         result, baseline = self._start(old, s_now, speed_now, q_goal, humans, "horizon", waited, held)
