@@ -249,7 +249,7 @@ def test_the_learnt_finishing_time_rises_at_once_and_falls_slowly(monkeypatch):
     assert action(0.06, 0.045) == pytest.approx(0.045)                          # up at once
     assert action(0.02, 0.001) == pytest.approx(0.045 + 0.1 * (0.001 - 0.045))  # down a tenth of the gap
     assert action(0.0, 0.5) == pytest.approx(0.0406)                  # an action that did not search: unlearnt
-    assert action(0.01, 0.5) == pytest.approx(0.1)                    # at most the whole budget
+    assert action(0.01, 0.5) == pytest.approx(0.05)     # at most half the budget: the searches keep the rest
 
 
 def test_a_merge_tries_further_junctions_only_within_the_action_budget(monkeypatch):

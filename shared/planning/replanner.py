@@ -50,6 +50,9 @@ from shared.scaling.layer import REST_SPEED, STOP_DECELERATION
 
 REMEMBERED = 4          # searched paths to the current goal kept as seeds of the next searches
 FINISHING_EASE = 0.1    # how far a planning action's learnt finishing time falls towards a shorter one (end)
+# the most of an action's budget the learnt finishing time keeps from its searches: one rest stretched by a
+# preemption on a busy machine would otherwise leave the next actions' searches no time at all
+FINISHING_MOST = 0.5
 
 
 @dataclass(frozen=True)
@@ -137,9 +140,11 @@ class Replanner:
         a refused replan is a millisecond, of a taken one the time laws of the new trajectory (20-45 ms on
         this machine); an average of both (a third of the gap each time) let the searches of the next taken
         plan run into its time: in the paper's 24 s, wall-clock, every taken replan ended 4-17 ms past the
-        100 ms budget and the first 17 ms, and in `hrc demo` the median of the replans was 107-118 ms."""
+        100 ms budget and the first 17 ms, and in `hrc demo` the median of the replans was 107-118 ms. At
+        most FINISHING_MOST of the budget."""
         if self._began is not None and self.search.spent > 0.0:
-            rest = min(max(0.0, time.perf_counter() - self._began - self.search.spent), self.options.action_budget)
+            rest = min(max(0.0, time.perf_counter() - self._began - self.search.spent),
+                       FINISHING_MOST * self.options.action_budget)
             self.finishing = rest if rest > self.finishing else self.finishing + FINISHING_EASE * (rest - self.finishing)
         self.search.deadline = self._began = None
 
