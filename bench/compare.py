@@ -19,10 +19,12 @@ it is used).
 layer told the scripted people's own future instead of its constant-velocity forecast. Its ratios
 "foresight/scale_only" and "full/foresight" and "won_back_foresight" say how much of the room a perfect
 prediction of human motion would use, so what is left beyond it is the planner's search and rules, or
-physics (the people simply in the way).
+physics (the people simply in the way). --forecaster runs full with another forecast of the people (a
+researcher's predictor, ``shared.planning.forecast.load_forecaster``); the JSON line names it.
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
                             [--kinds two_humans,random_walk] [--seed 0] [--foresight]
+                            [--forecaster mypackage.predict:MyForecaster]
 
 (--kinds: only these kinds, in turn, seeds counted from --seed: `--scenarios 200 --kinds two_humans` runs
 200 two-person scenarios.)
@@ -50,10 +52,12 @@ from evidence.strategies import BOUNDS, STRATEGIES, Strategies  # noqa: E402
 _WORKER: Strategies | None = None
 
 
-def _init() -> None:
+def _init(forecaster: str | None = None) -> None:
     global _WORKER
+    from shared.planning.forecast import load_forecaster
     from shared.planning.scene import load_scene
-    _WORKER = Strategies(scene=load_scene(ROOT / "deploy" / "scene.yaml"))
+    _WORKER = Strategies(scene=load_scene(ROOT / "deploy" / "scene.yaml"),
+                         forecaster=None if forecaster is None else load_forecaster(forecaster))
 
 
 def _run(task: tuple[str, int, float, tuple[str, ...]]) -> dict:
@@ -184,6 +188,9 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0, help="first scenario seed")
     parser.add_argument("--kinds", default=",".join(sorted(SCENARIO_KINDS)),
                         help="comma-separated scenario kinds, run in turn (default: all)")
+    parser.add_argument("--forecaster", metavar="MODULE:ATTRIBUTE",
+                        help="the full strategy's forecast of the people (default: constant velocity): a "
+                             "forecaster object, class or factory (shared.planning.forecast)")
     parser.add_argument("--foresight", action="store_true",
                         help="also run full told the people's scripted future: the bound on better prediction")
     args = parser.parse_args()
@@ -193,10 +200,16 @@ def main() -> int:
     unknown = [k for k in kinds if k not in SCENARIO_KINDS]
     if unknown or not kinds:
         parser.error(f"--kinds: unknown or none {unknown or args.kinds!r}; known: {', '.join(sorted(SCENARIO_KINDS))}")
+    if args.forecaster is not None:
+        from shared.planning.forecast import load_forecaster
+        try:
+            load_forecaster(args.forecaster)
+        except ValueError as exc:
+            parser.error(f"--forecaster: {exc}")
     run = STRATEGIES + (BOUNDS if args.foresight else ())
     tasks = [(kinds[k % len(kinds)], args.seed + k, args.duration, run) for k in range(args.scenarios)]
     started = time.perf_counter()
-    with ProcessPoolExecutor(args.workers, initializer=_init) as pool:
+    with ProcessPoolExecutor(args.workers, initializer=_init, initargs=(args.forecaster,)) as pool:
         rows = []
         for k, row in enumerate(pool.map(_run, tasks, chunksize=4)):
             rows.append(row)
@@ -233,7 +246,8 @@ def main() -> int:
     print(f"{len(rows)} scenarios x {args.duration:.0f} s in {time.perf_counter() - started:.0f} s on "
           f"{args.workers} workers; plot and per-scenario results in {args.out}")
     full, zones, scale = (strategies[s]["shuttles_per_min"] for s in ("full", "zones", "scale_only"))
-    summary = {"bench": "compare", "scenarios": len(rows), "strategies": strategies,
+    summary = {"bench": "compare", "scenarios": len(rows), "forecaster": args.forecaster or "constant velocity",
+               "strategies": strategies,
                "speedup_vs_zones": round(full / zones, 3) if zones else None,
                "speedup_vs_scale_only": round(full / scale, 3) if scale else None,
                "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in run} for k in kinds},

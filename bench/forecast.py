@@ -11,7 +11,8 @@ now and h later). Forecasters:
 * still: the people stay where they are (what a planner that ignores velocities assumes);
 * constant velocity: the planning layer's default (``ConstantVelocity``, parts slower than
   ``STANDING_SPEED`` held);
-* constant velocity, every part: the same with no standing speed (every tracked velocity moved on).
+* constant velocity, every part: the same with no standing speed (every tracked velocity moved on);
+* any other, by name (``--forecaster module:attribute``, ``shared.planning.forecast.load_forecaster``).
 
 Pair it with ``bench/compare.py --foresight`` (the throughput a perfect forecast would give): a new
 forecaster plugs into ``SsmTimeCost`` / ``Replanner`` (``forecaster=``), this says how close it gets to the
@@ -19,6 +20,7 @@ truth, compare says what that is worth. The last line is one JSON object:
 {"errors": {kind: {forecaster: {horizon: [mean, p95]}}}}.
 
     python bench/forecast.py [--seeds 10] [--duration 12] [--horizons 0.5,1,2] [--motion FILE ...]
+                             [--forecaster mypackage.predict:MyForecaster ...]
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import SCENARIO_KINDS, make_scenario  # noqa: E402
 from shared.core.errors import ConfigError  # noqa: E402
-from shared.planning.forecast import ConstantVelocity, PeopleForecast  # noqa: E402
+from shared.planning.forecast import ConstantVelocity, PeopleForecast, load_forecaster  # noqa: E402
 from shared.tracking.motion import RecordedMotion  # noqa: E402
 
 STEP = 0.1       # s between the moments a forecast is made
@@ -79,7 +81,15 @@ def main() -> int:
     parser.add_argument("--horizons", default="0.5,1,2", help="comma-separated forecast horizons (s)")
     parser.add_argument("--kinds", default=",".join(sorted(SCENARIO_KINDS)), help="scenario kinds ('' for none)")
     parser.add_argument("--motion", nargs="*", default=[], type=Path, help="motion files, each a kind of its own")
+    parser.add_argument("--forecaster", action="append", default=[], metavar="MODULE:ATTRIBUTE",
+                        help="another forecaster to hold against the truth (repeatable; shared.planning.forecast)")
     args = parser.parse_args()
+    forecasters = dict(FORECASTERS)
+    for spec in args.forecaster:
+        try:
+            forecasters[spec] = load_forecaster(spec)
+        except ValueError as exc:
+            parser.error(f"--forecaster: {exc}")
     try:
         horizons = [float(h) for h in args.horizons.split(",") if h.strip()]
     except ValueError:
@@ -102,14 +112,15 @@ def main() -> int:
         parser.error("nothing to forecast: no --seeds and no --motion")
     result: dict[str, dict] = {}
     print(f"forecast error (m, the larger end of each capsule): mean / 95th percentile, at {horizons} s ahead")
+    width = max(len(label) for label in forecasters)
     for name, runs in sources.items():
         result[name] = {}
-        for label, forecaster in FORECASTERS.items():
+        for label, forecaster in forecasters.items():
             result[name][label] = {}
             for h in horizons:
                 errors = np.concatenate([capsule_errors(p, d, h, forecaster) for p, d in runs])
                 result[name][label][str(h)] = summarise(errors)
-            print(f"{name:<16} {label:<30} " + "  ".join(
+            print(f"{name:<16} {label:<{width}} " + "  ".join(
                 f"{h:g} s: " + ("-" if (e := result[name][label][str(h)]) is None else f"{e[0]:.3f} / {e[1]:.3f}")
                 for h in horizons))
     print(json.dumps({"bench": "forecast", "horizons": horizons, "errors": result}))

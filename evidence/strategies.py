@@ -24,6 +24,7 @@ from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
 from shared.config import CellConfig
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.forecast import Forecaster
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.path_search import CELL_BUDGET
 from shared.planning.replanner import Replanner, ReplanOptions
@@ -38,13 +39,16 @@ BOUNDS = ("foresight",)
 
 
 class Strategies:
-    def __init__(self, config: CellConfig | None = None, scene: Scene | None = None, planner_seed: int = 1) -> None:
+    def __init__(self, config: CellConfig | None = None, scene: Scene | None = None, planner_seed: int = 1,
+                 forecaster: Forecaster | None = None) -> None:
+        """forecaster: the full strategy's forecast of the people (None: the planning layer's default,
+        ``ConstantVelocity``): a researcher's predictor, measured on the same scenarios."""
         self.config = config or CellConfig()
         self.robot = default_robot()
         self.monitor = SafetyMonitor(self.robot, self.config.ssm)
         self.collision = CollisionModel(self.robot, scene or Scene(floor_z=0.0), self.config.ssm.min_separation)
         self.replanner = Replanner(self.collision, JointPlanner(self.collision, PlannerOptions(seed=planner_seed)),
-                                   self.config.ssm)
+                                   self.config.ssm, forecaster=forecaster)
         # the same planning layer, its forecast the script's own future (set per run) over a longer horizon
         self.foreseeing = Replanner(self.collision, self.replanner.planner, self.config.ssm,
                                     options=ReplanOptions(patience=FORESIGHT_STAY,

@@ -12,7 +12,7 @@ import pytest
 
 from evidence.scenarios import make_scenario
 from shared.core.humans import HumanCapsules
-from shared.planning.forecast import ConstantVelocity, PeopleForecast
+from shared.planning.forecast import ConstantVelocity, DampedVelocity, PeopleForecast, load_forecaster
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -83,3 +83,44 @@ def test_kinds_and_motion_files_come_out_per_forecaster_and_horizon():
         for horizons in per_forecaster.values():
             assert set(horizons) == {"0.5", "1.0"}
             assert all(0.0 <= mean and 0.0 <= p95 for mean, p95 in horizons.values())
+
+
+def make_still():
+    """A factory: load_forecaster calls it."""
+    return load_bench().Still()
+
+
+def test_forecasters_are_loaded_by_name_or_refused_saying_why():
+    assert isinstance(load_forecaster("shared.planning.forecast:ConstantVelocity"), ConstantVelocity)   # a class
+    assert isinstance(load_forecaster("tests.test_forecast_bench:make_still").forecast(
+        make_scenario("crossing", 0, 2.0).at(0.5), 1.0), PeopleForecast)                                  # a factory
+    for spec, why in (("ConstantVelocity", "module:attribute"), ("no.such.module:X", "cannot import"),
+                      ("shared.planning.forecast:Nope", "has no 'Nope'"), ("numpy:pi", "no forecast")):
+        with pytest.raises(ValueError, match=why):
+            load_forecaster(spec)
+
+
+def test_a_damped_forecast_slows_the_people_down():
+    walking = make_scenario("crossing", 1, 6.0).at(1.0)
+    damped, constant = DampedVelocity(time_constant=1.0).forecast(walking, 2.0), ConstantVelocity().forecast(walking, 2.0)
+    moved = np.linalg.norm(damped.at(2.0) - walking.segments, axis=2).max()
+    assert moved == pytest.approx((1.0 - np.exp(-2.0)) / 2.0 * np.linalg.norm(constant.at(2.0) - walking.segments,
+                                                                               axis=2).max())
+    assert np.abs(damped.velocities[-1]).max() == pytest.approx(np.exp(-2.0) * np.abs(walking.velocities).max())
+
+
+def test_compare_takes_a_forecaster_for_full_and_names_it(tmp_path):
+    args = ["--scenarios", "1", "--kinds", "standing", "--duration", "2", "--workers", "1", "--out", str(tmp_path)]
+
+    def full(*more):
+        done = subprocess.run([sys.executable, str(ROOT / "bench" / "compare.py"), *args, *more],
+                              capture_output=True, text=True, timeout=300, cwd=ROOT)
+        assert done.returncode == 0, done.stderr[-2000:]
+        result = json.loads(done.stdout.strip().splitlines()[-1])
+        return result["forecaster"], result["kinds"]["standing"]["full"]
+
+    named, same = full("--forecaster", "shared.planning.forecast:ConstantVelocity")
+    assert named == "shared.planning.forecast:ConstantVelocity" and same == full()[1]   # the default, by name
+    refused = subprocess.run([sys.executable, str(ROOT / "bench" / "compare.py"), *args, "--forecaster", "nope"],
+                             capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert refused.returncode == 2 and "--forecaster" in refused.stderr and "module:attribute" in refused.stderr

@@ -9,7 +9,9 @@ the cost so that a better prediction of human motion can replace the default wit
   (``shared.core.humans.STANDING_SPEED``: someone shifting their stance) and a part of unknown velocity
   stay where they are;
 * any object with ``forecast(humans, horizon) -> PeopleForecast`` (``evidence.foresight`` gives the
-  simulation's scripted people their own future, the bound no prediction can beat).
+  simulation's scripted people their own future, the bound no prediction can beat). The benchmarks take
+  one by name, ``module:attribute`` (``load_forecaster``), so a researcher's predictor is measured without
+  editing the project: ``bench/forecast.py`` for how far it is off, ``bench/compare.py`` for what it wins.
 
 A forecast is frames of the capsules' end points at evenly spaced times from now; between two frames a
 capsule moves linearly (so two frames hold a constant-velocity forecast exactly), after the last it stays.
@@ -19,6 +21,7 @@ people as tracked, with the standard's worst-case approach speeds. Pure: no I/O.
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -87,3 +90,47 @@ class ConstantVelocity:
         end = humans.segments + np.where(drifts[:, None, None], humans.velocities * horizon, 0.0)
         return PeopleForecast(np.stack([humans.segments, end]), np.stack([humans.velocities, humans.velocities]),
                               horizon)
+
+
+@dataclass(frozen=True)
+class DampedVelocity:
+    """Each capsule slows down as it goes: displacement v tau (1 - e^(-t / tau)), velocity v e^(-t / tau)
+    (tau = time_constant, s), in `frames` steps over the horizon; parts slower than drift_speed (m/s) or of
+    unknown velocity stay. Not the planning layer's default: it is off less than ``ConstantVelocity`` 2 s
+    ahead in every scenario kind of the simulation, and plans worse (docs/architecture.md, "How far the
+    forecast is off"). A second reference for ``bench/forecast.py`` and ``bench/compare.py --forecaster``."""
+
+    time_constant: float = 1.0
+    drift_speed: float = STANDING_SPEED
+    frames: int = 8
+
+    def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
+        if horizon <= 0.0 or humans.count == 0:
+            return PeopleForecast.still(humans)
+        fastest_end = np.linalg.norm(humans.velocities, axis=2).max(axis=1)
+        moving = np.where((humans.velocity_known & (fastest_end >= self.drift_speed))[:, None, None],
+                          humans.velocities, 0.0)
+        t = np.linspace(0.0, horizon, self.frames + 1)[:, None, None, None]
+        fading = np.exp(-t / self.time_constant)
+        return PeopleForecast(humans.segments[None] + self.time_constant * (1.0 - fading) * moving[None],
+                              fading * humans.velocities[None], horizon / self.frames)
+
+
+def load_forecaster(spec: str) -> Forecaster:
+    """The forecaster named `spec`, ``package.module:attribute``: an object with ``forecast``, or a class or
+    factory called with no arguments that returns one. ValueError saying what is wrong otherwise (the
+    benchmarks turn it into their usage error)."""
+    module_name, _, attribute = spec.partition(":")
+    if not module_name or not attribute:
+        raise ValueError(f"a forecaster is named module:attribute (e.g. shared.planning.forecast:ConstantVelocity), "
+                         f"not {spec!r}")
+    try:
+        found = getattr(importlib.import_module(module_name), attribute)
+    except ImportError as exc:
+        raise ValueError(f"forecaster {spec!r}: cannot import {module_name!r}: {exc}") from None
+    except AttributeError:
+        raise ValueError(f"forecaster {spec!r}: {module_name!r} has no {attribute!r}") from None
+    made = found() if isinstance(found, type) or (callable(found) and not hasattr(found, "forecast")) else found
+    if not callable(getattr(made, "forecast", None)):
+        raise ValueError(f"forecaster {spec!r}: {type(made).__name__} has no forecast(humans, horizon) method")
+    return made
