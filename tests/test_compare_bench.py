@@ -1,21 +1,14 @@
 """bench/compare.py's command line and its ratios (the figures themselves are the benchmark's, not asserted)."""
 
-import importlib.util
 import json
 import subprocess
 import sys
 from pathlib import Path
 
 from evidence.stats import PairedRatio
+from tests.util import load_bench
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def load_compare():
-    spec = importlib.util.spec_from_file_location("compare_bench", ROOT / "bench" / "compare.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def row(zones: float, scale_only: float, full: float) -> dict:
@@ -24,13 +17,13 @@ def row(zones: float, scale_only: float, full: float) -> dict:
 
 
 def test_a_strategy_that_did_nothing_gives_a_reason_not_a_crash():
-    ratios = load_compare().ratios([row(0.0, 1.0, 2.0), row(0.0, 2.0, 2.0)])
+    ratios = load_bench("compare").ratios([row(0.0, 1.0, 2.0), row(0.0, 2.0, 2.0)])
     assert isinstance(ratios["full/scale_only"], PairedRatio) and abs(ratios["full/scale_only"].ratio - 4 / 3) < 1e-12
     assert ratios["full/zones"].startswith("no ratio: ") and "did nothing" in ratios["full/zones"]
 
 
 def test_won_back_is_the_share_of_what_the_people_cost_scaling_alone():
-    won_back = load_compare().won_back
+    won_back = load_bench("compare").won_back
     per = {"scale_only": {"shuttles_per_min": 16.0}, "full": {"shuttles_per_min": 19.0}}
     assert abs(won_back(per, 25.0) - 3.0 / 9.0) < 1e-3                       # 3 of the 9 lost
     assert won_back(per | {"full": {"shuttles_per_min": 15.0}}, 25.0) < 0    # worse than scaling alone
@@ -71,4 +64,4 @@ def test_foresight_adds_the_bound_with_its_ratios(tmp_path):
     assert set(result["won_back_foresight"]) == {"paper", "overall"}
     assert "foresight" in json.loads((tmp_path / "scenarios.json").read_text())[0]
     # without it, neither the column nor its ratios
-    assert load_compare().ratios([row(1.0, 1.0, 2.0)]).keys() == {"full/scale_only", "full/zones"}
+    assert load_bench("compare").ratios([row(1.0, 1.0, 2.0)]).keys() == {"full/scale_only", "full/zones"}

@@ -1,7 +1,6 @@
 """The people's forecast as a function of time (PeopleForecast.at) and bench/forecast.py's command line and
 errors (the figures themselves are the benchmark's, not asserted)."""
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -13,15 +12,9 @@ import pytest
 from evidence.scenarios import make_scenario
 from shared.core.humans import HumanCapsules
 from shared.planning.forecast import ConstantVelocity, DampedVelocity, PeopleForecast, load_forecaster
+from tests.util import load_bench
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def load_bench():
-    spec = importlib.util.spec_from_file_location("forecast_bench", ROOT / "bench" / "forecast.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_a_forecast_is_linear_between_frames_and_holds_after_the_last():
@@ -36,7 +29,7 @@ def test_a_forecast_is_linear_between_frames_and_holds_after_the_last():
 
 
 def test_the_errors_are_zero_for_a_forecast_that_knows_and_grow_for_one_that_does_not():
-    bench = load_bench()
+    bench = load_bench("forecast")
     script = make_scenario("crossing", 1, 6.0)
 
     class Knows:       # the script's own future: no error at all
@@ -87,7 +80,7 @@ def test_kinds_and_motion_files_come_out_per_forecaster_and_horizon():
 
 def make_still():
     """A factory: load_forecaster calls it."""
-    return load_bench().Still()
+    return load_bench("forecast").Still()
 
 
 def test_forecasters_are_loaded_by_name_or_refused_saying_why():

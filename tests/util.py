@@ -1,18 +1,31 @@
-"""Helpers the tests share: a free loopback port, `hrc` run in-process, and the private network namespace the
-multi-process tests need (they skip, saying why and what covers the same behaviour, where it cannot be made)."""
+"""Helpers the tests share: a free loopback port, `hrc` run in-process, a benchmark script as a module, and
+the private network namespace the multi-process tests need (they skip, saying why and what covers the same
+behaviour, where it cannot be made)."""
 
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import io
 from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
 
 from tools.cell import namespace_reason
 from tools.launch import free_port
 
-__all__ = ["CliRun", "free_port", "namespace_reason", "require_namespace", "run_hrc"]
+__all__ = ["CliRun", "free_port", "load_bench", "namespace_reason", "require_namespace", "run_hrc"]
+
+BENCH = Path(__file__).resolve().parents[1] / "bench"
+
+
+def load_bench(name: str):
+    """A benchmark script of bench/ (not a package) as a module, to test its functions directly."""
+    spec = importlib.util.spec_from_file_location(f"{name}_bench", BENCH / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def require_namespace(covered_by: str) -> None:
