@@ -78,6 +78,23 @@ def test_thin_obstacle_is_never_stepped_over():
     assert cm.motion_free(a, a + 0.9 * u_wire * (b - a))[0]     # and the part before it is free
 
 
+@settings(max_examples=40)
+@given(st.integers(0, 2 ** 31 - 1))
+def test_a_path_is_free_exactly_when_each_of_its_motions_is(seed):
+    """path_free, one compiled call for a whole path (a time law's knots, a search's candidates), says what
+    motion_free says of every segment in turn, and counts the same configuration checks up to the first
+    blocked segment."""
+    rng = np.random.default_rng(seed)
+    lim = ROBOT.limits
+    path = np.clip(rng.uniform(lim.lower * 0.6, lim.upper * 0.6) + np.cumsum(rng.uniform(-0.5, 0.5, (5, 6)), axis=0),
+                   lim.lower, lim.upper)
+    centre = rng.uniform([-0.8, -0.8, 0.1], [0.8, 0.8, 1.2], size=(2, 1, 3))
+    humans = HumanCapsules.from_arrays(centre + rng.normal(scale=0.15, size=(2, 2, 3)), rng.uniform(0.005, 0.1, 2))
+    one, each = CollisionModel(ROBOT, Scene(floor_z=0.0)), CollisionModel(ROBOT, Scene(floor_z=0.0))
+    expected = all(each.motion_free(a, b, humans)[0] for a, b in zip(path[:-1], path[1:]))
+    assert one.path_free(path, humans) == expected and one.checks == each.checks
+
+
 @settings(max_examples=60)
 @given(st.integers(0, 2 ** 31 - 1))
 def test_a_motion_reported_free_is_free_everywhere(seed):

@@ -155,9 +155,8 @@ class JointPlanner:
         waypoints[0], waypoints[-1] = q_start, q_goal
         # The simplifier checks motions with our validator; re-check every segment anyway, so that
         # nothing unchecked ever leaves the planner.
-        for a, b in zip(waypoints[:-1], waypoints[1:]):
-            if not collision.motion_free(a, b, humans, inflation)[0]:
-                raise NoPathFound("the simplified path failed the final motion check")
+        if not collision.path_free(waypoints, humans, inflation):
+            raise NoPathFound("the simplified path failed the final motion check")
         self.last_stats = {"planner": "rrt_connect", "plan_s": time.perf_counter() - started,
                            "waypoints": len(waypoints), "checks": self.collision.checks - checks_before}
         return waypoints

@@ -88,8 +88,7 @@ class PathSearch:
 
     def free(self, waypoints: np.ndarray, humans: HumanCapsules | None, inflation: float = 0.0) -> bool:
         """Every segment collision-free (static scene and the people, the planner's margin + inflation)."""
-        col = self.collision
-        return all(col.motion_free(a, b, humans, inflation)[0] for a, b in zip(waypoints[:-1], waypoints[1:]))
+        return self.collision.path_free(waypoints, humans, inflation)
 
     def _detours(self, q_from: np.ndarray, q_goal: np.ndarray, rng: np.random.Generator, count: int) -> list[np.ndarray]:
         """`count` random detours: the straight line with a joint offset (radius cycling through

@@ -120,10 +120,8 @@ def _smoothed(waypoints: np.ndarray, limits: JointLimits, start_velocity: np.nda
         raise TimingError(f"toppra's law exceeds the joint acceleration limit {peak:.2f}-fold")
     if not _within(traj.positions, limits):
         raise TimingError("the smoothed path leaves the joint position limits")
-    if collision is not None:
-        for a, b in zip(traj.positions[:-1], traj.positions[1:]):
-            if not collision.motion_free(a, b, humans, inflation)[0]:
-                raise TimingError("the smoothed path is not collision-free")
+    if collision is not None and not collision.path_free(traj.positions, humans, inflation):
+        raise TimingError("the smoothed path is not collision-free")
     return traj
 
 
