@@ -225,8 +225,8 @@ def _path_free(qs, link_reach, pair_moves, tolerance, placement, parent, local, 
                self_pairs, lower, upper, floor_z, box_c, box_h, cap_seg, cap_rad, human_seg, human_rad,
                human_req, static_req, self_req):
     """(free, evaluations): _motion_free over each segment qs[k] -> qs[k + 1] in turn, stopping at the first
-    that is not free. One call for a whole path: a time law's knots are some 200 segments, and the per-call
-    cost of handing the arrays over from Python one segment at a time was most of the check."""
+    that is not free. One call for a whole path: a time law's knots are some 200 segments, and handing the
+    arrays over from Python one segment at a time cost a time law 2 ms of its 25."""
     evaluations = 0
     for k in range(qs.shape[0] - 1):
         free, _, used = _motion_free(qs[k], qs[k + 1], link_reach, pair_moves, tolerance, placement, parent, local,
