@@ -33,7 +33,6 @@ class Foresight:
         self.script = script
         self.step = step
         self.now = 0.0
-        self._kept: tuple[tuple[float, float], PeopleForecast] | None = None
 
     def at(self, t: float) -> HumanCapsules:
         self.now = t
@@ -45,12 +44,7 @@ class Foresight:
     def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
         if horizon <= 0.0 or humans.count == 0:
             return PeopleForecast.still(humans)
-        key = (self.now, horizon)
-        if self._kept is not None and self._kept[0] == key:
-            return self._kept[1]
-        frames = int(np.ceil(horizon / self.step))
+        frames = int(np.ceil(horizon / self.step))        # (the time cost keeps one forecast per snapshot)
         future = [self.script.at(self.now + horizon * k / frames) for k in range(frames + 1)]
-        made = PeopleForecast(np.stack([f.segments for f in future]), np.stack([f.velocities for f in future]),
+        return PeopleForecast(np.stack([f.segments for f in future]), np.stack([f.velocities for f in future]),
                               horizon / frames)
-        self._kept = (key, made)
-        return made

@@ -24,7 +24,7 @@ zone-based baseline (evidence.zones). Same core code as the services: ScalingLay
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -158,7 +158,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     pass one to reuse it across runs)."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
     if replanner is None or not beta_replans:
-        layer.await_plan = 0.0        # nobody answers a replan request: never stand still awaiting one
+        layer.params = replace(layer.params, await_plan=0.0)   # nobody answers a replan request: never await one
     judge = CommandJudge(robot, config, monitor)
     loop = PlanningLoop(replanner, beta_cooldown=beta_cooldown, beta_replans=beta_replans) \
         if replanner is not None else None

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import sys
 import threading
+from dataclasses import replace
 
 import numpy as np
 
@@ -145,10 +146,9 @@ def main(argv: list[str] | None = None) -> int:
     if opened is None:
         return 2
     config, shell = opened
-    layer = ScalingLayer(default_robot(), config.ssm, config.scaling)
+    scaling = replace(config.scaling, await_plan=0.0) if args.no_await else config.scaling
+    layer = ScalingLayer(default_robot(), config.ssm, scaling)
     layer.warm_up()                  # compile before the first deadline, not at it
-    if args.no_await:
-        layer.await_plan = 0.0
     scaler = Scaler(shell, layer)
     return serve(shell, f"scaler: {1 / config.scaling.period:.0f} Hz on the drives' SYNC, solver "
                         f"{config.scaling.solver}, keys {shell.keys.prefix}/",

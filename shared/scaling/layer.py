@@ -119,10 +119,9 @@ class ScalingLayer:
         self.beta = False
         self.pending: tuple[Trajectory, float] | None = None   # a plan from rest that starts ahead, at that s
         self.dropped: str | None = None      # why the last pending plan was dropped (the service logs it)
-        # the s where the robot is brought to rest to await the plan it asked for (None: not awaiting), and for how long
-        # it may stand there (s of robot time; 0: never awaits, where no planning layer answers)
+        # the s where the robot is brought to rest to await the plan it asked for (None: not awaiting; how long it
+        # may stand there is params.await_plan, 0 where no planning layer answers), and how long it has stood
         self.awaiting: float | None = None
-        self.await_plan = self.params.await_plan
         self._awaited = 0.0
 
     def warm_up(self) -> None:
@@ -261,9 +260,9 @@ class ScalingLayer:
         await_plan seconds (a refused request: the robot then goes on at the SSM's speed)."""
         if self.awaiting is not None:
             self._awaited += self.params.period
-            if not self.beta or self._awaited > self.await_plan:
+            if not self.beta or self._awaited > self.params.await_plan:
                 self.awaiting = None
-        elif self.beta and not asked and self.await_plan > 0.0 and self.pending is None \
+        elif self.beta and not asked and self.params.await_plan > 0.0 and self.pending is None \
                 and alpha <= self.params.alpha_release:
             self.awaiting = min(self.trajectory.duration,
                                 self.s + alpha * self.params.period + self._stop_distance(alpha, dq_ds, d2q_ds2))
