@@ -137,6 +137,21 @@ def test_time_parameterisation_starts_with_the_given_velocity():
         parameterize(lead[:1], LIM, start_velocity=v0)        # cannot stop in zero distance
 
 
+def test_a_law_continues_a_motion_on_a_joint_velocity_limit():
+    """A junction where the old trajectory runs on a joint's velocity limit, or a grid effect over it (its
+    knots are allowed VELOCITY_TOLERANCE): the new law still starts there, with that velocity. Without
+    room at TOPP-RA's first velocity row no law existed, and such merges failed at every smoothing."""
+    q0 = np.array([0.8, -0.4, 1.17, 0.0, 1.57, 0.0])
+    bend = q0 + np.array([[0.0] * 6, [-0.6, 0, 0, 0, 0, 0], [-1.6, 0.2, -0.1, 0, 0, 0], [-2.0, 0.2, -0.1, 0, 0, 0]])
+    for over in (1.0, 1.00001, 1.005):
+        v0 = np.array([-LIM.velocity[0] * over, 0, 0, 0, 0, 0])
+        traj = parameterize(bend, LIM, start_velocity=v0)
+        assert np.allclose(traj.sample(0.0)[1], v0)
+        assert np.all(np.abs(traj.velocities[1:]) <= LIM.velocity * 1.01)
+    with pytest.raises(TimingError, match="start velocity is 1.050 x a joint velocity limit"):
+        parameterize(bend, LIM, start_velocity=np.array([-LIM.velocity[0] * 1.05, 0, 0, 0, 0, 0]))
+
+
 def test_horizon_check_finds_a_human_in_the_path_and_ignores_one_beside_it():
     hit = horizon_check(OLD, 0.0, CM, ARM_ACROSS, HorizonOptions(samples=40, spacing=0.05))
     assert hit.first_infeasible is not None and hit.first_infeasible > 0
