@@ -1,12 +1,13 @@
 """Time parameterisation at the robot's own limits: the nominal, fastest trajectory along a path.
 
 The waypoints of a planned path are joined by a cubic spline over chord length (toppra's
-SplineInterpolator, i.e. scipy's CubicSpline); toppra's TOPP-RA finds the fastest path speed under the
-joint velocity and acceleration limits; the result is sampled every knot_period into the project's
+SplineInterpolator, i.e. scipy's CubicSpline); TOPP-RA (``shared.planning.topp``, compiled: toppra's
+algorithm and discretisation, 20 times faster) finds the fastest path speed under the joint velocity and
+acceleration limits; the result is sampled every knot_period into the project's
 Trajectory (knots of position and velocity in nominal time).
 
 Continuing a motion: with start_velocity v0 the spline's first derivative is clamped to v0's direction
-and toppra starts at path speed |v0| (a hair less where v0 is on a joint's limit: START_WITHIN), so the
+and the law starts at path speed |v0| (a hair less where v0 is on a joint's limit: START_WITHIN), so the
 trajectory begins with the velocity v0 (a merged trajectory continues without a jump).
 
 How tightly the spline follows the polyline: the polyline is densified first (segments of at most
@@ -23,18 +24,16 @@ the same detours 2.6 % *shorter* than that estimate (the spline cuts the corners
 
 from __future__ import annotations
 
-import functools
 import logging
 
 import numpy as np
 import toppra
-import toppra.algorithm
-import toppra.constraint
 
 from shared.core.errors import HrcError
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.topp import fastest_law
 from shared.robot.model import JointLimits
 
 logging.getLogger("toppra").setLevel(logging.ERROR)
@@ -148,32 +147,17 @@ def _peak_acceleration(traj: Trajectory, limits: JointLimits) -> float:
     return float(np.max(np.abs(traj.sample(s)[2]) / limits.acceleration))
 
 
-@functools.lru_cache(maxsize=16)
-def _constraints(velocity: tuple[float, ...], acceleration: tuple[float, ...], headroom: float) -> tuple:
-    """toppra's joint velocity and acceleration constraints for these limits (rad/s, rad/s^2) and headroom.
-    They hold no state of a path, so they are built once: building them formats every limit into a
-    description string, 1.5 ms a pair, which a planning action paid up to nine times."""
-    vel = np.stack([-np.asarray(velocity), np.asarray(velocity)], axis=1) * VELOCITY_HEADROOM
-    acc = np.stack([-np.asarray(acceleration), np.asarray(acceleration)], axis=1) * headroom
-    return toppra.constraint.JointVelocityConstraint(vel), toppra.constraint.JointAccelerationConstraint(acc)
-
-
 def _timed(path, chord: np.ndarray, pts: np.ndarray, v0: np.ndarray, speed0: float, limits: JointLimits,
            headroom: float, knot_period: float, grid: int, version: int) -> Trajectory:
     """TOPP-RA's fastest law along the spline with the acceleration limits times headroom, sampled."""
-    instance = toppra.algorithm.TOPPRA(
-        list(_constraints(tuple(limits.velocity), tuple(limits.acceleration), headroom)),
-        path, gridpoints=np.linspace(0.0, chord[-1], grid + 1), parametrizer="ParametrizeConstAccel")
-    try:
-        result = instance.compute_trajectory(speed0, 0.0)
-    except Exception as exc:          # toppra raises assorted errors on infeasible inputs
-        raise TimingError(f"toppra failed: {exc}") from None
-    if result is None:
+    law = fastest_law(path, np.linspace(0.0, chord[-1], grid + 1), limits.velocity * VELOCITY_HEADROOM,
+                      limits.acceleration * headroom, speed0)
+    if law is None:
         raise TimingError(f"no time law reaches the end from path speed {speed0:.3f}")
-    duration = float(result.duration)
-    n = max(2, int(np.ceil(duration / knot_period)) + 1)
-    t = np.linspace(0.0, duration, n)
-    q, qd = result(t), result(t, 1)
+    n = max(2, int(np.ceil(law.duration / knot_period)) + 1)
+    t = np.linspace(0.0, law.duration, n)
+    s, speed = law.at(t)
+    q, qd = path(s), path(s, 1) * speed[:, None]
     q[0], q[-1] = pts[0], pts[-1]
     qd[0], qd[-1] = v0, 0.0
     if np.any(np.abs(qd) > limits.velocity * VELOCITY_TOLERANCE):
