@@ -3,7 +3,7 @@
 Seeded random humans around the paper's experiment: a person stands 0.75 to 1.2 m from the robot on the
 side the shuttle sweeps, leans in and reaches a forearm across the flange's arc at a random point and height.
 For each placement:
-* a new goal, side by side: RRT-Connect + simplification + toppra (a collision-free path, clearance only)
+* a new goal, side by side: RRT-Connect + simplification + TOPP-RA (a collision-free path, clearance only)
   against the planning layer's search (the path fastest under the SSM, shared.planning.path_search), each
   predicted by the SSM-aware time cost with the person staying --stay seconds, and the straight line;
 * replan + merge: the robot runs the straight shuttle; at the moment the horizon check (1 s ahead) first
@@ -71,7 +71,7 @@ def main() -> None:
     rrt_time, search_time, direct_time = [], [], []
     taken = kept = failed = 0
     counted_ms, counted_time, budget_time, costed_share = [], [], [], []
-    parameterize(np.vstack([Q_START, Q_GOAL]), robot.limits)         # warm the JIT and toppra
+    parameterize(np.vstack([Q_START, Q_GOAL]), robot.limits)         # warm the JIT
     replanner.path(Q_START, Q_GOAL, placement(np.random.default_rng(0)))
     for _ in range(args.placements):
         humans = placement(rng)

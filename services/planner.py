@@ -207,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
                             action_budget=ACTION_BUDGET)
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
                           options=options)
-    warm_up(replanner)               # every kind of action once: no kernel is loaded (or toppra warmed) when it counts
+    warm_up(replanner)               # every kind of action once: no kernel is loaded when it counts
     service = PlannerService(shell, PlanningLoop(replanner, beta_replans=not args.no_beta))
     return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, "
                         f"keys {shell.keys.prefix}/",

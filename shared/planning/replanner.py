@@ -16,7 +16,7 @@ splice of a merge (Alg. 2, ``shared.planning.merge``), the keep-or-replace rule
 * ``Replanner.replan``: keeps the old trajectory unchanged up to a junction s_j, and from there follows
   the old path geometry to a branch point, then the searched path to the goal. The new part is
   time-parameterised starting with the old nominal velocity at s_j, so position and velocity are
-  continuous at the junction; following the old geometry for a while gives toppra room to slow down
+  continuous at the junction; following the old geometry for a while gives the time law room to slow down
   before any turn. Junctions further back are tried when a turn is too sharp, then stop-and-go. The
   result gets the next version number; a follower anywhere before s_j continues at the same s. A robot
   at rest gets a trajectory from rest where it stands instead (free to leave in any direction), and one
@@ -137,11 +137,12 @@ class Replanner:
     def end(self) -> None:
         """The action is done: learn how long its work besides the searches took, over the actions that
         searched: up at once to a longer one, down by a tenth of the gap after a shorter one. The rest of
-        a refused replan is a millisecond, of a taken one the time laws of the new trajectory (20-45 ms on
-        this machine); an average of both (a third of the gap each time) let the searches of the next taken
-        plan run into its time: in the paper's 24 s, wall-clock, every taken replan ended 4-17 ms past the
-        100 ms budget and the first 17 ms, and in `hrc demo` the median of the replans was 107-118 ms. At
-        most FINISHING_MOST of the budget."""
+        a refused replan is a millisecond, of a taken one the time laws of the new trajectory with their
+        collision checks (4-6 ms on this machine, a merge's some 20; 20-45 ms while toppra timed them); an
+        average of both (a third of the gap each time) let the searches of the next taken plan run into its
+        time: in the paper's 24 s, wall-clock, every taken replan ended 4-17 ms past the 100 ms budget and
+        the first 17 ms, and in `hrc demo` the median of the replans was 107-118 ms. At most FINISHING_MOST
+        of the budget."""
         if self._began is not None and self.search.spent > 0.0:
             rest = min(max(0.0, time.perf_counter() - self._began - self.search.spent),
                        FINISHING_MOST * self.options.action_budget)
@@ -246,8 +247,8 @@ class Replanner:
 
     def _from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, version: int) -> Trajectory:
         """Rest to rest through waypoints. A direct connection gets the exact trapezoid, which is
-        time-optimal for a straight line and needs none of the acceleration headroom toppra's grid calls
-        for where a path bends (2 % faster on the paper's shuttle); a bent path gets toppra, its smoothed
+        time-optimal for a straight line and needs none of the acceleration headroom TOPP-RA's grid calls
+        for where a path bends (2 % faster on the paper's shuttle); a bent path gets TOPP-RA, its smoothed
         path checked never to come closer to the people than its ends are, or, where the smoothing cuts a
         corner too close, the exact polyline with a stop at each corner (its segments are checked free)."""
         if len(waypoints) == 2:

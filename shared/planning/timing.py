@@ -19,12 +19,10 @@ order, the loosest first (the waypoints alone), and the first law that stays ins
 limits (checked at its 10 ms knots; a spline can overshoot a waypoint), within
 the acceleration tolerance and, when a collision model is given, free of the scene and the people
 (the sampled trajectory checked segment by segment with the guaranteed motion check) is the result: on
-the same detours 2.6 % *shorter* than that estimate (the spline cuts the corners), 10 ms a law.
+the same detours 2.6 % *shorter* than that estimate (the spline cuts the corners).
 """
 
 from __future__ import annotations
-
-import logging
 
 import numpy as np
 import toppra
@@ -36,8 +34,7 @@ from shared.planning.collision import CollisionModel
 from shared.planning.topp import fastest_law
 from shared.robot.model import JointLimits
 
-logging.getLogger("toppra").setLevel(logging.ERROR)
-# toppra enforces the limits at its grid points only; between them, where the path bends, the joint
+# TOPP-RA enforces the limits at its grid points only; between them, where the path bends, the joint
 # acceleration of its piecewise-constant-acceleration law can exceed the limit (measured on the paper's
 # detours with a 200-point grid: 2 to 6 %, not monotone in the grid size). 10 % of the acceleration limit
 # is kept in hand, so the nominal trajectory stays within the limit to a few percent (the tests allow 10 %;
@@ -115,7 +112,7 @@ def _smoothed(waypoints: np.ndarray, limits: JointLimits, start_velocity: np.nda
     d_end = (pts[-1] - pts[-2]) / (chord[-1] - chord[-2])
     path = toppra.SplineInterpolator(chord, pts, bc_type=((1, d_start), (1, d_end)))
     # the spline's geometry is the law's: where it leaves the joint ranges no law can help (checked here,
-    # before toppra, at a fraction of a law's cost; the law's own knots are checked again below)
+    # before the law, at a fraction of a law's cost; the law's own knots are checked again below)
     if not _within(path(np.linspace(0.0, chord[-1], grid + 1)), limits):
         raise TimingError("the smoothed path leaves the joint position limits")
     headroom = ACCELERATION_HEADROOM
@@ -126,7 +123,7 @@ def _smoothed(waypoints: np.ndarray, limits: JointLimits, start_velocity: np.nda
             break
         headroom *= 0.95 * ACCELERATION_TOLERANCE / peak
     else:
-        raise TimingError(f"toppra's law exceeds the joint acceleration limit {peak:.2f}-fold")
+        raise TimingError(f"the law exceeds the joint acceleration limit {peak:.2f}-fold")
     if not _within(traj.positions, limits):
         raise TimingError("the smoothed path leaves the joint position limits")
     if collision is not None and not collision.path_free(traj.positions, humans, inflation):
