@@ -417,6 +417,7 @@ class HumanFeed:
         from shared.core.humans import HumanCapsules
         from shared.wire.convert import humans_to_msg
         self.cell, self.humans, self.running = cell, HumanCapsules.empty(), True
+        self.last_sent = 0.0                   # monotonic time (s) of the last human message put
         self.raw = cell.with_tracker           # with the tracker service: raw poses at 240 Hz, through it
         self.pub = cell.session.declare_publisher(cell.keys.human_raw if self.raw else cell.keys.human_state)
         self._to_msg = humans_to_msg
@@ -433,6 +434,7 @@ class HumanFeed:
                                              radii=self.humans.radii, seq=seq, stamp=now)))
             else:
                 self.pub.put(encode(self._to_msg(self.humans, True, now, seq=seq, stamp=now)))
+            self.last_sent = now
             time.sleep(1 / 240 if self.raw else 0.02)
 
 
@@ -466,13 +468,19 @@ def system_stale_humans(cell: Cell) -> dict:
     time.sleep(traj.duration * 0.4)
     moving = float(np.abs(cell.latest().qd).max())
     feed.running = False                                       # the tracker goes silent
-    still = _wait(lambda: np.abs(cell.latest().qd).max() < 1e-3, 2.0)
+    seen = _wait(lambda: np.abs(cell.latest().qd).max() < 1e-3, 2.0)
     time.sleep(0.3)
     q_stop = cell.latest().q.copy()
     time.sleep(0.5)
     drift = float(np.abs(cell.latest().q - q_stop).max())
+    # from the last human message to the first joint state at a standstill, as the driver stamped it (the
+    # same monotonic clock): the cell's own reaction, not how late this process received the states
+    with cell.lock:
+        stamps = [m.stamp for _, m in cell.states if m.stamp > feed.last_sent and np.abs(m.qd).max() < 1e-3]
+    still = round(stamps[0] - feed.last_sent, 3) if seen is not None and stamps else None
     return {"ok": moving > 0.3 and still is not None and still <= 0.05 + 0.5 and drift < 1e-4,
-            "speed_before_rad_s": moving, "standstill_after_s": still, "drift_after_rad": drift}
+            "speed_before_rad_s": moving, "standstill_after_s": still, "seen_still_after_s": seen,
+            "drift_after_rad": drift}
 
 
 def system_near_human(cell: Cell) -> dict:
