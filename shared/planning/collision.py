@@ -175,6 +175,34 @@ def _clearances(qs, placement, parent, local, joint, radii, static_link, self_pa
     return out
 
 
+@numba.njit(cache=True, inline="always")
+def _motion_bounds(q0, q1, link_reach, pair_moves, self_pairs, d_link, d_pair):
+    """Into d_link (L,) and d_pair (P,): how far (m) each link, and each self pair's links relative to each
+    other, can move per unit of t along q0 -> q1 (see _motion_free)."""
+    d_link[:] = 0.0
+    d_pair[:] = 0.0
+    for k in range(q0.shape[0]):
+        dq = abs(q1[k] - q0[k])
+        for i in range(d_link.shape[0]):
+            d_link[i] += dq * link_reach[i, k]
+        for p in range(d_pair.shape[0]):
+            if pair_moves[p, k]:
+                d_pair[p] += dq * max(link_reach[self_pairs[p, 0], k], link_reach[self_pairs[p, 1], k])
+
+
+@numba.njit(cache=True, inline="always")
+def _safe_step(link_left, pair_left, d_link, d_pair):
+    """How much of t no link and no self pair can use up what it may still move (m): inf if none moves."""
+    step = np.inf
+    for i in range(d_link.shape[0]):
+        if d_link[i] > 0.0:
+            step = min(step, link_left[i] / d_link[i])
+    for p in range(d_pair.shape[0]):
+        if d_pair[p] > 0.0:
+            step = min(step, pair_left[p] / d_pair[p])
+    return step
+
+
 @numba.njit(cache=True)
 def _motion_free(q0, q1, link_reach, pair_moves, tolerance, placement, parent, local, joint, radii, static_link,
                  self_pairs, lower, upper, floor_z, box_c, box_h, cap_seg, cap_rad, human_seg, human_rad,
@@ -187,14 +215,8 @@ def _motion_free(q0, q1, link_reach, pair_moves, tolerance, placement, parent, l
     one of them (the others move both rigidly). From a point with clearances c, the next
     min(c_i / D_i, c_p / D_p) of t cannot close any gap."""
     n_links, n_pairs, n = radii.shape[0], self_pairs.shape[0], q0.shape[0]
-    d_link, d_pair = np.zeros(n_links), np.zeros(n_pairs)
-    for k in range(n):
-        dq = abs(q1[k] - q0[k])
-        for i in range(n_links):
-            d_link[i] += dq * link_reach[i, k]
-        for p in range(n_pairs):
-            if pair_moves[p, k]:
-                d_pair[p] += dq * max(link_reach[self_pairs[p, 0], k], link_reach[self_pairs[p, 1], k])
+    d_link, d_pair = np.empty(n_links), np.empty(n_pairs)
+    _motion_bounds(q0, q1, link_reach, pair_moves, self_pairs, d_link, d_pair)
     link_clear, pair_clear = np.empty(n_links), np.empty(n_pairs)
     q = q0.copy()
     t = 0.0
@@ -210,14 +232,7 @@ def _motion_free(q0, q1, link_reach, pair_moves, tolerance, placement, parent, l
             return False, t, evaluations
         if t >= 1.0:
             return True, 1.0, evaluations
-        step = np.inf
-        for i in range(n_links):
-            if d_link[i] > 0.0:
-                step = min(step, link_clear[i] / d_link[i])
-        for p in range(n_pairs):
-            if d_pair[p] > 0.0:
-                step = min(step, pair_clear[p] / d_pair[p])
-        t = min(1.0, t + step)
+        t = min(1.0, t + _safe_step(link_clear, pair_clear, d_link, d_pair))
 
 
 @numba.njit(cache=True)
@@ -245,24 +260,10 @@ def _path_free(qs, link_reach, pair_moves, tolerance, placement, parent, local, 
         return False, evaluations
     link_left, pair_left = link_clear.copy(), pair_clear.copy()       # how far each may still move (m)
     for k in range(qs.shape[0] - 1):
-        d_link[:] = 0.0
-        d_pair[:] = 0.0
-        for j in range(n):
-            dq = abs(qs[k + 1, j] - qs[k, j])
-            for i in range(n_links):
-                d_link[i] += dq * link_reach[i, j]
-            for p in range(n_pairs):
-                if pair_moves[p, j]:
-                    d_pair[p] += dq * max(link_reach[self_pairs[p, 0], j], link_reach[self_pairs[p, 1], j])
+        _motion_bounds(qs[k], qs[k + 1], link_reach, pair_moves, self_pairs, d_link, d_pair)
         t = 0.0
         while True:
-            step = np.inf
-            for i in range(n_links):
-                if d_link[i] > 0.0:
-                    step = min(step, link_left[i] / d_link[i])
-            for p in range(n_pairs):
-                if d_pair[p] > 0.0:
-                    step = min(step, pair_left[p] / d_pair[p])
+            step = _safe_step(link_left, pair_left, d_link, d_pair)
             if t + step >= 1.0:                  # the rest of this segment is within every budget
                 link_left -= (1.0 - t) * d_link
                 pair_left -= (1.0 - t) * d_pair
