@@ -67,3 +67,11 @@ def test_a_constant_acceleration_law_between_grid_points_samples_exactly():
     assert np.allclose(law.times, [0.0, 1.0, 2.0]) and np.allclose(law.acceleration, [2.0, -2.0])
     s, speed = law.at(np.array([0.5, 1.5]))
     assert np.allclose(s, [0.25, 1.75]) and np.allclose(speed, [1.0, 1.0])
+
+
+def test_a_law_stuck_at_rest_is_no_law():
+    """Two grid points at rest in a row never get on: an infinite duration, which fastest_law refuses."""
+    assert not np.isfinite(TimeLaw(np.array([0.0, 1.0, 2.0]), np.zeros(3)).duration)
+    straight = toppra.SplineInterpolator(np.array([0.0, 1.0]), np.array([np.zeros(6), np.full(6, 0.5)]))
+    assert fastest_law(straight, np.linspace(0.0, 1.0, 11), LIM.velocity, np.zeros(6), 0.0) is None
+    assert fastest_law(straight, np.linspace(0.0, 1.0, 11), LIM.velocity, LIM.acceleration, 0.0) is not None

@@ -18,7 +18,7 @@ joint's velocity change at each corner), up to 21 %. So the smoothings of ``SMOO
 order, the loosest first (the waypoints alone), and the first law that stays inside the joint position
 limits (checked at its 10 ms knots; a spline can overshoot a waypoint), within
 the acceleration tolerance and, when a collision model is given, free of the scene and the people
-(the sampled trajectory checked segment by segment with the guaranteed motion check) is the result: on
+(the sampled trajectory's knots checked as one path with the guaranteed motion check) is the result: on
 the same detours 2.6 % *shorter* than that estimate (the spline cuts the corners).
 """
 

@@ -160,7 +160,8 @@ class TimeLaw:
         self.speed = np.asarray(speeds, dtype=float)
         delta = np.diff(self.s)
         self.acceleration = 0.5 * np.diff(self.speed ** 2) / delta
-        self.times = np.concatenate([[0.0], np.cumsum(2.0 * delta / (self.speed[:-1] + self.speed[1:]))])
+        with np.errstate(divide="ignore"):            # at rest at two grid points in a row: never gets on
+            self.times = np.concatenate([[0.0], np.cumsum(2.0 * delta / (self.speed[:-1] + self.speed[1:]))])
 
     @property
     def duration(self) -> float:
@@ -186,4 +187,5 @@ def fastest_law(path, gridpoints: np.ndarray, velocity: np.ndarray, acceleration
                  float(start_speed) ** 2, float(end_speed) ** 2)
     if np.isnan(xs).any():
         return None
-    return TimeLaw(gridpoints, np.sqrt(np.maximum(xs, 0.0)))
+    law = TimeLaw(gridpoints, np.sqrt(np.maximum(xs, 0.0)))
+    return law if np.isfinite(law.duration) else None          # two grid points at rest in a row: stuck
