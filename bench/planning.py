@@ -8,6 +8,7 @@ For each placement:
   predicted by the SSM-aware time cost with the person staying --stay seconds, and the straight line;
 * replan + merge: the robot runs the straight shuttle; at the moment the horizon check (1 s ahead) first
   sees the person, Alg. 1 + 2 and the keep-or-replace decision (taken, old kept, failed);
+* time laws: the compiled TOPP-RA (shared.planning.topp) against toppra's own on each RRT-Connect detour;
 * the cell's budget against the counts: the same search (same seed) bounded as the planner service bounds
   it (CELL_BUDGET per search inside ACTION_BUDGET per action, wall clock) and by its counts alone, as the
   simulation runs it: how many of the count-bounded search's candidates the budget costed, and the
@@ -36,7 +37,8 @@ from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningE
 from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import load_scene
-from shared.planning.timing import TimingError, parameterize
+from shared.planning.timing import ACCELERATION_HEADROOM, TimingError, chord_points, chord_spline, parameterize
+from shared.planning.topp import fastest_law, toppra_law
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
 
@@ -49,6 +51,22 @@ def placement(rng: np.random.Generator) -> HumanCapsules:
     seg, radii = body_segments(dist * np.cos(angle), dist * np.sin(angle), rng.uniform(0.7, 1.0), target,
                                lean=rng.uniform(0.5, 1.0))
     return HumanCapsules.from_arrays(seg, radii, np.zeros_like(seg), np.ones(len(radii), bool))
+
+
+def time_laws(waypoints: np.ndarray, limits) -> tuple[float, float, float]:
+    """The same time law along the waypoints' spline, compiled (the product's) and toppra's own: (compiled
+    ms, toppra ms, relative difference of their durations)."""
+    pts, chord = chord_points(waypoints, np.inf)
+    path = chord_spline(pts, chord, (pts[1] - pts[0]) / chord[1])
+    grid = np.linspace(0.0, chord[-1], 201)
+    acceleration = limits.acceleration * ACCELERATION_HEADROOM
+    t0 = time.perf_counter()
+    ours = fastest_law(path, grid, limits.velocity, acceleration, 0.0)
+    t1 = time.perf_counter()
+    theirs = toppra_law(path, grid, limits.velocity, acceleration, 0.0)
+    t2 = time.perf_counter()
+    differ = abs(ours.duration / theirs.duration - 1.0) if ours is not None and theirs is not None else 0.0
+    return (t1 - t0) * 1e3, (t2 - t1) * 1e3, differ
 
 
 def main() -> None:
@@ -71,7 +89,9 @@ def main() -> None:
     rrt_time, search_time, direct_time = [], [], []
     taken = kept = failed = 0
     counted_ms, counted_time, budget_time, costed_share = [], [], [], []
+    law_ms: list[tuple[float, float, float]] = []
     parameterize(np.vstack([Q_START, Q_GOAL]), robot.limits)         # warm the JIT
+    time_laws(np.vstack([Q_START, (Q_START + Q_GOAL) / 2 + 0.3, Q_GOAL]), robot.limits)
     replanner.path(Q_START, Q_GOAL, placement(np.random.default_rng(0)))
     for _ in range(args.placements):
         humans = placement(rng)
@@ -80,10 +100,13 @@ def main() -> None:
         # a new goal with the person there: RRT-Connect (clearance only) against the search (time under SSM)
         t0 = time.perf_counter()
         try:
-            rrt = parameterize(planner.plan(Q_START, Q_GOAL, humans), robot.limits, collision=collision, humans=humans)
+            detour = planner.plan(Q_START, Q_GOAL, humans)
+            rrt = parameterize(detour, robot.limits, collision=collision, humans=humans)
         except (PlanningError, TimingError):
-            rrt = None
+            detour = rrt = None
         rrt_ms.append((time.perf_counter() - t0) * 1e3)
+        if detour is not None and len(detour) > 2:
+            law_ms.append(time_laws(detour, robot.limits))
         t0 = time.perf_counter()
         try:
             searched = replanner.plan_fresh(Q_START, Q_GOAL, humans, 0)
@@ -125,6 +148,9 @@ def main() -> None:
               "cell_budget": {"counted_search_ms": stats(counted_ms), "costed_share": stats(costed_share),
                               "budget_vs_counts": ratio(budget_time, counted_time),
                               "worse_in_budget": int(np.sum(np.array(budget_time) > np.array(counted_time) + 1e-9))},
+              "time_law_ms": {"compiled": stats([c for c, _, _ in law_ms]), "toppra": stats([t for _, t, _ in law_ms]),
+                              "toppra_vs_compiled": ratio([t for _, t, _ in law_ms], [c for c, _, _ in law_ms]),
+                              "duration_rel_diff_max": float(max((d for _, _, d in law_ms), default=0.0))},
               "cases": {"placements": len(rrt_ms), "compared": len(rrt_time), "replans": len(replan_ms)}}
     print(f"new goal, predicted time under the SSM (person staying {args.stay:g} s), median over "
           f"{len(rrt_time)} placements: direct {result['predicted_s']['direct']['median']} s, RRT-Connect "
@@ -134,6 +160,10 @@ def main() -> None:
           f"{result['search_plan_ms']['median']} ms (p95 {result['search_plan_ms']['p95']} ms)")
     print(f"horizon replans: {taken} taken, {kept} kept the old trajectory, {failed} failed; compute median "
           f"{result['replan_ms']['median']} ms, p95 {result['replan_ms']['p95']} ms")
+    laws = result["time_law_ms"]
+    print(f"time laws on {len(law_ms)} RRT-Connect detours (200 grid points, from rest): compiled median "
+          f"{laws['compiled']['median']} ms, toppra {laws['toppra']['median']} ms, toppra / compiled "
+          f"{laws['toppra_vs_compiled']} (sums); durations differ by at most {laws['duration_rel_diff_max']:.1e}")
     cell = result["cell_budget"]
     print(f"the cell's budget ({CELL_BUDGET * 1e3:.0f} ms a search, {ACTION_BUDGET * 1e3:.0f} ms an action) against "
           f"the counts alone (the simulation's search, median {cell['counted_search_ms']['median']} ms, p95 "

@@ -64,8 +64,8 @@ def test_the_straight_shuttle_is_blocked_and_the_plan_goes_around_the_arm():
     assert_trajectory_feasible(traj, ARM_ACROSS)
     s = np.linspace(0, traj.duration, 4000)
     _, dq, ddq = traj.sample(s)
-    assert np.all(np.abs(dq) <= LIM.velocity * 1.01)             # toppra's grid; see shared/planning/timing.py
-    assert np.all(np.abs(ddq) <= LIM.acceleration * 1.10)       # toppra's grid; see shared/planning/timing.py
+    assert np.all(np.abs(dq) <= LIM.velocity * 1.01)             # TOPP-RA's grid; see shared/planning/timing.py
+    assert np.all(np.abs(ddq) <= LIM.acceleration * 1.10)       # TOPP-RA's grid; see shared/planning/timing.py
 
 
 def test_a_free_straight_motion_needs_no_search():
@@ -87,8 +87,8 @@ def test_bad_goals_give_typed_errors():
         PLANNER.plan(Q_START, Q_GOAL, ARM_ACROSS, time_budget=1e-6)
 
 
-def test_toppra_laws_never_leave_the_acceleration_tolerance():
-    """toppra bounds acceleration at its grid points only; between them a sharp detour once reached 1.42
+def test_time_laws_never_leave_the_acceleration_tolerance():
+    """TOPP-RA bounds acceleration at its grid points only; between them a sharp detour once reached 1.42
     x the limit. Whatever path RRT-Connect returns, the law parameterize gives stays within the tolerance
     (re-timed with more headroom), or it is refused."""
     from shared.planning.timing import ACCELERATION_TOLERANCE

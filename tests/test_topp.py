@@ -3,11 +3,9 @@ same algorithm: the same laws on random paths and start speeds, the same refusal
 
 import numpy as np
 import toppra
-import toppra.algorithm
-import toppra.constraint
 
-from shared.planning.timing import densify
-from shared.planning.topp import TimeLaw, fastest_law
+from shared.planning.timing import chord_points, chord_spline
+from shared.planning.topp import TimeLaw, fastest_law, toppra_law
 from shared.robot.model import default_robot
 
 LIM = default_robot().limits
@@ -16,25 +14,21 @@ LIM = default_robot().limits
 def _random_path(rng: np.random.Generator):
     """A cubic spline through 2-5 random waypoints (densified like the smoothings), chord-length."""
     waypoints = rng.uniform(LIM.lower * 0.6, LIM.upper * 0.6, size=(int(rng.integers(2, 6)), 6))
-    pts = densify(waypoints, (np.inf, 0.5, 0.25)[int(rng.integers(3))])
-    chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    d_start, d_end = (pts[1] - pts[0]) / chord[1], (pts[-1] - pts[-2]) / (chord[-1] - chord[-2])
-    return toppra.SplineInterpolator(chord, pts, bc_type=((1, d_start), (1, d_end))), chord, d_start
+    pts, chord = chord_points(waypoints, (np.inf, 0.5, 0.25)[int(rng.integers(3))])
+    d_start = (pts[1] - pts[0]) / chord[1]
+    return chord_spline(pts, chord, d_start), chord, d_start
 
 
 def test_the_compiled_law_is_toppras_law_and_refuses_what_toppra_refuses():
     rng = np.random.default_rng(7)
     velocity, acceleration = LIM.velocity, LIM.acceleration * 0.9
-    constraints = [toppra.constraint.JointVelocityConstraint(np.stack([-velocity, velocity], axis=1)),
-                   toppra.constraint.JointAccelerationConstraint(np.stack([-acceleration, acceleration], axis=1))]
     refused = compared = 0
     for _ in range(60):
         path, chord, d_start = _random_path(rng)
         top = float(np.min(velocity / np.maximum(np.abs(d_start), 1e-9)))      # the fastest start allowed
         start = 0.0 if rng.random() < 0.3 else rng.uniform(0.5, 1.3) * top
         grid = np.linspace(0.0, chord[-1], 201)
-        theirs = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid,
-                                         parametrizer="ParametrizeConstAccel").compute_trajectory(start, 0.0)
+        theirs = toppra_law(path, grid, velocity, acceleration, start)
         ours = fastest_law(path, grid, velocity, acceleration, start)
         assert (ours is None) == (theirs is None), f"start {start:.3f} of {top:.3f}"
         if ours is None:

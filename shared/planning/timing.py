@@ -93,10 +93,7 @@ def _smoothed(waypoints: np.ndarray, limits: JointLimits, start_velocity: np.nda
               max_segment: float, grid: int, collision: CollisionModel | None, humans: HumanCapsules | None,
               inflation: float, version: int) -> Trajectory:
     """parameterize with one smoothing (the polyline densified to max_segment rad)."""
-    pts = densify(np.asarray(waypoints, dtype=float), max_segment)
-    chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    keep = np.concatenate([[True], np.diff(chord) > 1e-9])
-    pts, chord = pts[keep], chord[keep]
+    pts, chord = chord_points(waypoints, max_segment)
     v0 = np.zeros(pts.shape[1]) if start_velocity is None else np.asarray(start_velocity, dtype=float)
     speed0 = float(np.linalg.norm(v0))
     if len(pts) < 2:
@@ -109,8 +106,7 @@ def _smoothed(waypoints: np.ndarray, limits: JointLimits, start_velocity: np.nda
     if over > VELOCITY_TOLERANCE:
         raise TimingError(f"the start velocity is {over:.3f} x a joint velocity limit")
     speed0 *= min(1.0, START_WITHIN / over) if over > 0.0 else 1.0
-    d_end = (pts[-1] - pts[-2]) / (chord[-1] - chord[-2])
-    path = toppra.SplineInterpolator(chord, pts, bc_type=((1, d_start), (1, d_end)))
+    path = chord_spline(pts, chord, d_start)
     # the spline's geometry is the law's: where it leaves the joint ranges no law can help (checked here,
     # before the law, at a fraction of a law's cost; the law's own knots are checked again below)
     if not _within(path(np.linspace(0.0, chord[-1], grid + 1)), limits):
@@ -129,6 +125,22 @@ def _smoothed(waypoints: np.ndarray, limits: JointLimits, start_velocity: np.nda
     if collision is not None and not collision.path_free(traj.positions, humans, inflation):
         raise TimingError("the smoothed path is not collision-free")
     return traj
+
+
+def chord_points(waypoints: np.ndarray, max_segment: float) -> tuple[np.ndarray, np.ndarray]:
+    """The waypoints (K, 6) densified to max_segment rad, repeated points dropped, and their chord length
+    (the path parameter, rad): (points (M, 6), chord (M,))."""
+    pts = densify(np.asarray(waypoints, dtype=float), max_segment)
+    chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    keep = np.concatenate([[True], np.diff(chord) > 1e-9])
+    return pts[keep], chord[keep]
+
+
+def chord_spline(pts: np.ndarray, chord: np.ndarray, d_start: np.ndarray) -> toppra.SplineInterpolator:
+    """The cubic spline through pts (M >= 2) over chord length: its first derivative d_start (unit) at the
+    start, the last segment's direction at the end; callable as path(s, order) (toppra's interpolator)."""
+    d_end = (pts[-1] - pts[-2]) / (chord[-1] - chord[-2])
+    return toppra.SplineInterpolator(chord, pts, bc_type=((1, d_start), (1, d_end)))
 
 
 def _within(positions: np.ndarray, limits: JointLimits) -> bool:

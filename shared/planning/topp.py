@@ -189,3 +189,16 @@ def fastest_law(path, gridpoints: np.ndarray, velocity: np.ndarray, acceleration
         return None
     law = TimeLaw(gridpoints, np.sqrt(np.maximum(xs, 0.0)))
     return law if np.isfinite(law.duration) else None          # two grid points at rest in a row: stuck
+
+
+def toppra_law(path, gridpoints: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray,
+               start_speed: float, end_speed: float = 0.0):
+    """toppra's own TOPP-RA on the same problem, the reference this kernel is held against (tests/test_topp.py,
+    bench/planning.py): toppra's trajectory (callable at times t, order 0 / 1; .duration), or None."""
+    import toppra.algorithm
+    import toppra.constraint
+    velocity, acceleration = np.asarray(velocity, dtype=float), np.asarray(acceleration, dtype=float)
+    constraints = [toppra.constraint.JointVelocityConstraint(np.stack([-velocity, velocity], axis=1)),
+                   toppra.constraint.JointAccelerationConstraint(np.stack([-acceleration, acceleration], axis=1))]
+    return toppra.algorithm.TOPPRA(constraints, path, gridpoints=np.asarray(gridpoints, dtype=float),
+                                   parametrizer="ParametrizeConstAccel").compute_trajectory(start_speed, end_speed)
