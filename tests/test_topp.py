@@ -69,3 +69,13 @@ def test_a_law_stuck_at_rest_is_no_law():
     straight = toppra.SplineInterpolator(np.array([0.0, 1.0]), np.array([np.zeros(6), np.full(6, 0.5)]))
     assert fastest_law(straight, np.linspace(0.0, 1.0, 11), LIM.velocity, np.zeros(6), 0.0) is None
     assert fastest_law(straight, np.linspace(0.0, 1.0, 11), LIM.velocity, LIM.acceleration, 0.0) is not None
+
+
+def test_the_planning_bench_times_both_laws_on_a_detour():
+    """bench/planning.py's side-by-side (the figures are the bench's, not asserted): both laws time the same
+    bent path, to the same duration."""
+    from evidence.scenarios import Q_GOAL, Q_START
+    from tests.util import load_bench
+    ours_ms, theirs_ms, differ = load_bench("planning").time_laws(
+        np.vstack([Q_START, (Q_START + Q_GOAL) / 2 + np.array([0.0, 0.4, -0.3, 0.2, 0.0, 0.0]), Q_GOAL]), LIM)
+    assert ours_ms > 0.0 and theirs_ms > 0.0 and differ < 1e-6
