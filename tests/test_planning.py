@@ -148,6 +148,10 @@ def test_a_law_continues_a_motion_on_a_joint_velocity_limit():
         traj = parameterize(bend, LIM, start_velocity=v0)
         assert np.allclose(traj.sample(0.0)[1], v0)
         assert np.all(np.abs(traj.velocities[1:]) <= LIM.velocity * 1.01)
+    with pytest.raises(TimingError, match="not finite"):
+        parameterize(bend, LIM, start_velocity=np.full(6, np.nan))
+    with pytest.raises(TimingError, match="waypoints are not all finite"):
+        parameterize(np.vstack([bend[:2], np.full(6, np.inf), bend[2:]]), LIM)
     with pytest.raises(TimingError, match="start velocity is 1.050 x a joint velocity limit"):
         parameterize(bend, LIM, start_velocity=np.array([-LIM.velocity[0] * 1.05, 0, 0, 0, 0, 0]))
 

@@ -76,7 +76,11 @@ def parameterize(waypoints: np.ndarray, limits: JointLimits, start_velocity: np.
     """The fastest trajectory through waypoints (K, 6) that starts with start_velocity (rest if None)
     and ends at rest, within the position, velocity and acceleration limits: the smoothings of SMOOTHINGS
     in turn (max_segment: that one only), the first that is feasible and, with a collision model, free.
-    Raises TimingError, with every smoothing's reason, if none is."""
+    Raises TimingError, with every smoothing's reason, if none is (or the inputs are not finite)."""
+    if not np.all(np.isfinite(waypoints)):
+        raise TimingError("the waypoints are not all finite")
+    if start_velocity is not None and not np.all(np.isfinite(start_velocity)):
+        raise TimingError("the start velocity is not finite")
     errors = []
     for segment in SMOOTHINGS if max_segment is None else (max_segment,):
         try:
