@@ -51,6 +51,10 @@ def test_runs_to_the_end_with_zero_violations(report):
     printed = json.loads(run.stdout.strip().splitlines()[-2])
     taken = sum(e["ok"] for e in summary["replans"])
     assert (printed["replans_accepted"], printed["replans_refused"]) == (taken, len(summary["replans"]) - taken)
+    # and the replans' compute median and p95 (from the planner's events), as the issue measures them
+    computes = [e["compute_ms"] for e in summary["replans"]]
+    assert printed["replan_compute_ms"] == summary["replan_compute_ms"]
+    assert summary["replan_compute_ms"]["p50"] == (round(float(np.percentile(computes, 50)), 3) if computes else None)
     # every refusal says why, with the old and the new trajectory's predicted times (or the planning error,
     # or the blocked goal)
     for entry in summary["replans"]:

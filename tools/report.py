@@ -209,6 +209,8 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "stopped_fraction": round(float(np.mean(alpha < 1e-6)), 4) if alpha.size else None,
         "beta_requests": len(stalls),
         "replans": replans,
+        "replan_compute_ms": _percentiles(np.array([r["compute_ms"] for r in replans if r["compute_ms"] is not None]),
+                                          50, 95, scale=1.0),
         "replan_stall_ms": {"median": round(float(np.median(stall_values)), 1) if stall_values.size else None,
                             "max": round(float(stall_values.max()), 1) if stall_values.size else None,
                             "goal_blocked": sum(s["goal_blocked"] for s in stalls),
