@@ -353,7 +353,8 @@ class CollisionModel:
 
     def path_free(self, waypoints: np.ndarray, humans: HumanCapsules | None = None, inflation: float = 0.0) -> bool:
         """Every straight segment of the path (K, 6) free, by conservative advancement along the whole path
-        in one compiled call (see _path_free: never free where motion_free finds a segment blocked)."""
+        in one compiled call (see _path_free): free means every clearance stays above zero all along it,
+        motion_free's guarantee; only a knot within the tolerance of a collision is judged differently."""
         qs = np.ascontiguousarray(waypoints, dtype=np.float64).reshape(-1, self.robot.nq)
         free, evaluations = _path_free(qs, self.robot.link_reach, self._pair_moves, self.margins.tolerance,
                                        *self._fixed, *self._human_args(humans, inflation))
