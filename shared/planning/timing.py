@@ -50,7 +50,7 @@ ACCELERATION_TOLERANCE = 1.10
 # of what the joint velocity limits allow there: the old trajectory's own velocity is on the limit at its
 # peaks (and up to VELOCITY_TOLERANCE over it), where TOPP-RA's first velocity row has no room left and, by
 # rounding, no law exists. Merges through such junctions failed at every smoothing: 6 of the 8 failed
-# continuous merges in 4 seeded scenarios, starting at 1.000000-1.000010 x the limit.
+# merge laws (continuous or the stop of a stop-and-go) in 4 seeded scenarios, starting at 1.000000-1.000010 x the limit.
 START_WITHIN = 1.0 - 1e-5
 # max_segment (rad) of the smoothings tried in turn, loosest first (see the module docstring)
 SMOOTHINGS = (np.inf, 0.5, 0.25)
