@@ -19,11 +19,15 @@ it is used).
 layer told the scripted people's own future instead of its constant-velocity forecast. Its ratios
 "foresight/scale_only" and "full/foresight" and "won_back_foresight" say how much of the room a perfect
 prediction of human motion would use, so what is left beyond it is the planner's search and rules, or
-physics (the people simply in the way). --forecaster runs full with another forecast of the people (a
+physics (the people simply in the way). --oracle adds the bound on the planning layer itself
+(evidence.foresight.oracle_options): foresight with a search eight times as large, planning free of time and
+every predicted gain taken; "oracle/scale_only", "full/oracle" and "won_back_oracle" say how much of the
+room any forecast, computer or search of this planning layer could use: what the oracle leaves is the
+people in the way, under the SSM. --forecaster runs full with another forecast of the people (a
 researcher's predictor, ``shared.planning.forecast.load_forecaster``); the JSON line names it.
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
-                            [--kinds two_humans,random_walk] [--seed 0] [--foresight]
+                            [--kinds two_humans,random_walk] [--seed 0] [--foresight] [--oracle]
                             [--forecaster mypackage.predict:MyForecaster]
 
 (--kinds: only these kinds, in turn, seeds counted from --seed: `--scenarios 200 --kinds two_humans` runs
@@ -93,7 +97,8 @@ def aggregate(rows: list[dict], horizon: float) -> dict:
     return result
 
 
-PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"), ("full", "foresight"))
+PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"), ("full", "foresight"),
+         ("oracle", "scale_only"), ("full", "oracle"))
 
 
 def columns(rows: list[dict]) -> tuple[str, ...]:
@@ -149,11 +154,11 @@ def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
         ax.legend(fontsize=8)
     names = [k for k in kinds + ["overall"] if not isinstance(intervals[k]["full/scale_only"], str)]
     top = 1.3                       # a kind far above (a person standing in the path) is written, not drawn
-    drawn = [("full/scale_only", "tab:green", 0.0)]
-    if "foresight/scale_only" in intervals["overall"]:
-        drawn.append(("foresight/scale_only", "tab:red", 0.15))
+    drawn = [(pair, colour, offset) for pair, colour, offset in
+             (("full/scale_only", "tab:green", 0.0), ("foresight/scale_only", "tab:red", 0.15),
+              ("oracle/scale_only", "tab:purple", 0.3)) if pair in intervals["overall"]]
     lowest = 0.95
-    for pair, colour, offset in drawn:
+    for row, (pair, colour, offset) in enumerate(drawn):
         where = [k for k, name in enumerate(names) if not isinstance(intervals[name][pair], str)]
         ratio = [intervals[names[k]][pair] for k in where]
         mid = np.array([r.ratio for r in ratio])
@@ -163,7 +168,7 @@ def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
                          fmt="o", color=colour, capsize=4, label=pair)
         for k in np.flatnonzero(~shown):
             axes[2].annotate(f"{ratio[k].ratio:.2f}x [{ratio[k].low:.2f}, {ratio[k].high:.2f}]", (where[k], top),
-                             xytext=(0, -14 - 12 * (offset > 0)), textcoords="offset points", ha="center",
+                             xytext=(0, -14 - 12 * row), textcoords="offset points", ha="center",
                              fontsize=8, color=colour, arrowprops={"arrowstyle": "-|>", "color": colour})
         lowest = min([lowest] + [r.low - 0.01 for r in ratio])
     axes[2].axhline(1.0, color="tab:orange", lw=1)
@@ -193,6 +198,9 @@ def main() -> int:
                              "forecaster object, class or factory (shared.planning.forecast)")
     parser.add_argument("--foresight", action="store_true",
                         help="also run full told the people's scripted future: the bound on better prediction")
+    parser.add_argument("--oracle", action="store_true",
+                        help="also run the oracle (foresight, 8x the search, planning free of time): the bound on "
+                             "the planning layer itself (several times full's run time)")
     args = parser.parse_args()
     if args.scenarios < 1 or args.duration <= 0 or args.workers < 1:
         parser.error("--scenarios and --workers must be >= 1, --duration > 0")
@@ -206,7 +214,7 @@ def main() -> int:
             load_forecaster(args.forecaster)
         except ValueError as exc:
             parser.error(f"--forecaster: {exc}")
-    run = STRATEGIES + (BOUNDS if args.foresight else ())
+    run = STRATEGIES + tuple(b for b in BOUNDS if getattr(args, b))
     tasks = [(kinds[k % len(kinds)], args.seed + k, args.duration, run) for k in range(args.scenarios)]
     started = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=_init, initargs=(args.forecaster,)) as pool:
@@ -253,9 +261,9 @@ def main() -> int:
                "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in run} for k in kinds},
                "empty_cell": empty,
                "won_back": {k: won_back(per_kind[k], empty) for k in kinds} | {"overall": won_back(strategies, empty)}}
-    if args.foresight:
-        summary["won_back_foresight"] = ({k: won_back(per_kind[k], empty, "foresight") for k in kinds}
-                                         | {"overall": won_back(strategies, empty, "foresight")})
+    for bound in run[len(STRATEGIES):]:
+        summary[f"won_back_{bound}"] = ({k: won_back(per_kind[k], empty, bound) for k in kinds}
+                                        | {"overall": won_back(strategies, empty, bound)})
     summary["ratios"] = {name: {pair: None if isinstance(r, str) else r.as_list() for pair, r in pairs.items()}
                          for name, pairs in intervals.items()}
     print(json.dumps(summary))

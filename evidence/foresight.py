@@ -8,20 +8,49 @@ the product's own planning layer, unchanged otherwise (the same search, cost, ke
 planning loop and scaling layer). No tracker can know this; the gap between the full architecture and
 the ``foresight`` strategy (``evidence.strategies``, ``bench/compare.py --foresight``) is the most any
 better prediction could add, and what is left beyond it is the search's and the rules' (or physics').
+
+``oracle_options`` goes one step further, to a bound on the planning layer itself (the ``oracle`` strategy,
+``bench/compare.py --oracle``): foresight, a search ``ORACLE_SEARCH`` times as large, planning free of
+time (its plans taken the cycle they are asked for), every predicted gain taken, and a replan of its own
+wherever the path ahead is predicted to lose ``ORACLE_SLOW``. What the oracle does not win back, no
+better forecast, faster computer or bigger search of this planning layer would: it is the people
+simply in the way, under the SSM.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
 from shared.core.humans import HumanCapsules
 from shared.planning.forecast import PeopleForecast
+from shared.planning.replanner import ReplanOptions
 
 FORESIGHT_HORIZON = 6.0    # s: the future the forecast spans (longer than a shuttle leg under any slowdown)
 FRAME_STEP = 0.1           # s: at most this between its frames (the scripts move linearly between keyframes)
 # s: how long the foreseeing planner's predictions have the people stay. Its forecast already says when they
 # leave, so nobody is assumed gone before it ends; after it they stay where it left them.
 FORESIGHT_STAY = 1e9
+# the oracle's search, this many times the planner's candidates and refinements. On 16 seeds (300-315, 12 s),
+# 4x against 8x: two people 63.25 -> 63.41 shuttles, the paper's phases 71.05 -> 71.68: near its ceiling
+ORACLE_SEARCH = 8
+ORACLE_SLOW = 0.2          # s: the oracle asks itself for a replan where the path ahead loses this much
+
+
+def foresight_options(options: ReplanOptions = ReplanOptions()) -> ReplanOptions:
+    """The planning layer's options for a forecast that knows the future: predictions over its whole
+    horizon, nobody assumed gone before the forecast says so."""
+    return replace(options, patience=FORESIGHT_STAY, cost=replace(options.cost, extrapolation=FORESIGHT_HORIZON))
+
+
+def oracle_options(options: ReplanOptions = ReplanOptions()) -> ReplanOptions:
+    """foresight_options with the search ORACLE_SEARCH times as large, every predicted gain taken
+    (min_gain 0: its predictions are right) and its own replans from ORACLE_SLOW s of predicted loss on."""
+    fore = foresight_options(options)
+    search = replace(fore.search, candidates=ORACLE_SEARCH * fore.search.candidates,
+                     refinements=ORACLE_SEARCH * fore.search.refinements)
+    return replace(fore, search=search, min_gain=0.0, min_saving=0.0, slow_excess=ORACLE_SLOW)
 
 
 class Foresight:

@@ -7,7 +7,10 @@
   on the simulated clock: repeatable, and no kinder than the cell, where searches stop at that budget;
 * foresight (a bound, not a strategy a cell can run; ``bench/compare.py --foresight``): full, with the
   planning layer told the scripted people's own future instead of its constant-velocity forecast
-  (``evidence.foresight``): the most a better prediction of human motion could add to full.
+  (``evidence.foresight``): the most a better prediction of human motion could add to full;
+* oracle (a bound too; ``bench/compare.py --oracle``): foresight with a search eight times as large,
+  planning free of time and every predicted gain taken (``evidence.foresight.oracle_options``): the most
+  this planning layer could add at all, so that what it leaves is the people in the way, under the SSM.
 Every run is judged by the independent monitor's rule (evidence.sim). ``Strategies`` builds the robot, the
 collision model and the planner once per process and runs any (strategy, scenario) on them, and the
 shuttle in an empty cell (``empty_cell``): the most any strategy can do in a scenario's time.
@@ -17,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from evidence.foresight import FORESIGHT_HORIZON, FORESIGHT_STAY, Foresight
+from evidence.foresight import Foresight, foresight_options, oracle_options
 from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
 from evidence.sim import SimResult, run_shuttle
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
@@ -27,15 +30,14 @@ from shared.planning.collision import CollisionModel
 from shared.planning.forecast import Forecaster
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.path_search import CELL_BUDGET
-from shared.planning.replanner import Replanner, ReplanOptions
+from shared.planning.replanner import Replanner
 from shared.planning.scene import Scene
-from shared.planning.time_cost import TimeCostOptions
 from shared.robot.model import default_robot
 from shared.safety.monitor import SafetyMonitor
 from shared.scaling.layer import ScalingLayer
 
 STRATEGIES = ("zones", "scale_only", "full")
-BOUNDS = ("foresight",)
+BOUNDS = ("foresight", "oracle")
 
 
 class Strategies:
@@ -51,8 +53,8 @@ class Strategies:
                                    self.config.ssm, forecaster=forecaster)
         # the same planning layer, its forecast the script's own future (set per run) over a longer horizon
         self.foreseeing = Replanner(self.collision, self.replanner.planner, self.config.ssm,
-                                    options=ReplanOptions(patience=FORESIGHT_STAY,
-                                                          cost=TimeCostOptions(extrapolation=FORESIGHT_HORIZON)))
+                                    options=foresight_options())
+        self.oracle = Replanner(self.collision, self.replanner.planner, self.config.ssm, options=oracle_options())
         lim = self.robot.limits
         shuttle = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration)
         s = np.linspace(0.0, shuttle.duration, 200)
@@ -81,9 +83,12 @@ class Strategies:
         if strategy == "full":
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
                                charge_planning=CELL_BUDGET, monitor=self.monitor)
-        if strategy == "foresight":
+        if strategy in BOUNDS:
             foreseen = Foresight(human)
-            self.foreseeing.cost.forecaster = foreseen
-            return run_shuttle(self.robot, cfg, foreseen, Q_START, Q_GOAL, duration, replanner=self.foreseeing,
-                               charge_planning=CELL_BUDGET, monitor=self.monitor)
+            planner = self.foreseeing if strategy == "foresight" else self.oracle
+            planner.cost.forecaster = foreseen
+            # the oracle plans free of time: its plans are taken the cycle they are asked for
+            return run_shuttle(self.robot, cfg, foreseen, Q_START, Q_GOAL, duration, replanner=planner,
+                               charge_planning=CELL_BUDGET if strategy == "foresight" else False,
+                               monitor=self.monitor)
         raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES + BOUNDS}")

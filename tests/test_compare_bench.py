@@ -63,5 +63,18 @@ def test_foresight_adds_the_bound_with_its_ratios(tmp_path):
     assert {"foresight/scale_only", "full/foresight"} <= set(result["ratios"]["overall"])
     assert set(result["won_back_foresight"]) == {"paper", "overall"}
     assert "foresight" in json.loads((tmp_path / "scenarios.json").read_text())[0]
+    assert "oracle" not in result["kinds"]["paper"] and "won_back_oracle" not in result
     # without it, neither the column nor its ratios
     assert load_bench("compare").ratios([row(1.0, 1.0, 2.0)]).keys() == {"full/scale_only", "full/zones"}
+
+
+def test_oracle_adds_the_planning_layers_bound_with_its_ratios(tmp_path):
+    done = run("--scenarios", "1", "--kinds", "paper", "--duration", "1.0", "--workers", "1", "--oracle",
+               tmp_path=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert set(result["kinds"]["paper"]) == {"zones", "scale_only", "full", "oracle"}
+    assert {"oracle/scale_only", "full/oracle"} <= set(result["ratios"]["overall"])
+    assert "foresight/scale_only" not in result["ratios"]["overall"]
+    assert set(result["won_back_oracle"]) == {"paper", "overall"} and "won_back_foresight" not in result
+    assert (tmp_path / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -3,13 +3,14 @@
 import numpy as np
 import pytest
 
-from evidence.foresight import Foresight
+import evidence.foresight as bounds
 from evidence.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario
 from evidence.strategies import Strategies
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
 from shared.config import CellConfig
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
+from shared.planning.replanner import ReplanOptions
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
 
@@ -116,7 +117,7 @@ def test_leg_progress_is_geometric_so_a_new_plan_keeps_the_way_made():
 
 def test_foresight_forecasts_the_scripts_own_future():
     script = make_scenario("two_humans", 5, 8.0)
-    foreseen = Foresight(script)
+    foreseen = bounds.Foresight(script)
     now = foreseen.at(2.0)                         # the simulation reads the people: the clock is kept
     ahead = foreseen.forecast(now, 1.0)
     assert ahead.step <= 0.1 and ahead.horizon == pytest.approx(1.0)
@@ -131,4 +132,25 @@ def test_the_foresight_bound_runs_safe_and_repeatably(strategies):
     first.pop("compute_us"), second.pop("compute_us")
     assert first == second and first["violations"] == 0 and first["command_exceedances"] == 0
     with pytest.raises(ValueError, match="foresight"):
-        strategies.run("oracle", "paper", 0, 1.0)
+        strategies.run("clairvoyant", "paper", 0, 1.0)
+
+
+def test_the_oracle_is_foresight_searching_more_and_taking_every_gain():
+    base = ReplanOptions()
+    fore, oracle = bounds.foresight_options(base), bounds.oracle_options(base)
+    assert fore.patience == oracle.patience == bounds.FORESIGHT_STAY
+    assert fore.cost.extrapolation == oracle.cost.extrapolation == bounds.FORESIGHT_HORIZON
+    assert fore.search == base.search and fore.min_gain == base.min_gain       # foresight: the forecast only
+    assert oracle.search.candidates == bounds.ORACLE_SEARCH * base.search.candidates
+    assert oracle.search.refinements == bounds.ORACLE_SEARCH * base.search.refinements
+    assert oracle.min_gain == oracle.min_saving == 0.0 and oracle.slow_excess == bounds.ORACLE_SLOW < base.slow_excess
+
+
+def test_the_oracle_bound_runs_safe_and_repeatably(strategies):
+    first = strategies.run("oracle", "paper", 0, 6.0)
+    second = strategies.run("oracle", "paper", 0, 6.0).summary()
+    summary = first.summary()
+    for run in (summary, second):                 # what took wall time is the machine's, not the bound's
+        run.pop("compute_us")
+        run["replans"] = [{k: v for k, v in e.items() if k != "compute_ms"} for e in run["replans"]]
+    assert summary == second and summary["violations"] == 0 and summary["command_exceedances"] == 0
