@@ -199,7 +199,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             else (layer.trajectory, layer.s)       # a plan the scaler is stopping for: nothing to follow yet
         inputs = PlanningInputs(ends[(leg + 1) % 2], pending_leg, layer.trajectory.sample(layer.s)[0], humans, k,
                                 following, speed_now, beta, held.waited(t), layer.trajectory.version + 1, ssm_held,
-                                layer.awaiting)
+                                layer.awaiting, ends[leg % 2])      # then: the shuttle's next goal, back
         started = time.perf_counter()
         outcome = loop.step(t, inputs)
         elapsed = time.perf_counter() - started
@@ -207,6 +207,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             return
         if charge_planning:
             busy_until = t + (elapsed if charge_planning is True else outcome.searches * float(charge_planning))
+        if outcome.action == "prepare":           # the next leg's plan, kept by the loop: nothing to take now
+            return
         if outcome.result is None:
             log_replan(ReplanEvent(t, outcome.action, False, elapsed * 1e3, outcome.refused or ""))
         elif charge_planning:

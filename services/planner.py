@@ -6,7 +6,8 @@ the GIL: planning never runs in a latency-critical process) takes a turn every 2
 reach of a path or a replan is asked, up to 0.2 s apart while nobody could come within reach sooner
 (``shared.planning.loop.idle_time``), and at once on a new goal: one turn of the planning loop, the same loop
 the simulation runs (a new goal first, then a replan request, then the horizon check on a new human
-sample; see shared.planning.loop), telling it how long the scaler has been asking for a replan (HoldClock)
+sample, then, where the goal names the goals after it, the next leg's plan prepared before the robot
+arrives; see shared.planning.loop), telling it how long the scaler has been asking for a replan (HoldClock)
 and how fast the robot moves. Every published trajectory and
 every refusal is reported as an event on <prefix>/safety/events (source planner, severity info): why, and
 how long it took. The service bounds every path search by the wall clock (CELL_BUDGET), and every planning
@@ -144,7 +145,8 @@ class PlannerService:
             inputs = PlanningInputs(goal.q, new_goal, q, humans, self.human_seq, following, speed,
                                     status is not None and status.beta, self.held.waited(now), version,
                                     status is not None and held_by_ssm(status.alpha, status.safe_alpha),
-                                    status.stop_s if status is not None else None)
+                                    status.stop_s if status is not None else None,
+                                    goal.then[0] if len(goal.then) else None)
         if new_goal:
             self.goal_id = goal.goal_id
         started = time.perf_counter()
@@ -152,6 +154,12 @@ class PlannerService:
         if outcome is None:
             return
         ms = (time.perf_counter() - started) * 1e3
+        if outcome.action == "prepare":        # the next leg's plan, kept by the loop until its goal comes
+            self._event("next_goal_prepared" if outcome.prepared is not None else "prepare_refused",
+                        f"for goal {goal.goal_id}: " + (f"{outcome.prepared.duration:.2f} s nominal, kept for the "
+                                                        f"goal after it" if outcome.prepared is not None
+                                                        else str(outcome.refused))[:500], ms)
+            return
         if outcome.result is None:
             what = f"goal {goal.goal_id}" if outcome.action == "goal" else outcome.action
             self._event("plan_refused" if outcome.action == "goal" else "replan_refused",

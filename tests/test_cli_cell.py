@@ -59,6 +59,11 @@ def test_goal_by_name_and_by_angles(cell):
     assert wait_for(lambda: len(received["goal"]) == 2)
     assert received["goal"][0].name == "q_g" and np.allclose(received["goal"][0].q, [-1.57, -0.4, 1.17, 0, 1.57, 0])
     assert np.allclose(received["goal"][1].q, [0.1, -0.2, 0.3, 0, 0.5, 0])
+    assert received["goal"][0].then.shape == (0, 6)                 # no goal after it unless given
+    out = hrc(port, "goal", "q_g", "--then", "q_s")
+    assert out.returncode == 0, out.stderr
+    assert wait_for(lambda: len(received["goal"]) == 3)
+    assert np.allclose(received["goal"][2].then, [[1.57, -0.4, 1.17, 0, 1.57, 0]])
 
 
 @pytest.mark.parametrize("q, text", [(["1", "2", "3"], "six joint angles"), (["q_x"], "six joint angles"),
@@ -68,6 +73,8 @@ def test_goal_by_name_and_by_angles(cell):
 def test_bad_goals_are_refused_with_a_message(cell, q, text):
     out = hrc(cell[0], "goal", *q)
     assert out.returncode == 2 and text in out.stderr and "Traceback" not in out.stderr
+    after = hrc(cell[0], "goal", "q_g", "--then", *q)              # the goal after it, checked the same way
+    assert after.returncode == 2 and text in after.stderr and "--then" in after.stderr
 
 
 def test_goal_without_a_planner_says_so():

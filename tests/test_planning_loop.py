@@ -19,7 +19,7 @@ from shared.planning.horizon import reach_gap
 from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, StillClock, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import SearchOptions
-from shared.planning.replanner import Replanner, ReplanOptions
+from shared.planning.replanner import PreparedPlan, Replanner, ReplanOptions
 from shared.planning.scene import load_scene
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
@@ -60,8 +60,9 @@ class RecordingReplanner:
         self.searches += 1
         return ReplanResult(OLD, 0.5, reason, 0.0)
 
-    def plan_goal(self, q, goal, humans, version, waited):
+    def plan_goal(self, q, goal, humans, version, waited, prepared=None):
         self.calls.append(f"plan_goal v{version}")
+        self.took_prepared = prepared is not None
         if np.allclose(goal, 99.0):
             raise PlanningError("the goal is out of reach")
         self.searches += 1
@@ -304,6 +305,78 @@ def test_the_warm_up_runs_every_kind_of_action_and_leaves_no_trace():
     assert np.array_equal(first.positions, second.positions) and first.duration == second.duration
 
 
+def reaching_over_the_shuttle() -> HumanCapsules:
+    """A person standing beside the shuttle's middle, reaching over it: the direct line is predicted slow."""
+    segments, radii = body_segments(-1.0, 0.0, 1.0, np.array([-0.4, 0.0, 0.8]))
+    return HumanCapsules.from_arrays(segments, radii, np.zeros(segments.shape), np.ones(len(radii), bool))
+
+
+def fresh_replanner() -> Replanner:
+    return Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+                     options=ReplanOptions(seed=5))
+
+
+def test_the_next_leg_is_prepared_on_the_way_and_taken_at_the_goal_without_a_search():
+    """Within prepare_ahead of the goal, the loop plans the leg after it (the goal the inputs say comes
+    then), once for the trajectory followed; when that goal comes, the plan is published at once: no search,
+    the same path, the version the goal gets."""
+    someone = reaching_over_the_shuttle()
+    loop = PlanningLoop(fresh_replanner(), slow_period=None)
+    leg = dict(humans=someone, then=Q_START)
+    loop.step(0.0, inputs(**leg, following=(OLD, 0.3)))
+    assert loop.prepared is None                                  # far from the goal: nothing prepared
+    before = OLD.duration - 0.3                                   # within PREPARE_AHEAD
+    prepared = loop.step(0.1, inputs(**leg, following=(OLD, before), human_sample=1))
+    assert prepared.action == "prepare" and prepared.result is None and prepared.searches >= 1
+    assert prepared.prepared is loop.prepared.trajectory and np.allclose(prepared.prepared.positions[0], Q_GOAL)
+    assert np.allclose(prepared.prepared.positions[-1], Q_START)
+    assert prepared.prepared.positions.shape[0] > 4           # a way round the person, not the direct line
+    assert loop.replanner.remembered == []                    # the current goal's memory is left as it was
+    again = loop.step(0.12, inputs(**leg, following=(OLD, before + 0.02), human_sample=2))
+    assert again is None or again.action != "prepare"         # once for the trajectory followed
+    goal = loop.step(0.3, inputs(humans=someone, goal=Q_START, then=Q_GOAL, new_goal=True, q=Q_GOAL,
+                                 following=None, version=9, human_sample=3))
+    assert goal.action == "goal" and goal.searches == 0 and goal.result.detail == "prepared on the way here"
+    assert np.array_equal(goal.result.trajectory.positions, prepared.prepared.positions)
+    assert goal.result.trajectory.version == 9 and loop.prepared is None
+
+
+def test_a_prepared_plan_is_taken_only_while_still_good():
+    """A prepared plan is taken only from where it starts, while the people are where it was planned for
+    them (none moved more than PREPARED_DRIFT) and while it is collision-free against them; otherwise the
+    goal gets a search of its own, as without preparation."""
+    someone = reaching_over_the_shuttle()
+    replanner = fresh_replanner()
+    plan = replanner.plan_goal(Q_GOAL, Q_START, someone, 0)
+    assert plan.positions.shape[0] > 4                                  # a way round the person
+    prepared = PreparedPlan(plan, someone)
+    taken = replanner.plan_goal(Q_GOAL, Q_START, someone, 4, prepared=prepared)
+    assert replanner.took_prepared and taken.version == 4 and np.array_equal(taken.positions, plan.positions)
+
+    def not_taken(q_start, humans, prepared_plan) -> np.ndarray:
+        before = replanner.searches
+        anew = replanner.plan_goal(q_start, Q_START, humans, 4, prepared=prepared_plan)
+        assert not replanner.took_prepared and replanner.searches > before       # searched anew
+        return anew.positions
+
+    assert not np.allclose(not_taken(Q_GOAL + 0.05, someone, prepared)[0], plan.positions[0])   # from elsewhere
+    moved = dataclasses.replace(someone, segments=someone.segments + [0.0, 0.15, 0.0])        # stepped aside
+    not_taken(Q_GOAL, moved, prepared)
+    wrist = ROBOT.capsule_segments(plan.sample(0.5 * plan.duration)[0])[-1, 1]
+    stepped_in = HumanCapsules.from_arrays(np.vstack([someone.segments, [[wrist, wrist + [0.0, 0.0, 0.3]]]]),
+                                           np.append(someone.radii, 0.1), np.zeros((len(someone.radii) + 1, 2, 3)),
+                                           np.ones(len(someone.radii) + 1, bool))
+    # (as if planned for them: only the collision check stands between it and the robot)
+    anew = not_taken(Q_GOAL, stepped_in, PreparedPlan(plan, stepped_in))
+    assert not np.array_equal(anew, plan.positions)
+
+
+def test_without_the_goal_after_nothing_is_prepared():
+    loop = PlanningLoop(RecordingReplanner(), slow_period=None)
+    assert loop.step(0.0, inputs(following=(OLD, OLD.duration - 0.1))) is None and loop.prepared is None
+    assert loop.replanner.calls == ["horizon"]
+
+
 # ------------------------------------------------------------------------ the service, in-process
 @pytest.fixture(scope="module")
 def replanner() -> Replanner:
@@ -343,6 +416,44 @@ def test_the_planner_service_plans_a_goal_and_answers_beta_through_the_loop(repl
     events = shell.published(keys.safety_events, SafetyEvent)
     assert events[-1].event in ("trajectory_beta", "replan_refused")     # answered, one way or the other
     assert "predicted" in events[-1].text            # the decision says both predicted times
+
+
+def test_the_planner_service_prepares_the_goal_after_and_publishes_it_at_once_when_it_comes():
+    """A goal that names the one after it (Goal.then): near its end the planner prepares the leg after
+    (an event says so, not a trajectory), and when that goal comes it publishes the prepared plan."""
+    shell = FakeShell("planner")
+    keys = shell.keys
+    service = PlannerService(shell, PlanningLoop(fresh_replanner()))
+    someone = reaching_over_the_shuttle()
+    shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.zeros(6), drive_state="running", enabled=True,
+                                               fault=False))
+    shell.deliver(keys.human_state, humans_to_msg(someone, True, 0.9))
+    shell.deliver(keys.goal, Goal(goal_id=7, name="q_g", q=Q_GOAL, then=Q_START[None]))
+    service.work_once(1.0)
+    leg = shell.published(keys.trajectory, TrajectoryMsg)[-1]
+    assert leg.goal_id == 7 and np.allclose(leg.positions[-1], Q_GOAL)
+    end = float(leg.times[-1])
+    shell.deliver(keys.scaler_status, ScalerStatus(s=end - 0.2, alpha=1.0, safe_alpha=1.0, beta=False,
+                                                   q_command=leg.positions[-1], trajectory_version=leg.version,
+                                                   status="running", method="piqp", min_separation=None,
+                                                   min_margin=None, compute_us=50.0))
+    shell.deliver(keys.human_state, humans_to_msg(someone, True, 1.9))
+    service.work_once(2.0)
+    events = shell.published(keys.safety_events, SafetyEvent)
+    assert events[-1].event == "next_goal_prepared" and "for goal 7" in events[-1].text, events[-1].text
+    assert len(shell.published(keys.trajectory, TrajectoryMsg)) == 1           # kept, not published
+    shell.deliver(keys.joint_state, JointState(q=Q_GOAL, qd=np.zeros(6), drive_state="running", enabled=True,
+                                               fault=False))
+    shell.deliver(keys.scaler_status, ScalerStatus(s=end, alpha=1.0, safe_alpha=1.0, beta=False,
+                                                   q_command=leg.positions[-1], trajectory_version=leg.version,
+                                                   status="finished", method="piqp", min_separation=None,
+                                                   min_margin=None, compute_us=50.0))
+    shell.deliver(keys.goal, Goal(goal_id=8, name="q_s", q=Q_START, then=Q_GOAL[None]))
+    service.work_once(3.0)
+    back = shell.published(keys.trajectory, TrajectoryMsg)[-1]
+    events = shell.published(keys.safety_events, SafetyEvent)
+    assert back.goal_id == 8 and back.reason == "goal" and np.allclose(back.positions[-1], Q_START)
+    assert events[-1].event == "trajectory_goal" and "prepared on the way here" in events[-1].text, events[-1].text
 
 
 def test_the_planner_service_plans_from_where_the_scaler_awaits_its_plan(replanner):

@@ -149,7 +149,8 @@ class Shuttle:
     def send_goal(self, now: float) -> None:
         self.goal_sent = now
         self.goal_pub.put(encode(Goal(goal_id=self.goal_id, name="q_g" if self.leg % 2 == 0 else "q_s",
-                                      q=self.target, seq=self.goal_id, stamp=now)))
+                                      q=self.target, then=self.ends[self.leg % 2][None], seq=self.goal_id,
+                                      stamp=now)))       # then: back again, the shuttle's next goal
 
     def start(self, now: float) -> None:
         self.goal_id = 1

@@ -27,7 +27,8 @@ monitoring). Subcommands:
   hrc up / hrc down              start / stop the whole cell (PRBT emulator and every service) under
                                  supervisord; without kernel CAN inside a private network namespace
   hrc goal Q1 .. Q6 | NAME      send a goal configuration (rad) or a named one (q_s, q_g, home) to
-                                 the planner of a running cell
+                                 the planner of a running cell (--then Q1 .. Q6 | NAME: the goal after
+                                 it, whose plan the planner prepares while the robot is on its way)
   hrc human inject X Y Z ...     publish a human pose (a capsule) once, or moving at a velocity
   hrc human replay FILE          replay a recorded or scripted motion (CSV or JSON) at its own rate
   hrc status                     which services are alive, the robot, the scaler, the monitor
@@ -116,6 +117,9 @@ def build_parser() -> argparse.ArgumentParser:
                                       f"{', '.join(NAMED)}. Waits until the planner is reachable first.")
     goal.add_argument("q", nargs="+", metavar="Q", help="six joint angles (rad) or a name")
     goal.add_argument("--id", type=int, default=None, help="goal id (default: from the clock)")
+    goal.add_argument("--then", nargs="+", metavar="Q", default=None,
+                      help="the goal after this one, six joint angles (rad) or a name: the planner prepares its "
+                           "plan while the robot is on its way, and the robot leaves at once when it is sent")
     cell_options(goal)
     recover = sub.add_parser("recover", help="ask the robot driver to reset and re-enable the drives",
                              description="After a stop (a stale command, a lost heartbeat, a drive fault, a "
@@ -386,19 +390,28 @@ def cmd_goal(args: argparse.Namespace) -> int:
     from shared.robot.model import default_robot
     from shared.wire.messages import Goal, encode
 
-    if len(args.q) == 1 and args.q[0] in NAMED:
-        name, q = args.q[0], np.array(NAMED[args.q[0]])
-    elif len(args.q) == 6:
-        try:
-            q = np.array([float(v) for v in args.q])
-        except ValueError:
-            raise GoalArgumentError(f"joint angles must be numbers, got {' '.join(args.q)}") from None
-        name = ""
-    else:
-        raise GoalArgumentError(f"give six joint angles (rad) or one of {', '.join(NAMED)}, got {' '.join(args.q)}")
     lim = default_robot().limits
-    if not np.all(np.isfinite(q)) or not lim.within(q):
-        raise GoalArgumentError(f"goal outside the joint limits (+-{', '.join(f'{u:.3f}' for u in lim.upper)} rad)")
+
+    def configuration(values: list[str], what: str) -> tuple[str, np.ndarray]:
+        """(name, q) of six angles or a name on the command line; GoalArgumentError saying what is wrong."""
+        if len(values) == 1 and values[0] in NAMED:
+            name, q = values[0], np.array(NAMED[values[0]])
+        elif len(values) == 6:
+            try:
+                q = np.array([float(v) for v in values])
+            except ValueError:
+                raise GoalArgumentError(f"{what}: joint angles must be numbers, got {' '.join(values)}") from None
+            name = ""
+        else:
+            raise GoalArgumentError(f"{what}: give six joint angles (rad) or one of {', '.join(NAMED)}, "
+                                    f"got {' '.join(values)}")
+        if not np.all(np.isfinite(q)) or not lim.within(q):
+            raise GoalArgumentError(f"{what} outside the joint limits "
+                                    f"(+-{', '.join(f'{u:.3f}' for u in lim.upper)} rad)")
+        return name, q
+
+    name, q = configuration(args.q, "goal")
+    then = np.zeros((0, 6)) if args.then is None else configuration(args.then, "--then")[1][None]
     session, keys = _session(args)
     try:
         if not _await_service(session, keys, "planner", args.timeout):
@@ -406,7 +419,7 @@ def cmd_goal(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 1
         goal_id = args.id if args.id is not None else int(time.time() * 1000) % (2 ** 31)
-        session.put(keys.goal, encode(Goal(goal_id=goal_id, name=name, q=q, stamp=time.monotonic())))
+        session.put(keys.goal, encode(Goal(goal_id=goal_id, name=name, q=q, then=then, stamp=time.monotonic())))
         print(f"hrc goal: sent goal {goal_id} {name or ''} {np.round(q, 4).tolist()}".replace("  ", " "))
     finally:
         session.close()

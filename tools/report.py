@@ -179,12 +179,13 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
     violations = int(summaries[-1].value) if summaries else None
     stalls = replan_stalls(st, rec.t0)
     mark_blocked_goals(stalls, rec.events, rec.t0)
-    replans = []
+    replans, goals = [], []
     for e in rec.events:
         if e.source != "planner" or not (e.event.startswith("trajectory_") or e.event == "replan_refused"):
             continue
         reason = e.event[len("trajectory_"):] if e.event.startswith("trajectory_") else e.text.split(":")[0]
         if reason == "goal":
+            goals.append(e)
             continue
         t = e.stamp - rec.t0
         entry = {"t": round(t, 3), "reason": reason, "ok": e.event != "replan_refused",
@@ -211,6 +212,9 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "replans": replans,
         "replan_compute_ms": _percentiles(np.array([r["compute_ms"] for r in replans if r["compute_ms"] is not None]),
                                           50, 95, scale=1.0),
+        "goal_plans": {"count": len(goals), "prepared": sum("prepared on the way here" in e.text for e in goals),
+                       "compute_ms": _percentiles(np.array([e.value for e in goals if e.value is not None]), 50, 95,
+                                                  scale=1.0)},
         "replan_stall_ms": {"median": round(float(np.median(stall_values)), 1) if stall_values.size else None,
                             "max": round(float(stall_values.max()), 1) if stall_values.size else None,
                             "goal_blocked": sum(s["goal_blocked"] for s in stalls),

@@ -16,7 +16,12 @@ how long it has been held) and takes at most one action, in this order:
 4. at most every ``slow_period``, the path ahead predicted slow while the robot still moves at speed
    (``Replanner.on_slow``: the planning layer's own replan request, reason 'slow'); after a refused one,
    not for a beta cooldown. A plan is only as good as the prediction it was made on: a goal planned while
-   a person was still stepping in assumed they walk on, and they stopped in its way.
+   a person was still stepping in assumed they walk on, and they stopped in its way;
+5. where the goal after this one is known (``PlanningInputs.then``), once the robot is within
+   ``prepare_ahead`` nominal seconds of the goal: the next leg's plan, prepared and kept, not published
+   (action 'prepare'). When that goal comes, ``Replanner.plan_goal`` takes it instead of a search where it
+   is still good for the people as they are then: the robot leaves without waiting for a search (in `hrc
+   demo` a goal's search took 60-100 ms, and the robot stood at the goal meanwhile).
 
 Every prediction assumes the people stay at least as long as they have stood still (``StillClock``) or
 the robot has been held, whichever is longer, on top of the replanner's patience: someone who has stood
@@ -39,7 +44,7 @@ from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.blocked import GoalBlock, goal_block
 from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
 from shared.planning.ompl_planner import PlanningError
-from shared.planning.replanner import Replanner
+from shared.planning.replanner import PreparedPlan, Replanner
 from shared.planning.timing import TimingError
 
 
@@ -55,7 +60,8 @@ class PlanningInputs:
     replan. waited: how long it has been asking (s, HoldClock). version: the number a new trajectory from
     rest gets (above every version the scaler has followed). held: the robot's speed is the SSM's bound
     (``held_by_ssm``). stop_at: the s of the followed trajectory where the scaler has brought (or brings) the
-    robot to rest to await the plan it asked for (``ScalingLayer.awaiting``; None: it does not wait)."""
+    robot to rest to await the plan it asked for (``ScalingLayer.awaiting``; None: it does not wait). then: the
+    goal that follows this one (rad; None: not known), whose plan the loop prepares before the robot arrives."""
 
     goal: np.ndarray | None
     new_goal: bool
@@ -69,6 +75,7 @@ class PlanningInputs:
     version: int
     held: bool = False
     stop_at: float | None = None
+    then: np.ndarray | None = None
 
 
 def held_by_ssm(alpha: float, safe_alpha: float) -> bool:
@@ -79,15 +86,18 @@ def held_by_ssm(alpha: float, safe_alpha: float) -> bool:
 
 @dataclass(frozen=True)
 class PlanningOutcome:
-    """One action of the loop. action: 'goal', 'beta', 'horizon' or 'slow'. result: the new trajectory (a goal from
-    rest comes as a ReplanResult with from_rest and junction 0), None when there is none: `refused` then says
-    why (None: nothing needed doing, the horizon was clear). searches: path searches the action ran (the
-    simulation charges planning time by them)."""
+    """One action of the loop. action: 'goal', 'beta', 'horizon', 'slow' or 'prepare'. result: the new trajectory
+    (a goal from rest comes as a ReplanResult with from_rest and junction 0), None when there is none:
+    `refused` then says why (None: nothing needed doing, the horizon was clear). prepared: the next leg's
+    plan ('prepare'), kept by the loop for its goal and never published; None with `refused` saying why
+    where it could not be made. searches: path searches the action ran (the simulation charges planning
+    time by them)."""
 
     action: str
     result: ReplanResult | None = None
     refused: str | None = None
     searches: int = 0
+    prepared: Trajectory | None = None
 
 
 class StillClock:
@@ -113,6 +123,7 @@ class StillClock:
 
 
 IDLE_LONGEST = 0.2     # s: the longest the planner's loop waits between turns when nothing is asked of it
+PREPARE_AHEAD = 0.5    # s of nominal time before the goal: the next leg's plan is prepared from then on
 APPROACH_SPEED = 2.0   # m/s: the ISO 13855 approach speed near the robot, the fastest a person comes
 
 
@@ -134,11 +145,14 @@ class PlanningLoop:
 
     def __init__(self, replanner: Replanner, horizon_period: float = 0.02, beta_cooldown: float = 0.5,
                  beta_replans: bool = True, still_speed: float | None = STANDING_SPEED,
-                 slow_period: float | None = 0.25) -> None:
+                 slow_period: float | None = 0.25, prepare_ahead: float | None = PREPARE_AHEAD) -> None:
         self.replanner = replanner
         replanner.forget()                 # a new run: no paths remembered from another one
         self.horizon_period, self.beta_cooldown, self.beta_replans = horizon_period, beta_cooldown, beta_replans
         self.slow_period = slow_period
+        self.prepare_ahead = prepare_ahead
+        self.prepared: PreparedPlan | None = None     # the next leg's plan, for the goal after the current one
+        self.prepared_for: tuple | None = None        # (trajectory version, the goal after) it was prepared on
         self.next_beta = self.next_horizon = self.next_slow = -np.inf
         self.answered: float | None = None   # the last stop_at a replan request was answered for
         self.last_sample: int | None = None
@@ -199,8 +213,31 @@ class PlanningLoop:
             except ReplanFailed as exc:
                 self.next_slow = now + self.beta_cooldown
                 return PlanningOutcome("slow", refused=str(exc))
-            return None if result is None else PlanningOutcome("slow", result)
-        return None
+            if result is not None:
+                return PlanningOutcome("slow", result)
+        return self._prepare(inputs)
+
+    def _prepare(self, inputs: PlanningInputs) -> PlanningOutcome | None:
+        """The next leg's plan, once per trajectory followed, within prepare_ahead of its end (None when it
+        is not due): from the end of the followed trajectory (where its commands stop the robot) to the
+        goal after, for the people as they are now. The replanner's remembered paths stay those of the
+        current goal (its replans in the last moments of the leg recall them)."""
+        trajectory, s = inputs.following
+        if self.prepare_ahead is None or inputs.then is None or trajectory.duration - s > self.prepare_ahead:
+            return None
+        key = (trajectory.version, np.asarray(inputs.then, dtype=float).tobytes())
+        if key == self.prepared_for or not np.allclose(trajectory.positions[-1], inputs.goal, atol=1e-9):
+            return None
+        self.prepared_for, self.prepared = key, None
+        remembered = self.replanner.remembered
+        try:
+            plan = self.replanner.plan_goal(trajectory.positions[-1], inputs.then, inputs.humans, 0, inputs.waited)
+        except (PlanningError, TimingError) as exc:
+            return PlanningOutcome("prepare", refused=f"{type(exc).__name__}: {exc}")
+        finally:
+            self.replanner.remembered = remembered
+        self.prepared = PreparedPlan(plan, inputs.humans)
+        return PlanningOutcome("prepare", prepared=plan)
 
     def _block(self, inputs: PlanningInputs) -> GoalBlock | None:
         """Why the goal is out of reach from where the robot is while the people stay, or None."""
@@ -216,11 +253,13 @@ class PlanningLoop:
 
     def _goal(self, inputs: PlanningInputs) -> PlanningOutcome:
         self.replanner.forget()
+        prepared, self.prepared, self.prepared_for = self.prepared, None, None
         try:
             if inputs.following is None:
                 trajectory = self.replanner.plan_goal(inputs.q, inputs.goal, inputs.humans, inputs.version,
-                                                      inputs.waited)
-                return PlanningOutcome("goal", ReplanResult(trajectory, 0.0, "goal", 0.0, from_rest=True))
+                                                      inputs.waited, prepared)
+                detail = "prepared on the way here" if self.replanner.took_prepared else ""
+                return PlanningOutcome("goal", ReplanResult(trajectory, 0.0, "goal", 0.0, from_rest=True, detail=detail))
             old, s = inputs.following
             return PlanningOutcome("goal", self.replanner.replan(old, s, inputs.goal, inputs.humans, "goal",
                                                                  waited=inputs.waited))

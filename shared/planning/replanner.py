@@ -50,9 +50,24 @@ from shared.scaling.layer import REST_SPEED, STOP_DECELERATION
 
 REMEMBERED = 4          # searched paths to the current goal kept as seeds of the next searches
 FINISHING_EASE = 0.1    # how far a planning action's learnt finishing time falls towards a shorter one (end)
+# rad: how near a prepared plan's start (the goal the robot was on its way to) the robot must be to take it: its
+# commands end exactly there; the scaler takes a plan from rest within 0.02 rad (services.scaler)
+PREPARED_START = 0.005
+# m: how far any end of the people's capsules may have moved since a plan was prepared for them for it still to be
+# taken: further, and a search of the people as they are now decides
+PREPARED_DRIFT = 0.1
 # the most of an action's budget the learnt finishing time keeps from its searches: one rest stretched by a
 # preemption on a busy machine would otherwise leave the next actions' searches no time at all
 FINISHING_MOST = 0.5
+
+
+@dataclass(frozen=True)
+class PreparedPlan:
+    """A leg's plan made before its goal came (``PlanningLoop`` prepares the next leg on the way): the
+    trajectory, numbered 0, and the people it was planned for."""
+
+    trajectory: Trajectory
+    humans: HumanCapsules | None
 
 
 @dataclass(frozen=True)
@@ -120,6 +135,7 @@ class Replanner:
         self.finishing = 0.02      # s: recent wall time of an action's work besides its searches (see begin)
         self._began: float | None = None
         self.remembered: list[np.ndarray] = []     # the latest searches' winners to the current goal (K, 6)
+        self.took_prepared = False     # the last plan_goal took the prepared trajectory it was given
 
     def begin(self) -> None:
         """One planning action starts (the planning loop calls it): with an action_budget, its searches stop
@@ -225,13 +241,18 @@ class Replanner:
         return self._from_rest(self.path(q_start, q_goal, humans, waited), humans, version)
 
     def plan_goal(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
-                  waited: float = 0.0) -> Trajectory:
+                  waited: float = 0.0, prepared: PreparedPlan | None = None) -> Trajectory:
         """A new goal from rest: the direct line (the exact trapezoid) when the static scene allows it, even
         if a person is in its way now (the scaling layer holds the robot back), unless the searched path is
-        predicted faster; else the searched path (raises PlanningError or TimingError)."""
+        predicted faster; else the searched path (raises PlanningError or TimingError). prepared: this leg's
+        plan made a moment before, while the robot was still on its way here (``PlanningLoop`` prepares the
+        next leg): it takes the search's place where it is still good (``_still_good``), and the robot
+        leaves without waiting for a search."""
         q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
+        self.took_prepared = False
         if not self.collision.motion_free(q_start, q_goal)[0]:
-            return self.plan_fresh(q_start, q_goal, humans, version, waited)
+            ready = self._still_good(prepared, q_start, q_goal, humans, waited, np.inf, version)
+            return ready if ready is not None else self.plan_fresh(q_start, q_goal, humans, version, waited)
         direct = straight_line_trajectory(q_start, q_goal, self.limits.velocity, self.limits.acceleration,
                                           version=version)
         if humans is None or humans.count == 0:
@@ -239,11 +260,34 @@ class Replanner:
         direct_time = self.predicted_time(direct, 0.0, humans, waited)
         if direct_time <= direct.duration + self.options.worth_searching:
             return direct                   # the people hardly slow it: a search would cost more than it saves
+        ready = self._still_good(prepared, q_start, q_goal, humans, waited, direct_time, version)
+        if ready is not None:
+            return ready
         try:
             searched = self.plan_fresh(q_start, q_goal, humans, version, waited)
         except (PlanningError, TimingError):
             return direct
         return searched if self.predicted_time(searched, 0.0, humans, waited) < direct_time else direct
+
+    def _still_good(self, prepared: PreparedPlan | None, q_start: np.ndarray, q_goal: np.ndarray,
+                    humans: HumanCapsules | None, waited: float, beat: float, version: int) -> Trajectory | None:
+        """The prepared trajectory, numbered `version`, where it goes from here (within PREPARED_START) to
+        this goal, the people are where it was planned for them (the same capsules, none moved more than
+        PREPARED_DRIFT: a search now would see what that one saw), it is still collision-free against them
+        (never closer to them than its ends are) and is predicted, with them, faster than `beat` (s: the
+        direct line's prediction); else None (then a search decides, as without it)."""
+        if prepared is None or not _people_stayed(prepared.humans, humans):
+            return None
+        plan = prepared.trajectory
+        if np.abs(plan.positions[0] - q_start).max() > PREPARED_START \
+                or not np.allclose(plan.positions[-1], q_goal, atol=1e-9):
+            return None
+        if not self.collision.path_free(plan.positions, humans, self._capped(0.0, plan.positions[[0, -1]], humans)):
+            return None
+        if self.predicted_time(plan, 0.0, humans, waited) >= beat:
+            return None
+        self.took_prepared = True
+        return replace(plan, version=version)
 
     def _from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, version: int) -> Trajectory:
         """Rest to rest through waypoints. A direct connection gets the exact trapezoid, which is
@@ -483,3 +527,13 @@ class Replanner:
             result = self.replan(old, s_now, q_goal, humans, reason, s_branch, waited)
         gain = required_gain(baseline, self.options.min_gain, self.options.min_saving)
         return keep_or_replace(result, baseline, gain, started, why)
+
+
+def _people_stayed(then: HumanCapsules | None, now: HumanCapsules | None) -> bool:
+    """The same people as then, each capsule end within PREPARED_DRIFT (m) of where it was (nobody, both times:
+    True)."""
+    if then is None or now is None or then.count == 0 or now.count == 0:
+        return (then is None or then.count == 0) and (now is None or now.count == 0)
+    if then.count != now.count:
+        return False
+    return float(np.linalg.norm(now.segments - then.segments, axis=2).max()) <= PREPARED_DRIFT

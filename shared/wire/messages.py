@@ -101,13 +101,16 @@ class HumanState(Message):
 
 @dataclass(frozen=True)
 class Goal(Message):
-    """A goal configuration (rad) for the planner; name is informational ('' when none)."""
+    """A goal configuration (rad) for the planner; name is informational ('' when none). then (K, 6): the goals
+    that follow this one, in order, where the sender knows them (none by default): the planner prepares the
+    next leg's plan while the robot is still on its way (``shared.planning.loop``)."""
 
     KIND: ClassVar[str] = "goal"
-    SPEC: ClassVar[dict[str, Spec]] = {"goal_id": I, "name": S, "q": Q}
+    SPEC: ClassVar[dict[str, Spec]] = {"goal_id": I, "name": S, "q": Q, "then": Spec("farray", (-1, DOF))}
     goal_id: int
     name: str
     q: np.ndarray
+    then: np.ndarray = field(default_factory=lambda: np.zeros((0, DOF)))
 
 
 @dataclass(frozen=True)
