@@ -55,6 +55,11 @@ def test_runs_to_the_end_with_zero_violations(report):
     computes = [e["compute_ms"] for e in summary["replans"]]
     assert printed["replan_compute_ms"] == summary["replan_compute_ms"]
     assert summary["replan_compute_ms"]["p50"] == (round(float(np.percentile(computes, 50)), 3) if computes else None)
+    # the shuttle names the way back with each goal, so the planner prepares the next leg on the way: with the
+    # person standing (phases 3 and 4) a goal comes prepared and is published without a search
+    goals = summary["goal_plans"]
+    assert goals["count"] >= summary["shuttles_completed"] and 1 <= goals["prepared"] <= goals["count"], goals
+    assert printed["goal_plans"] == goals
     # every refusal says why, with the old and the new trajectory's predicted times (or the planning error,
     # or the blocked goal)
     for entry in summary["replans"]:
