@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from evidence.stats import PairedRatio
 from tests.util import load_bench
 
@@ -54,27 +56,17 @@ def test_one_kind_runs_and_its_ratios_come_with_intervals(tmp_path):
     assert len(json.loads((tmp_path / "scenarios.json").read_text())) == 2
 
 
-def test_foresight_adds_the_bound_with_its_ratios(tmp_path):
-    done = run("--scenarios", "1", "--kinds", "paper", "--duration", "1.0", "--workers", "1", "--foresight",
+@pytest.mark.parametrize("bound, other", [("foresight", "oracle"), ("oracle", "foresight")])
+def test_a_bound_adds_its_column_with_its_ratios_and_only_it(tmp_path, bound, other):
+    done = run("--scenarios", "1", "--kinds", "paper", "--duration", "1.0", "--workers", "1", f"--{bound}",
                tmp_path=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads(done.stdout.strip().splitlines()[-1])
-    assert set(result["kinds"]["paper"]) == {"zones", "scale_only", "full", "foresight"}
-    assert {"foresight/scale_only", "full/foresight"} <= set(result["ratios"]["overall"])
-    assert set(result["won_back_foresight"]) == {"paper", "overall"}
-    assert "foresight" in json.loads((tmp_path / "scenarios.json").read_text())[0]
-    assert "oracle" not in result["kinds"]["paper"] and "won_back_oracle" not in result
+    assert set(result["kinds"]["paper"]) == {"zones", "scale_only", "full", bound}
+    assert {f"{bound}/scale_only", f"full/{bound}"} <= set(result["ratios"]["overall"])
+    assert f"{other}/scale_only" not in result["ratios"]["overall"] and f"won_back_{other}" not in result
+    assert set(result[f"won_back_{bound}"]) == {"paper", "overall"}
+    assert bound in json.loads((tmp_path / "scenarios.json").read_text())[0]
+    assert (tmp_path / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # without it, neither the column nor its ratios
     assert load_bench("compare").ratios([row(1.0, 1.0, 2.0)]).keys() == {"full/scale_only", "full/zones"}
-
-
-def test_oracle_adds_the_planning_layers_bound_with_its_ratios(tmp_path):
-    done = run("--scenarios", "1", "--kinds", "paper", "--duration", "1.0", "--workers", "1", "--oracle",
-               tmp_path=tmp_path)
-    assert done.returncode == 0, done.stderr[-2000:]
-    result = json.loads(done.stdout.strip().splitlines()[-1])
-    assert set(result["kinds"]["paper"]) == {"zones", "scale_only", "full", "oracle"}
-    assert {"oracle/scale_only", "full/oracle"} <= set(result["ratios"]["overall"])
-    assert "foresight/scale_only" not in result["ratios"]["overall"]
-    assert set(result["won_back_oracle"]) == {"paper", "overall"} and "won_back_foresight" not in result
-    assert (tmp_path / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
