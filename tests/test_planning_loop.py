@@ -45,6 +45,7 @@ class RecordingReplanner:
         self.slow, self.slow_fails = slow, slow_fails
         self.collision, self.ssm = COLLISION, SsmParameters()      # what the loop asks whether a goal is blocked
         self.open_actions = self.actions = 0
+        self.remembered: list = []
 
     def begin(self) -> None:
         self.open_actions += 1
@@ -369,6 +370,15 @@ def test_a_prepared_plan_is_taken_only_while_still_good():
     # (as if planned for them: only the collision check stands between it and the robot)
     anew = not_taken(Q_GOAL, stepped_in, PreparedPlan(plan, stepped_in))
     assert not np.array_equal(anew, plan.positions)
+
+
+def test_a_goal_after_that_cannot_be_planned_is_refused_saying_why_and_nothing_is_kept():
+    loop = PlanningLoop(RecordingReplanner(), slow_period=None)
+    outcome = loop.step(0.0, inputs(following=(OLD, OLD.duration - 0.1), then=np.full(6, 99.0)))
+    assert outcome.action == "prepare" and outcome.prepared is None and loop.prepared is None
+    assert outcome.refused == "PlanningError: the goal is out of reach"
+    goal = loop.step(1.0, inputs(new_goal=True, following=None, goal=Q_START))     # the next goal: planned as ever
+    assert goal.action == "goal" and goal.result is not None and loop.replanner.calls[-1] == "plan_goal v4"
 
 
 def test_without_the_goal_after_nothing_is_prepared():
