@@ -100,6 +100,12 @@ class PlanningOutcome:
     prepared: Trajectory | None = None
 
 
+def standing(humans: HumanCapsules, speed: float = STANDING_SPEED) -> bool:
+    """Every capsule's velocity known and below `speed` (m/s) at both ends (True for nobody)."""
+    return humans.count == 0 or (bool(humans.velocity_known.all())
+                                 and float(np.linalg.norm(humans.velocities, axis=2).max()) < speed)
+
+
 class StillClock:
     """How long the people have stood still (s): the same number of capsules, every one with a known
     velocity below `speed` (m/s) at both ends. Anyone moving, appearing or leaving, or a velocity the
@@ -113,8 +119,7 @@ class StillClock:
 
     def update(self, now: float, humans: HumanCapsules | None) -> None:
         count = -1 if humans is None else humans.count
-        still = (count > 0 and count == self.count and bool(humans.velocity_known.all())
-                 and float(np.linalg.norm(humans.velocities, axis=2).max()) < self.speed)
+        still = count > 0 and count == self.count and standing(humans, self.speed)
         self.count = count
         self.clock.update(now, still)
 
@@ -220,11 +225,16 @@ class PlanningLoop:
     def _prepare(self, inputs: PlanningInputs) -> PlanningOutcome | None:
         """The next leg's plan, once per trajectory followed, within prepare_ahead of its end (None when it
         is not due): from the end of the followed trajectory (where its commands stop the robot) to the
-        goal after, for the people as they are now. The replanner's remembered paths stay those of the
-        current goal (its replans in the last moments of the leg recall them)."""
+        goal after, for the people as they are now, while they stand (``standing``: a prepared plan is taken
+        only where they have not moved on, and a search for walking people would only keep the planner
+        from what else is due: with it, 14 of 200 crossings came out slower than scaling alone, none
+        before). The replanner's remembered paths stay those of the current goal (its replans in the last
+        moments of the leg recall them)."""
         trajectory, s = inputs.following
         if self.prepare_ahead is None or inputs.then is None or trajectory.duration - s > self.prepare_ahead:
             return None
+        if inputs.humans is not None and not standing(inputs.humans):
+            return None     # a plan for people on the move is out of date when the goal comes: not prepared
         key = (trajectory.version, np.asarray(inputs.then, dtype=float).tobytes())
         if key == self.prepared_for or not np.allclose(trajectory.positions[-1], inputs.goal, atol=1e-9):
             return None
