@@ -387,6 +387,19 @@ def test_without_the_goal_after_nothing_is_prepared():
     assert loop.replanner.calls == ["horizon"]
 
 
+def test_nothing_is_prepared_for_people_on_the_move_until_they_stand():
+    """A plan prepared for walking people would be out of date when its goal comes (it is taken only where
+    they have not moved on): the loop waits until they stand, and prepares then."""
+    loop = PlanningLoop(RecordingReplanner(), slow_period=None)
+    someone = reaching_over_the_shuttle()
+    walking = dataclasses.replace(someone, velocities=np.full(someone.segments.shape, 0.0) + [0.0, 0.5, 0.0])
+    end = OLD.duration - 0.2
+    assert loop.step(0.0, inputs(following=(OLD, end), humans=walking, then=Q_START)) is None and loop.prepared is None
+    assert "plan_goal v0" not in loop.replanner.calls
+    prepared = loop.step(0.1, inputs(following=(OLD, end + 0.05), humans=someone, then=Q_START, human_sample=1))
+    assert prepared.action == "prepare" and loop.replanner.calls[-1] == "plan_goal v0"
+
+
 # ------------------------------------------------------------------------ the service, in-process
 @pytest.fixture(scope="module")
 def replanner() -> Replanner:
