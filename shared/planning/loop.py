@@ -226,10 +226,9 @@ class PlanningLoop:
         """The next leg's plan, once per trajectory followed, within prepare_ahead of its end (None when it
         is not due): from the end of the followed trajectory (where its commands stop the robot) to the
         goal after, for the people as they are now, while they stand (``standing``: a prepared plan is taken
-        only where they have not moved on, and a search for walking people would only keep the planner
-        from what else is due: with it, 14 of 200 crossings came out slower than scaling alone, none
-        before). The replanner's remembered paths stay those of the current goal (its replans in the last
-        moments of the leg recall them)."""
+        only where they have not moved on, so a search for walking people would only keep the planner from
+        what else is due). The replanner's remembered paths stay those of the current goal (its replans in
+        the last moments of the leg recall them)."""
         trajectory, s = inputs.following
         if self.prepare_ahead is None or inputs.then is None or trajectory.duration - s > self.prepare_ahead:
             return None
