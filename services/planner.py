@@ -155,10 +155,11 @@ class PlannerService:
             return
         ms = (time.perf_counter() - started) * 1e3
         if outcome.action == "prepare":        # the next leg's plan, kept by the loop until its goal comes
-            self._event("next_goal_prepared" if outcome.prepared is not None else "prepare_refused",
-                        f"for goal {goal.goal_id}: " + (f"{outcome.prepared.duration:.2f} s nominal, kept for the "
-                                                        f"goal after it" if outcome.prepared is not None
-                                                        else str(outcome.refused))[:500], ms)
+            if outcome.prepared is not None:
+                self._event("next_goal_prepared", f"for goal {goal.goal_id}: {outcome.prepared.duration:.2f} s "
+                                                  f"nominal, kept for the goal after it", ms)
+            else:
+                self._event("prepare_refused", f"for goal {goal.goal_id}: {outcome.refused}"[:500], ms)
             return
         if outcome.result is None:
             what = f"goal {goal.goal_id}" if outcome.action == "goal" else outcome.action
