@@ -1,6 +1,7 @@
 """scaler: the trajectory scaling layer as a service (a thin shell around shared.scaling.layer).
 
-Each tick it takes the last trajectory, the last human state and the last joint state received, runs
+Each tick it takes the last trajectory, the human states received since the last tick (all of them: one that
+held for less than a period counts too) and the last joint state received, runs
 ScalingLayer.step, and publishes the joint command and its status. It ticks on every joint state (the
 driver publishes one a SYNC, 100 Hz), falling back to 1.5 control periods without one (services.common.
 run_synced): locked to the drives' clock, its path never runs ahead of the robot (on its own clock, a
@@ -12,7 +13,8 @@ the braking that followed overshot the stop). Rules of the shell:
 * a replan request raised while the robot crawls brings it to rest, where it awaits the plan (the status's
   stop_s says where; the core's rule, ``ScalingLayer._await``; not with --no-await);
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
-  (the core's rule); an invalid or malformed message counts as no message;
+  (the core's rule; the bound at a slow source's rate is shared.tracking.tracker.stale_bound); an invalid
+  or malformed message counts as no message;
 * while the driver reports that the robot is not following (stopped, enabling: JointState.enabled false)
   the trajectory is dropped and the measured position held: after a quick stop the robot stands off the
   path, the driver re-enables only on a command where the robot is, and the planner (which sees
@@ -30,12 +32,22 @@ from dataclasses import replace
 import numpy as np
 
 from services.common import ServiceShell, open_service, run_synced, serve, service_parser, setup_logging
+from shared.core.humans import HumanCapsules
 from shared.robot.model import default_robot
 from shared.scaling.layer import ScalingLayer
+from shared.tracking.tracker import stale_bound
 from shared.wire.convert import humans_from_msg, trajectory_from_msg
 from shared.wire.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, encode
 
 START_TOLERANCE = 0.02     # rad: how close the robot must be to a fresh plan's start to take it
+
+
+def merge_human_states(msgs: list[HumanState]) -> HumanCapsules | None:
+    """The people of the newest state and of every valid state before it in msgs (oldest first), as one
+    state (newest capsules first); None when the newest is an invalid track."""
+    if not msgs[-1].valid:
+        return humans_from_msg(msgs[-1])
+    return HumanCapsules.union([humans_from_msg(m) for m in reversed(msgs) if m.valid])
 
 
 class Scaler:
@@ -45,6 +57,7 @@ class Scaler:
         self.humans = None                 # HumanCapsules, or None
         self.human_stamp = -np.inf         # monotonic time of the human sample
         self.human_published = -np.inf     # when tracker_ingest published its state (same host clock)
+        self.stale_after = layer.params.human_timeout     # s: the data's age bound at the source's rate
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
         self.robot_following = False       # the driver runs and follows commands (JointState.enabled)
@@ -55,20 +68,23 @@ class Scaler:
         keys = shell.keys
         self.cmd_pub = shell.session.declare_publisher(keys.command)
         self.status_pub = shell.session.declare_publisher(keys.scaler_status)
-        # the newest human state, kept by Zenoh and taken at each tick: no callback thread woken for each of
-        # 120-240 samples a second, of which a 100 Hz tick uses the newest
-        self.humans_in = shell.latest(keys.human_state, HumanState)
+        # the human states, queued by Zenoh and taken at each tick: no callback thread woken for each of
+        # 120-240 samples a second; a tick checks against every one since the last (HumanCapsules.union)
+        self.humans_in = shell.queue(keys.human_state, HumanState)
         shell.subscribe(keys.joint_state, JointState, self.on_joints)
         shell.subscribe(keys.trajectory, TrajectoryMsg, self.on_trajectory)
 
     def take_humans(self) -> None:
-        """The newest human state since the last tick, if one came (an invalid track counts as no people; a
-        malformed message as no message: logged and counted by the shell)."""
-        msg = self.humans_in.take()
-        if msg is not None:
-            self.humans = humans_from_msg(msg)
-            self.human_stamp = msg.sample_stamp if msg.valid else -np.inf
-            self.human_published = msg.stamp
+        """The human states since the last tick, if any came: the people of all of them at once
+        (``merge_human_states``: a state shorter than a period counts too), aged by the newest (an invalid
+        newest track counts as no people; a malformed message as no message: logged and counted by the shell)."""
+        msgs = self.humans_in.drain()
+        if msgs:
+            newest = msgs[-1]
+            self.humans = merge_human_states(msgs)
+            self.human_stamp = newest.sample_stamp if newest.valid else -np.inf
+            self.human_published = newest.stamp
+            self.stale_after = stale_bound(self.layer.params.human_timeout, newest.sample_interval)
 
     def on_joints(self, msg: JointState) -> None:
         with self.lock:
@@ -113,7 +129,7 @@ class Scaler:
             self.layer.hold(q_meas)
         if self.layer.trajectory is None:
             return
-        step = self.layer.step(humans, age if humans is not None else np.inf)
+        step = self.layer.step(humans, age if humans is not None else np.inf, stale_after=self.stale_after)
         if self.layer.dropped is not None:
             self.shell.log.warning("trajectory dropped: %s", self.layer.dropped)
             self.layer.dropped = None

@@ -1,8 +1,10 @@
 """tracker_ingest: raw human poses in, the human state out (a thin shell around shared.tracking.tracker).
 
-Every raw sample (<prefix>/human/raw, HumanRaw: capsules from motion capture, the CLI or a replay, up to
-240 Hz) is filtered and published at once as HumanState on <prefix>/human/state, stamped with its arrival
-time (the scaler measures the data's age from it). A watch publishes an invalid state every 10 ms while no
+Every raw sample (<prefix>/human/raw, HumanRaw: capsules from motion capture at up to 240 Hz, a camera
+skeleton tracker at 15-60 Hz, the CLI or a replay) is filtered and published at once as HumanState on
+<prefix>/human/state, stamped with its arrival time (the scaler measures the data's age from it) and the
+source's measured sample interval (the velocity window and the dropout bound scale with it:
+shared.tracking.tracker). A watch publishes an invalid state every 10 ms while no
 sample has arrived within the dropout bound, so a silent tracker is announced, not only noticed. While
 samples come it sleeps until the moment the bound would pass (``next_check``), not a hundred times a second:
 a dropout is announced within a fraction of a millisecond of it, and the process is not woken for nothing.
@@ -47,7 +49,9 @@ class TrackerIngest:
         self.seq += 1
         self.state_pub.put(encode(HumanState(segments=msg.segments, radii=msg.radii, velocities=msg.velocities,
                                              velocity_known=msg.velocity_known, valid=msg.valid,
-                                             sample_stamp=msg.sample_stamp, seq=self.seq, stamp=time.monotonic())))
+                                             sample_stamp=msg.sample_stamp,
+                                             sample_interval=self.tracker.interval, seq=self.seq,
+                                             stamp=time.monotonic())))
 
     def on_raw(self, msg: HumanRaw) -> None:
         arrival = time.monotonic()

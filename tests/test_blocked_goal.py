@@ -16,7 +16,7 @@ from shared.wire.messages import SafetyEvent
 from tests.test_planning_loop import RecordingReplanner, inputs
 from tools.report import mark_blocked_goals
 
-ROBOT, SSM = default_robot(), SsmParameters()
+ROBOT, SSM = default_robot(), SsmParameters().paper_formula()     # the paper's numbers; the shipped model below
 Q_HELD = np.array([0.98, 0.22, 0.6, -0.22, 1.73, 0.12])    # where a person leaning in (below) held the robot
 LEANING_IN = (-0.9, 0.1, 1.0)     # stance x, y (m) and lean of a person leaning in further than the paper's phase 4
 
@@ -41,6 +41,9 @@ def test_a_goal_inside_the_no_approach_distance_of_a_person_is_blocked_and_says_
     assert block is not None and block.link == "prbt_link_2"
     no_approach = SSM.fixed_distance + SSM.tracking_margin * SSM.horizon       # 0.316 m for a person standing
     assert np.isclose(block.no_approach, no_approach) and 0.30 < no_approach < 0.33
+    # the shipped model: a person standing may start at 50 m/s^2 up to 2.0 m/s, 0.76 m within the horizon
+    shipped = goal_block(ROBOT, SsmParameters(), Q_HELD, Q_START, person)
+    assert shipped is not None and np.isclose(shipped.no_approach, 0.76 + no_approach)
     assert block.at_goal < block.now and block.at_goal < no_approach
     assert np.isclose(block.at_goal, separation(Q_START, person), atol=1e-9)
     assert "0.21 m from human capsule 3, inside the 0.32 m" in block.describe()

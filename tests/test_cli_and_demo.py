@@ -11,7 +11,12 @@ from evidence.scenarios import Q_GOAL, Q_START, paper_phases
 from evidence.sim import run_shuttle
 from shared.config import CellConfig
 from shared.robot.model import default_robot
+from shared.safety.parameters import SsmParameters
 from tests.util import run_hrc
+
+# The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
+# numbers; the shipped human model's own figures are tests/test_ssm.py's and the cell's.
+PAPER = CellConfig(ssm=SsmParameters().paper_formula())
 
 
 def hrc(*args):
@@ -46,7 +51,7 @@ def test_help_teaches_the_commands():
 
 
 def test_the_paper_phases_in_simulation():
-    result = run_shuttle(default_robot(), CellConfig(), paper_phases(6.0), Q_START, Q_GOAL, 24.0)
+    result = run_shuttle(default_robot(), PAPER, paper_phases(6.0), Q_START, Q_GOAL, 24.0)
     assert result.violations == 0
     by_phase = {}
     for r in result.records:
@@ -64,7 +69,7 @@ def test_the_paper_phases_with_both_layers():
     from shared.planning.replanner import Replanner, ReplanOptions
     from shared.planning.scene import load_scene
 
-    robot, config = default_robot(), CellConfig()
+    robot, config = default_robot(), PAPER
     collision = CollisionModel(robot, load_scene("deploy/scene.yaml"), config.ssm.min_separation)
     def both_layers(options: ReplanOptions):
         replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm, options=options)

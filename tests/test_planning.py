@@ -30,6 +30,10 @@ from shared.scaling.problem import ssm_alpha_bound
 from shared.wire.convert import trajectory_from_msg, trajectory_to_msg
 from shared.wire.messages import TrajectoryMsg, decode, encode
 
+# The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
+# numbers; the shipped human model's own figures are tests/test_ssm.py's and the cell's.
+PAPER_SSM = SsmParameters().paper_formula()
+
 ROBOT = default_robot()
 LIM = ROBOT.limits
 CM = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
@@ -112,7 +116,7 @@ def test_a_detour_is_timed_through_its_corners_at_speed_and_inside_the_joint_lim
     lift[1], lift[2] = -0.3, 0.4
     detour = np.vstack([Q_START, Q_START + 0.25 * (Q_GOAL - Q_START) + lift, Q_START + 0.75 * (Q_GOAL - Q_START) + lift,
                         Q_GOAL])
-    estimate = SsmTimeCost(ROBOT, SsmParameters()).path_samples(detour).nominal
+    estimate = SsmTimeCost(ROBOT, PAPER_SSM).path_samples(detour).nominal
     loose, tight = parameterize(detour, LIM, collision=CM), parameterize(detour, LIM, max_segment=0.25, collision=CM)
     assert loose.duration < 1.03 * estimate and loose.duration < tight.duration - 0.05, (loose.duration, tight.duration,
                                                                                           estimate)
@@ -181,7 +185,7 @@ def test_people_out_of_the_robots_reach_need_no_horizon_check():
         assert out_of_reach(CM, person) == (gap > required)
         if out_of_reach(CM, person):           # the person changes no configuration's clearance
             assert np.array_equal(CM.clearances(qs, person), CM.clearances(qs, None))
-    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), SsmParameters())
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), PAPER_SSM)
     before = CM.checks
     assert replanner.on_horizon(OLD, 0.5, Q_GOAL, ASIDE) is None and CM.checks == before     # not even checked
     with contextlib.suppress(ReplanFailed):              # (whatever it decides; it has to look first)
@@ -192,7 +196,7 @@ def test_people_out_of_the_robots_reach_need_no_horizon_check():
 def merged_round(s_now: float, humans: HumanCapsules):
     """Alg. 2 itself (no decision whether it pays): branch at the last feasible horizon sample, with a
     planner seeded afresh (the same random sampling in every test)."""
-    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), SsmParameters())
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), PAPER_SSM)
     check = horizon_check(OLD, s_now, CM, humans, replanner.horizon)
     return replanner.replan(OLD, s_now, Q_GOAL, humans, "horizon", s_branch=check.last_feasible_s)
 
@@ -221,7 +225,7 @@ def _mean_safe_alpha(traj, s_from, humans):
     """Mean over the rest of the trajectory (by nominal time) of the largest alpha the SSM allows: the
     clearance that matters for speed (distance and direction of motion together)."""
     q, dq, _ = traj.sample(np.linspace(s_from, traj.duration, 300))
-    return float(np.mean([ssm_alpha_bound(ROBOT, qk, dqk, humans, SsmParameters()) for qk, dqk in zip(q, dq)]))
+    return float(np.mean([ssm_alpha_bound(ROBOT, qk, dqk, humans, PAPER_SSM) for qk, dqk in zip(q, dq)]))
 
 
 STANDING = known(*body_segments(-1.0, 0.0, 1.0, np.array([-0.4, 0.0, 0.8])))   # reaching over the path
@@ -233,7 +237,7 @@ def test_keep_or_replace_compares_both_trajectories_under_the_same_stay():
     yet, the person is expected to move on and the old path is kept; held for two seconds, the way round
     pays and is taken, faster under the SSM than the old path (its mean safe alpha higher). Both times
     are in the reason either way. As shipped (patience 1.5 s) it is taken at once."""
-    replanner = Replanner(CM, PLANNER, SsmParameters(), options=ReplanOptions(patience=0.0))
+    replanner = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=0.0))
     with pytest.raises(ReplanFailed, match=r"predicted \d+\.\d\d s, not 10 % faster than the old \d+\.\d\d s"):
         replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, waited=0.0)
     result = replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, waited=2.0)
@@ -245,7 +249,7 @@ def test_keep_or_replace_compares_both_trajectories_under_the_same_stay():
     assert _mean_safe_alpha(result.trajectory, result.junction, STANDING) > _mean_safe_alpha(OLD, result.junction, STANDING)
     assert_trajectory_feasible(result.trajectory, STANDING, result.junction)
     assert replanner.stay(1.0) == pytest.approx(1.0)
-    shipped = Replanner(CM, PLANNER, SsmParameters())
+    shipped = Replanner(CM, PLANNER, PAPER_SSM)
     assert shipped.stay(0.0) == pytest.approx(1.5)
     assert "instead of" in shipped.on_beta(OLD, 0.3, Q_GOAL, STANDING, waited=0.0).detail
 
@@ -257,7 +261,7 @@ def test_a_crawling_robot_held_by_the_ssm_is_stopped_a_little_ahead_and_planned_
     again (not held) is merged into as before."""
     from shared.scaling.layer import ScalingLayer
 
-    replanner = Replanner(CM, PLANNER, SsmParameters())
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
     crawl = 0.1 * float(np.abs(OLD.sample(0.3)[1]).max())
     stop = replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, speed_now=crawl, waited=2.0, held=True)
     assert stop.from_rest and 0.3 < stop.junction < 0.35 and "from rest" in stop.detail
@@ -267,7 +271,7 @@ def test_a_crawling_robot_held_by_the_ssm_is_stopped_a_little_ahead_and_planned_
     merged = replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, speed_now=crawl, waited=2.0, held=False)
     assert not merged.from_rest and merged.junction >= 0.3 + replanner.options.lead
     # the scaling layer takes it where the robot comes to rest, without a jump
-    layer = ScalingLayer(ROBOT, SsmParameters())
+    layer = ScalingLayer(ROBOT, PAPER_SSM)
     layer.set_trajectory(OLD)
     layer.s, layer.sdot = 0.3, 0.1
     assert layer.take(stop.trajectory, True, 0.0, OLD.sample(0.3)[0], 1e-3) is None
@@ -282,7 +286,7 @@ def test_a_robot_brought_to_rest_to_await_its_plan_is_planned_for_from_rest_wher
     """The scaler stops a crawling robot that asked for a replan and awaits the plan (stop_at,
     ScalingLayer.awaiting): the plan starts from rest exactly there, and the old trajectory is predicted from
     rest there too (it has to get back up to speed), whatever the robot's speed when the planner looked."""
-    replanner = Replanner(CM, PLANNER, SsmParameters())
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
     crawl = 0.1 * float(np.abs(OLD.sample(0.3)[1]).max())
     plan = replanner.on_beta(OLD, 0.3, Q_GOAL, STANDING, speed_now=crawl, waited=2.0, held=True, stop_at=0.304)
     assert plan.from_rest and plan.junction == 0.304 and plan.reason == "beta"
@@ -303,7 +307,7 @@ def test_trajectory_message_roundtrip_gives_the_same_law():
 
 
 def test_a_free_shuttle_is_planned_as_the_exact_trapezoid():
-    replanner = Replanner(CM, PLANNER, SsmParameters())
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
     traj = replanner.plan_fresh(Q_START, Q_GOAL, ASIDE, 3)
     assert traj.duration == pytest.approx(OLD.duration, abs=1e-9) and traj.version == 3
     q = traj.sample(np.linspace(0, traj.duration, 50))[0]
@@ -318,7 +322,7 @@ def test_people_are_forecast_at_their_known_velocities_only():
 
 
 def test_a_person_crossing_out_of_the_path_is_waited_for_and_one_standing_in_it_is_not():
-    replanner = Replanner(CM, PLANNER, SsmParameters())
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
     seg = np.asarray(ARM_ACROSS.segments)
     leaving = HumanCapsules(seg, ARM_ACROSS.radii, np.tile([0.0, -2.0, 0.0], (2, 2, 1)), np.ones(2, bool))
     check = horizon_check(OLD, 0.0, CM, leaving, replanner.horizon)
@@ -337,7 +341,7 @@ def test_nearby_starts_to_one_goal_are_planned_alike():
     (a leg that ended a moment earlier) the searched paths bend the same way. Seeded by the start too,
     they differed by up to a radian (another draw, another winner), and the plans after a small change
     of timing had nothing in common with those before it."""
-    replanner = Replanner(CM, PLANNER, SsmParameters())
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
     for humans in (STANDING, ARM_ACROSS):
         paths = []
         for offset in (0.0, 0.002, 0.005, 0.01):
@@ -362,7 +366,7 @@ def test_a_person_blocking_every_way_is_waited_for_and_a_robot_in_reach_is_not_r
     slowdown, so a new path only adds length; the old one is kept (held or not, moving or at rest), and
     the reason says so with both times. A person already within the margin of the robot's own
     configuration: no branch ahead can help."""
-    replanner = Replanner(CM, PLANNER, SsmParameters())
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
     for waited in (0.0, 4.0):
         with pytest.raises(ReplanFailed, match="kept the old trajectory: the new one .* not faster than the old"):
             replanner.on_horizon(OLD, 0.0, Q_GOAL, ARM_ACROSS, waited=waited)
@@ -379,14 +383,14 @@ def test_a_person_blocking_every_way_is_waited_for_and_a_robot_in_reach_is_not_r
 
 
 def test_a_new_goal_takes_the_direct_line_unless_the_searched_path_is_predicted_faster():
-    replanner = Replanner(CM, PLANNER, SsmParameters())
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
     # nobody near: the exact trapezoid, no search
     assert replanner.plan_goal(Q_START, Q_GOAL, ASIDE, 7).duration == pytest.approx(OLD.duration, abs=1e-9)
     # an arm that blocks every way: the direct line (the scaling layer holds the robot until it moves)
     direct = replanner.plan_goal(Q_START, Q_GOAL, ARM_ACROSS, 5)
     assert direct.version == 5 and np.allclose(direct.sample(1.0)[0], OLD.sample(1.0)[0])
     # a person reaching over the path who stays: the searched way round, predicted faster
-    stays = Replanner(CM, PLANNER, SsmParameters(), options=ReplanOptions(patience=5.0))
+    stays = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=5.0))
     chosen = stays.plan_goal(Q_START, Q_GOAL, STANDING, 6)
     assert not np.allclose(chosen.sample(1.0)[0], OLD.sample(1.0)[0])
     assert stays.predicted_time(chosen, 0.0, STANDING) < stays.predicted_time(OLD, 0.0, STANDING)
@@ -399,10 +403,10 @@ def test_a_search_starts_from_the_paths_the_last_ones_found_to_the_same_goal():
     own finds the remembered way round the arm; after forget() it has only the direct line and RRT-Connect."""
     from shared.planning.path_search import SearchOptions
     options = ReplanOptions(seed=3)
-    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), SsmParameters(), options=options)
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), PAPER_SSM, options=options)
     first = replanner.path(Q_START, Q_GOAL, ARM_ACROSS)
     assert len(first) > 2 and len(replanner.remembered) == 1
-    bare = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), SsmParameters(),
+    bare = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), PAPER_SSM,
                      options=ReplanOptions(seed=3, search=SearchOptions(candidates=0, refinements=0, escape_directions=0,
                                                                         lift_offsets=((), ()))))
     bare.remembered = list(replanner.remembered)
@@ -422,10 +426,10 @@ def test_a_crawl_that_the_ssm_slows_further_is_stopped_where_it_gets_by_the_plan
     present rate the crawl would be predicted further on than it gets, and the robot would crawl on for
     the difference after its plan has come (about 150 ms of a 400 ms stall in hrc demo). The stop is where
     the time cost's bound takes it in stop_lead and half the stop."""
-    replanner = Replanner(CM, PLANNER, SsmParameters())
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
     s_now = 0.75
     q, v, _ = OLD.sample(np.array([s_now]))
-    rate = ssm_alpha_bound(ROBOT, q[0], v[0], STANDING, SsmParameters())
+    rate = ssm_alpha_bound(ROBOT, q[0], v[0], STANDING, PAPER_SSM)
     stop = replanner.on_beta(OLD, s_now, Q_GOAL, STANDING, speed_now=rate * float(np.abs(v).max()), waited=2.0,
                              held=True)
     stopping = rate * float(np.max(np.abs(v[0]) / LIM.acceleration))   # the joints' planning deceleration
@@ -436,7 +440,7 @@ def test_a_crawl_that_the_ssm_slows_further_is_stopped_where_it_gets_by_the_plan
     # still no nearer than the robot can stop at the scaler's deceleration for a plan (never one it would pass)
     s_now, rate = 0.88, 0.1
     q, v, _ = OLD.sample(np.array([s_now]))
-    assert ssm_alpha_bound(ROBOT, q[0], v[0], STANDING, SsmParameters()) == 0.0
+    assert ssm_alpha_bound(ROBOT, q[0], v[0], STANDING, PAPER_SSM) == 0.0
     stop = replanner.on_beta(OLD, s_now, Q_GOAL, STANDING, speed_now=rate * float(np.abs(v).max()), waited=2.0,
                              held=True)
     stopping = rate * float(np.max(np.abs(v[0]) / LIM.acceleration))   # the joints' planning deceleration
@@ -450,7 +454,7 @@ def test_a_path_predicted_slow_ahead_of_a_robot_at_speed_is_replanned_by_the_pla
     itself for a replan (on_slow) and takes the merge round them, which is faster against the person as
     they really stay, too."""
     phases = paper_phases(6.0)
-    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=1)), SsmParameters(), options=ReplanOptions(seed=2))
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=1)), PAPER_SSM, options=ReplanOptions(seed=2))
     plan = replanner.plan_goal(Q_GOAL, Q_START, phases.at(19.16), 9)
     standing = phases.at(19.3)
 

@@ -27,6 +27,10 @@ from shared.wire.convert import humans_to_msg
 from shared.wire.messages import Goal, JointState, SafetyEvent, ScalerStatus, TrajectoryMsg
 from tests.fake_shell import FakeShell
 
+# The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
+# numbers; the shipped human model's own figures are tests/test_ssm.py's and the cell's.
+PAPER_SSM = SsmParameters().paper_formula()
+
 ROBOT = default_robot()
 LIM = ROBOT.limits
 OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=3)
@@ -43,7 +47,7 @@ class RecordingReplanner:
         self.forgotten = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
         self.slow, self.slow_fails = slow, slow_fails
-        self.collision, self.ssm = COLLISION, SsmParameters()      # what the loop asks whether a goal is blocked
+        self.collision, self.ssm = COLLISION, PAPER_SSM      # what the loop asks whether a goal is blocked
         self.open_actions = self.actions = 0
         self.remembered: list = []
 
@@ -211,7 +215,7 @@ def test_an_action_budget_stops_the_searches_in_time_for_the_rest_of_the_action(
     direct = np.vstack([Q_START, Q_GOAL])
 
     def search_in_an_action(budget):
-        replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+        replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), PAPER_SSM,
                               options=ReplanOptions(seed=5, action_budget=budget))
         began = time.perf_counter()
         replanner.begin()
@@ -238,7 +242,7 @@ def test_the_learnt_finishing_time_rises_at_once_and_falls_slowly(monkeypatch):
     import shared.planning.replanner as module
     clock = [100.0]
     monkeypatch.setattr(module, "time", type("Clock", (), {"perf_counter": staticmethod(lambda: clock[0])}))
-    replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+    replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), PAPER_SSM,
                           options=ReplanOptions(action_budget=0.1))
 
     def action(search: float, rest: float) -> float:
@@ -271,7 +275,7 @@ def test_a_merge_tries_further_junctions_only_within_the_action_budget(monkeypat
 
     def merge_with(budget):
         tried.clear()
-        replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+        replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), PAPER_SSM,
                               options=ReplanOptions(seed=5, action_budget=budget))
         replanner.begin()
         try:
@@ -295,7 +299,7 @@ def test_the_warm_up_runs_every_kind_of_action_and_leaves_no_trace():
     someone = HumanCapsules.from_arrays(segments, radii, np.zeros(segments.shape), np.ones(len(radii), bool))
 
     def fresh() -> Replanner:
-        return Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+        return Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), PAPER_SSM,
                          options=ReplanOptions(seed=5))
 
     warmed = fresh()
@@ -313,7 +317,7 @@ def reaching_over_the_shuttle() -> HumanCapsules:
 
 
 def fresh_replanner() -> Replanner:
-    return Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), SsmParameters(),
+    return Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), PAPER_SSM,
                      options=ReplanOptions(seed=5))
 
 
@@ -404,7 +408,7 @@ def test_nothing_is_prepared_for_people_on_the_move_until_they_stand():
 @pytest.fixture(scope="module")
 def replanner() -> Replanner:
     collision = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
-    return Replanner(collision, JointPlanner(collision, PlannerOptions(seed=5)), SsmParameters(),
+    return Replanner(collision, JointPlanner(collision, PlannerOptions(seed=5)), PAPER_SSM,
                      options=ReplanOptions(seed=5))
 
 

@@ -17,12 +17,16 @@ from shared.safety.ssm import pair_ssm
 from shared.scaling.layer import ScalingLayer, StepStatus
 from shared.scaling.parameters import ScalingParameters
 
+# The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
+# numbers; the shipped human model's own figures are tests/test_ssm.py's and the cell's.
+PAPER_SSM = SsmParameters().paper_formula()
+
 ROBOT = default_robot()
 NOBODY = HumanCapsules.empty()
 
 
 def layer(**params):
-    lay = ScalingLayer(ROBOT, SsmParameters(), ScalingParameters(**params))
+    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters(**params))
     lay.set_trajectory(straight_line_trajectory(Q_START, Q_GOAL, ROBOT.limits.velocity, ROBOT.limits.acceleration))
     return lay
 
@@ -121,7 +125,7 @@ def test_every_command_meets_the_ssm_limit(seed, s):
     floor = lay.braking_floor(*lay.trajectory.sample(lay.s)[1:])
     step = lay.step(humans, 0.0)
     points, jac = ROBOT.capsule_kinematics(step.q_command)
-    check = pair_ssm(points, ROBOT.radii, jac @ step.qd_command, humans, SsmParameters())
+    check = pair_ssm(points, ROBOT.radii, jac @ step.qd_command, humans, PAPER_SSM)
     if step.method.endswith("+braking"):          # the drives cannot slow down faster: braking at their limit
         assert step.alpha == floor
     else:
@@ -141,7 +145,7 @@ def test_one_rule_takes_a_new_trajectory_without_a_jump():
     robot = default_robot()
     lim = robot.limits
     a, b = np.zeros(6), np.full(6, 0.5)
-    layer = ScalingLayer(robot, SsmParameters(), ScalingParameters())
+    layer = ScalingLayer(robot, PAPER_SSM, ScalingParameters())
     old = straight_line_trajectory(a, b, lim.velocity, lim.acceleration, version=1)
     layer.set_trajectory(old)
     layer.s, layer.sdot = 0.3, 0.8
@@ -169,7 +173,7 @@ def test_a_plan_from_rest_ahead_of_a_crawling_robot_is_taken_where_the_robot_sto
 
     lim = ROBOT.limits
     old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
-    lay = ScalingLayer(ROBOT, SsmParameters(), ScalingParameters())
+    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters())
     lay.set_trajectory(old)
     lay.s, lay.sdot = 1.0, 0.2                               # crawling in the middle of the shuttle
     stop_at = 1.04
@@ -220,7 +224,7 @@ def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_i
     points, velocities = ROBOT.capsule_motion(q, dq)
     ahead = points[-1, 1] + 0.4 * velocities[-1, 1] / np.linalg.norm(velocities[-1, 1])   # in the flange's way
     person = HumanCapsules(np.array([[ahead, ahead]]), np.array([0.1]), np.zeros((1, 2, 3)), np.array([True]))
-    lay = ScalingLayer(ROBOT, SsmParameters(), ScalingParameters())
+    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters())
     lay.set_trajectory(old)
     lay.s, lay.sdot = 1.0, 0.2
     back = straight_line_trajectory(old.sample(1.04)[0], Q_START, lim.velocity, lim.acceleration, version=2)
@@ -248,7 +252,7 @@ def _crawling_beside_a_person(await_plan: float = 0.3):
     points, velocities = ROBOT.capsule_motion(q, dq)
     ahead = points[-1, 1] + 0.65 * velocities[-1, 1] / np.linalg.norm(velocities[-1, 1])
     person = HumanCapsules(np.array([[ahead, ahead]]), np.array([0.1]), np.zeros((1, 2, 3)), np.array([True]))
-    lay = ScalingLayer(ROBOT, SsmParameters(), ScalingParameters(await_plan=await_plan))
+    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters(await_plan=await_plan))
     lay.set_trajectory(old)
     lay.s, lay.sdot = 1.0, 0.17
     return lay, old, person

@@ -20,6 +20,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
 from shared.safety.monitor import SafetyMonitor
+from shared.safety.parameters import SsmParameters
 from shared.scaling.layer import ScalingLayer
 from shared.scheduling import WAKE_LATE as LATE
 from shared.tracking.tracker import HumanTracker, TrackerParameters
@@ -28,7 +29,9 @@ from shared.wire.messages import HumanRaw, HumanState, JointCommand, JointState,
 from tests.fake_shell import FakeShell
 
 ROBOT = default_robot()
-CONFIG = CellConfig()
+# The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
+# numbers; the shipped human model's own figures are tests/test_ssm.py's and the cell's.
+CONFIG = CellConfig(ssm=SsmParameters().paper_formula())
 LIM = ROBOT.limits
 FAR = HumanCapsules.from_arrays([[[-3.0, 0.0, 0.9], [-3.0, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
 

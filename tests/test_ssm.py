@@ -1,6 +1,7 @@
 """ISO/TS 15066 SSM: hand-computed numbers with the default parameters, validation, per-pair speeds.
 
-Defaults: T_r = 0.1, T_s = 0.3 (horizon 0.4 s), a_max = 5, C = 0, Z_d = 0.05, Z_r = 0.02, so the fixed
+The paper's formula (human_acceleration 0) unless said otherwise. Defaults: T_r = 0.1, T_s = 0.3 (horizon
+0.4 s), a_max = 5, C = 0, Z_d = 0.05, Z_r = 0.02, so the fixed
 distance is 0.5 * 5 * 0.3^2 + 0.07 = 0.295 m.
 """
 
@@ -14,7 +15,7 @@ from shared.core.humans import HumanCapsules
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import default_human_speed, pair_ssm, protective_separation_distance, velocity_limit
 
-P = SsmParameters()
+P = SsmParameters().paper_formula()      # the paper's formula: the measured human speed held
 
 
 def test_fixed_terms_by_hand():
@@ -48,19 +49,42 @@ def test_bad_parameters_raise_a_clear_error(bad):
         SsmParameters.from_mapping(bad)
 
 
-def test_a_human_acceleration_allowance_adds_its_distance_to_every_limit():
-    """a_h (T_r + T_s)^2 / 2: 1 m/s^2 over the 0.4 s horizon is 0.08 m, so the limit at any separation and
-    human speed falls by 0.08 / 0.4 = 0.2 m/s; the monitor and the scaling layer both read fixed_distance.
-    A negative allowance is refused; 0 is the paper's formula."""
-    allowing = SsmParameters.from_mapping({"human_acceleration": 1.0})
-    assert allowing.fixed_distance == pytest.approx(P.fixed_distance + 0.08)
-    for s in (0.4, 1.0, 2.5):
-        assert velocity_limit(s, 0.0, allowing) == pytest.approx(velocity_limit(s, 0.0, P) - 0.2)
+def test_a_person_who_may_speed_up_comes_as_far_as_the_capped_acceleration_takes_them():
+    """The shipped model: a person's approach speed may grow at a_h up to the ISO 13855 speed of the
+    separation (2.0 m/s within 0.5 m, 1.6 m/s beyond) over T_r + T_s = 0.4 s. By hand, at a_h = 10 m/s^2: from
+    rest at 0.4 m, 2.0 m/s is reached after 0.2 s: 0.2 m rising plus 0.4 m at 2.0 m/s = 0.6 m; at 1.0 m (cap
+    1.6) after 0.16 s: 0.128 + 0.384 = 0.512 m. A person already at the cap (or untracked) keeps it: the
+    ISO speeds' distance. a_h 0 is the paper's formula; a negative a_h is refused."""
+    from shared.safety.ssm import human_distance, human_travel
+
+    model = SsmParameters.from_mapping({"human_acceleration": 10.0})
+    assert human_travel(0.0, 2.0, 10.0, 0.4) == pytest.approx(0.6)
+    assert human_travel(0.0, 1.6, 10.0, 0.4) == pytest.approx(0.512)
+    assert human_travel(0.5, 2.0, 1.0, 0.4) == pytest.approx(0.5 * 0.4 + 0.08)       # never reaches the cap
+    assert human_travel(2.5, 2.0, 10.0, 0.4) == pytest.approx(1.0)                   # above the cap: held
+    assert human_travel(0.7, 2.0, 0.0, 0.4) == pytest.approx(0.28)                   # the paper's formula
+    assert velocity_limit(0.4, 0.0, model) == pytest.approx((0.4 - 0.6 - 0.295) / 0.4)
+    assert velocity_limit(1.0, 0.0, model) == pytest.approx((1.0 - 0.512 - 0.295) / 0.4)
+    for s in (0.3, 1.0, 2.5):
+        assert velocity_limit(s, 2.0, model) == pytest.approx(velocity_limit(s, 2.0, P))
+        assert velocity_limit(s, 0.3, P) > velocity_limit(s, 0.3, model) >= velocity_limit(s, 2.0, model)
+    assert human_distance(np.array([0.0, 2.0]), model, np.array([0.4, 0.4])) == pytest.approx([0.6, 0.8])
+    # the compiled kernel of the scaling layer and the planner says the same
     r = pair_ssm(np.array([[[0.0, 0, 0], [0.0, 0, 0]]]), np.array([0.1]), np.zeros((1, 2, 3)),
-                 HumanCapsules.from_arrays([[[1.0, 0, 0], [1.0, 0, 0]]], [0.1], np.zeros((1, 2, 3)), [True]), allowing)
-    assert r.limit[0, 0] == pytest.approx(velocity_limit(0.8, 0.0, P) - 0.2)    # a person measured standing
+                 HumanCapsules.from_arrays([[[1.2, 0, 0], [1.2, 0, 0]]], [0.1], np.zeros((1, 2, 3)), [True]), model)
+    assert r.limit[0, 0] == pytest.approx(velocity_limit(1.0, 0.0, model))
     with pytest.raises(ConfigError, match="human_acceleration"):
         SsmParameters.from_mapping({"human_acceleration": -1.0})
+
+
+def test_the_shipped_default_covers_a_person_who_starts_to_move():
+    """The built-in parameters (= deploy/cell.yaml) hold a person measured standing to less than the
+    paper's formula does, and never to more than an untracked person."""
+    shipped = SsmParameters()
+    assert shipped.human_acceleration > 0
+    for s in (0.3, 0.6, 1.0, 2.0):
+        assert velocity_limit(s, 0.0, shipped) < velocity_limit(s, 0.0, P)
+        assert velocity_limit(s, 0.0, shipped) >= velocity_limit(s, 2.0, shipped)
 
 
 def _one_pair(human_velocity, known=True, distance_centres=1.0):

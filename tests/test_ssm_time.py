@@ -17,7 +17,9 @@ from shared.scaling.problem import ssm_alpha_bound
 
 ROBOT = default_robot()
 LIM = ROBOT.limits
-SSM = SsmParameters()
+# The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
+# numbers; the shipped human model's own figures are tests/test_ssm.py's and the cell's.
+SSM = SsmParameters().paper_formula()
 COST = SsmTimeCost(ROBOT, SSM)
 CM = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
 OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration)

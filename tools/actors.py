@@ -1,8 +1,9 @@
 """The cell's operator and witness, as used by `hrc demo` and the fault campaign (`hrc faults`):
 
 * ``Recorder`` subscribes to every key of the cell and keeps what arrives (bad messages are counted);
-* ``HumanFeed`` publishes a scripted human as raw tracker data at HUMAN_RATE, and can misbehave the way a
-  tracker does (fall silent, send NaN, let the person jump) for the fault campaign;
+* ``HumanFeed`` publishes a scripted or recorded human as raw tracker data at the source's own rate, stamped
+  with the moments the samples show, and can misbehave the way a tracker does (fall silent, send NaN, let
+  the person jump) for the fault campaign;
 * ``Shuttle`` sends goals between q_s and q_g: the next goal when the robot has arrived, the same goal again
   when the robot is not following a trajectory for it (the planner refused it, or the scaler dropped it
   after a stop), and 'recover' to the driver while it is stopped. One ``step`` per call, no thread.
@@ -38,7 +39,7 @@ from shared.wire.messages import (
 )
 from tools.report import Recording
 
-HUMAN_RATE = 120.0          # Hz, raw tracker samples
+HUMAN_RATE = 120.0          # Hz, raw tracker samples of a scripted human (a recorded one goes at its own rate)
 ARRIVED = 0.01              # rad: the robot is at its goal
 GOAL_RETRY = 1.0            # s without following a trajectory for the current goal: send it again
 RECOVER_EVERY = 1.0         # s between recovery requests while the driver is stopped
@@ -95,30 +96,40 @@ class FeedFault:
 
 class HumanFeed(threading.Thread):
     """Publishes a scripted or recorded human (anything with ``at(t) -> HumanCapsules | None``; None: the
-    tracker sees nobody, nothing is sent) as raw tracker data at HUMAN_RATE, time measured from t0.
-    ``fault`` may be changed at any time (FeedFault)."""
+    tracker sees nobody, nothing is sent) as raw tracker data, time measured from t0, the way a tracker
+    does: at the source's own rate (a recorded motion's ``rate``, its frames each sent once; HUMAN_RATE for a
+    script; or `rate`), each sample stamped with the moment it shows (its capture time, not when it was
+    sent), and a feed that fell behind skips to the newest sample due, as a camera drops frames, rather than
+    sending the ones it missed in a burst. ``fault`` may be changed at any time (FeedFault)."""
 
-    def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo") -> None:
+    def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo",
+                 rate: float | None = None) -> None:
         super().__init__(daemon=True, name="human-feed")
         self.pub = session.declare_publisher(keys.human_raw)
         self.human, self.t0, self.source, self.running = human, t0, source, True
+        self.rate = float(rate or getattr(human, "rate", None) or HUMAN_RATE)
         self.fault = FeedFault()
+        self.skipped = 0                  # samples not sent because the feed was late for them
 
     def run(self) -> None:
         k = 0
         while self.running:
             k += 1
-            due = self.t0 + k / HUMAN_RATE
+            due = self.t0 + k / self.rate
             time.sleep(max(0.0, due - time.monotonic()))
-            now = time.monotonic()
-            caps = self.human.at(now - self.t0)
+            newest = int((time.monotonic() - self.t0) * self.rate)
+            if newest > k:                                    # late: the samples missed are gone
+                self.skipped += newest - k
+                k = newest
+                due = self.t0 + k / self.rate
+            caps = self.human.at(due - self.t0)
             fault = self.fault
             if fault.kind == "silent" or caps is None:       # a fault, or a dropout in a recorded motion
                 continue
             shifted = fault.kind == "jump" and (fault.every <= 0 or k % fault.every == 0)
             segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
-            payload = encode(HumanRaw(source=self.source, sample_time=now, segments=segments, radii=caps.radii,
-                                      seq=k, stamp=now))
+            payload = encode(HumanRaw(source=self.source, sample_time=due, segments=segments, radii=caps.radii,
+                                      seq=k, stamp=time.monotonic()))
             self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)
 
 

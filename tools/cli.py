@@ -76,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
                       help="length of each of the four human phases (default 6)")
     demo.add_argument("--config", type=Path, default=None, metavar="FILE",
                       help="cell configuration YAML (default: built-in, same as deploy/cell.yaml)")
+    demo.add_argument("--paper-formula", action="store_true",
+                      help="the paper's SSM formula (a person's measured speed held over T_r + T_s; "
+                           "deploy/cell-paper.yaml) in place of the shipped model of a person who may speed up")
     demo.add_argument("--scene", type=Path, default=None, metavar="FILE",
                       help="static cell (floor, table, fixtures) for the planner (default deploy/scene.yaml)")
     demo.add_argument("--no-beta", action="store_true",
@@ -150,10 +153,20 @@ def build_parser() -> argparse.ArgumentParser:
     cell_options(replay)
     fromkp = human_sub.add_parser("from-keypoints", help="3D body keypoints (CSV) to a motion file of capsules",
                                   description="Turn a CSV of 3D keypoints (t,person,keypoint,x,y,z: head, "
-                                              "shoulders, elbows, hands, hips) into a motion file of capsules "
-                                              "(docs/human-motion.md), radii from DIN 33402-2's 95th "
-                                              "percentiles. A person missing a keypoint makes a dropout frame.")
-    fromkp.add_argument("input", type=Path, help="keypoints CSV")
+                                              "shoulders, elbows, hands, hips; or the arms alone: shoulders, "
+                                              "elbows, hands) or a human-assembly recording (--format assembly) "
+                                              "into a motion file of capsules (docs/human-motion.md), radii from "
+                                              "DIN 33402-2's 95th percentiles. A person missing a keypoint makes "
+                                              "a dropout frame.")
+    fromkp.add_argument("input", type=Path, help="keypoints CSV, or a human-assembly recording")
+    fromkp.add_argument("--format", choices=("keypoints", "assembly"), default="keypoints",
+                        help="keypoints: the CSV above; assembly: 18 numbers a row (wrists, elbows, shoulders "
+                             "xyz, m, a camera's optical frame), as the human-assembly recordings")
+    fromkp.add_argument("--rate", type=_positive_float, default=None, metavar="HZ",
+                        help="--format assembly: the recording's frame rate (default 30; the source gives none)")
+    fromkp.add_argument("--camera", action="store_true",
+                        help="the input is a camera's optical frame (x right, y down, z forward) facing the person: "
+                             "turned so the person faces +x before --yaw (implied by --format assembly)")
     fromkp.add_argument("output", type=Path, help="motion file to write (.json or .csv)")
     fromkp.add_argument("--units", choices=("m", "cm", "mm"), default="m", help="input length unit (default m)")
     fromkp.add_argument("--y-up", action="store_true", help="the capture volume's vertical axis is y (else z)")
@@ -206,6 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
+PAPER_CONFIG = DEFAULT_SCENE.with_name("cell-paper.yaml")      # the paper's formula (--paper-formula)
 
 
 def _scene(path: Path | None):
@@ -222,6 +236,10 @@ def _scene(path: Path | None):
 
 def cmd_demo(args: argparse.Namespace) -> int:
     human = None
+    if args.paper_formula:
+        if args.config is not None:
+            raise UsageError("--paper-formula is a configuration (deploy/cell-paper.yaml): give it or --config")
+        args.config = PAPER_CONFIG
     if args.human is not None:
         from shared.tracking.motion import RecordedMotion
 
@@ -488,8 +506,8 @@ def _publish_raw(args: argparse.Namespace, what: str, frames) -> int:
         count = 0
         for k, (offset, segments, radii) in enumerate(frames):
             time.sleep(max(0.0, start + offset - time.monotonic()))
-            now = time.monotonic()
-            pub.put(encode(HumanRaw(source=f"hrc {what}", sample_time=now, segments=segments(now - start),
+            now = time.monotonic()           # stamped with the moment the frame shows, late or not
+            pub.put(encode(HumanRaw(source=f"hrc {what}", sample_time=start + offset, segments=segments(offset),
                                     radii=radii, seq=k, stamp=now)))
             count += 1
         print(f"hrc human {what}: published {count} pose(s)")
@@ -501,13 +519,20 @@ def _publish_raw(args: argparse.Namespace, what: str, frames) -> int:
 def _from_keypoints(args: argparse.Namespace) -> int:
     import math
 
-    from shared.tracking.keypoints import UNITS, FrameTransform, convert
+    from shared.tracking.keypoints import ASSEMBLY_RATE, UNITS, FrameTransform, convert
 
     if not all(math.isfinite(v) for v in (args.yaw, *args.translate)):
         print("hrc human from-keypoints: error: --yaw and --translate must be finite numbers", file=sys.stderr)
         return 2
-    transform = FrameTransform(UNITS[args.units], args.y_up, math.radians(args.yaw), tuple(args.translate))
-    frames, dropouts = convert(args.input, args.output, transform)   # ConfigError: exit 2 (main)
+    assembly = args.format == "assembly"
+    if args.rate is not None and not assembly:
+        print("hrc human from-keypoints: error: --rate is for --format assembly (a keypoints CSV has its times)",
+              file=sys.stderr)
+        return 2
+    transform = FrameTransform(UNITS[args.units], args.y_up, math.radians(args.yaw), tuple(args.translate),
+                               camera=args.camera or assembly)
+    frames, dropouts = convert(args.input, args.output, transform, args.format,   # ConfigError: exit 2 (main)
+                               args.rate or ASSEMBLY_RATE)
     print(f"hrc human from-keypoints: {frames} frames ({dropouts} dropouts) written to {args.output}")
     return 0
 

@@ -30,6 +30,7 @@ from shared.wire.messages import (
     ScalerStatus,
     TrajectoryMsg,
 )
+from tools.judge import Recount, recount
 from tools.view import write_recording
 
 MOVING_ALPHA = 0.01          # a stall ends once the robot moves on at more than this fraction of its speed
@@ -96,8 +97,8 @@ def mark_blocked_goals(stalls: list[dict], events: list[SafetyEvent], t0: float 
 
 
 def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dict[str, np.ndarray]:
-    """At every measured joint state, with the human state of its moment (shared.safety.monitor.HumanHistory.pair,
-    the monitor service's own pairing; a state measured before any human sample is not checked, as the
+    """At every measured joint state, with the human states of its moment (shared.safety.monitor.HumanHistory.
+    pair_since, the monitor service's own pairing; a state measured before any human sample is not checked, as the
     service leaves it unchecked): separation, and the robot's approach speed against its ISO/TS 15066
     limit at the pair closest to its limit (the independent monitor's check, recomputed for the figures),
     and ``late_excess``: by how much (m/s) the measured approach speed exceeded the limit at a pair whose
@@ -110,9 +111,11 @@ def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dic
     for msg in rec.human_states:
         history.add(msg.sample_stamp, humans_from_msg(msg))
     states = rec.joint_states
+    before = [-np.inf] + [js.stamp for js in states[:-1]]
     results = monitor.check_batch(np.array([js.q for js in states]).reshape(-1, 6),
                                   np.array([js.qd for js in states]).reshape(-1, 6),
-                                  [paired[1] if (paired := history.pair(js.stamp)) else None for js in states])
+                                  [paired[1] if (paired := history.pair_since(js.stamp, after)) else None
+                                   for js, after in zip(states, before)])
     rows, since = [], {}
     for js, r in zip(states, results):
         speeding = {(v.link, v.capsule): v.approach_speed - max(v.limit, 0.0) for v in r.violations
@@ -127,16 +130,41 @@ def monitor_series(robot: RobotModel, config: CellConfig, rec: Recording) -> dic
             "late_excess": arr[:, 5], "violations": arr[:, 6]}
 
 
-def monitor_summary(rec: Recording, series: dict[str, np.ndarray], violations: int | None) -> dict:
+def monitor_summary(rec: Recording, series: dict[str, np.ndarray], violations: int | None,
+                    judged: Recount) -> dict:
     """The monitor as it reported itself (checks, unchecked, how far behind), its count held against the
-    recount over the trace, and a flag when the two disagree."""
+    recount over the trace with its own code (``violations_recounted``) and against the independent judge
+    (tools.judge: another pairing, coal's geometry, its own reading of the reaction window), and a flag
+    when any two disagree."""
     last = rec.monitor[-1] if rec.monitor else None
     recount = int(series["violations"].sum())
     return {"checks": None if last is None else last.checks, "unchecked": None if last is None else last.unchecked,
             "lag_ms": {"p99": None if last is None else round(last.lag_p99 * 1e3, 1),
                        "max": None if last is None else round(last.lag_max * 1e3, 1)},
             "violations_recounted": recount,
-            "disagrees": None if violations is None else violations != recount}
+            "independent": {"violations": judged.violations, "exceedances": judged.exceedances,
+                            "unchecked": judged.unchecked, "states": judged.states},
+            "disagrees": None if violations is None else len({violations, recount, judged.violations}) > 1}
+
+
+def tracker_summary(rec: Recording) -> dict:
+    """The people as tracker_ingest gave them: the source's measured sample interval (median, ms), the share
+    of valid states with some velocity unknown and the longest such run (ms), and the dropouts declared."""
+    valid = [m for m in rec.human_states if m.valid]
+    intervals = np.array([m.sample_interval for m in valid if m.sample_interval > 0])
+    unknown = np.array([not np.all(m.velocity_known) for m in valid], dtype=bool)
+    stamps = np.array([m.sample_stamp for m in valid])
+    longest, start = 0.0, None
+    for k, flag in enumerate(unknown):
+        if flag and start is None:
+            start = stamps[k]
+        if not flag and start is not None:
+            longest, start = max(longest, stamps[k] - start), None
+    return {"states": len(valid),
+            "sample_interval_ms": round(float(np.median(intervals)) * 1e3, 2) if intervals.size else None,
+            "velocity_unknown_share": round(float(unknown.mean()), 4) if unknown.size else None,
+            "velocity_unknown_longest_ms": round(longest * 1e3, 1),
+            "dropouts": sum(1 for e in rec.events if e.source == "tracker_ingest" and e.event == "tracker_dropout")}
 
 
 def drive_summary(rec: Recording) -> dict:
@@ -200,6 +228,8 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
     proc = np.concatenate([r.processing for r in rec.latency]) if rec.latency else np.zeros(0)
     stall_values = np.array([s["stall_ms"] for s in stalls])
     p99 = float(np.percentile(s2f, 99)) if s2f.size else None
+    tracker = tracker_summary(rec)
+    interval = (tracker["sample_interval_ms"] or 0.0) / 1e3
     summary = {
         "duration_s": round(duration, 3),
         "cycles_completed": len(st),
@@ -230,11 +260,15 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
                     "processing_ms": _percentiles(proc, 50, 99)},
         "scaling_cycle": scaling_cycle(st),
         "drives": drive_summary(rec),
-        "monitor_check": monitor_summary(rec, series, violations),
+        "monitor_check": monitor_summary(rec, series, violations,
+                                         recount(robot, config, rec.joint_states, rec.human_states)),
+        "tracker": tracker,
+        "human_acceleration_m_s2": config.ssm.human_acceleration,
         "exceedances_after_reaction_time": int(np.count_nonzero(series["late_excess"] > 0)),
         "worst_late_excess_m_s": round(float(series["late_excess"].max()), 4) if series["late_excess"].size else 0.0,
         "reaction_time_s": config.ssm.reaction_time,
-        "reaction_time_covers_p99": None if p99 is None else bool(p99 <= config.ssm.reaction_time),
+        # the chain from a sample to the frame on CAN, and the wait for the next sample at the source's rate
+        "reaction_time_covers_p99": None if p99 is None else bool(p99 + interval <= config.ssm.reaction_time),
         "events": sorted({f"{e.source}:{e.event}" for e in rec.events if e.severity != "info"}),
     }
     return summary, series

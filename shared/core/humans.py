@@ -49,6 +49,21 @@ class HumanCapsules:
         return HumanCapsules(np.zeros((0, 2, 3)), np.zeros(0), np.zeros((0, 2, 3)), np.zeros(0, dtype=bool))
 
     @staticmethod
+    def union(states: "list[HumanCapsules]") -> "HumanCapsules":
+        """Every capsule of several states as one state (the newest first): the people as they were at each of
+        those moments. A consumer that runs at its own cadence (the scaler at 100 Hz, the monitor at each
+        joint state) checks against all the states that arrived since its last step, so a state that held for
+        less than one of its periods (an unknown velocity after a glitch, a person nearer for 8 ms) still
+        counts, and counts the same way in the scaling layer, the monitor and the report."""
+        if len(states) == 1:
+            return states[0]
+        if not states:
+            return HumanCapsules.empty()
+        return HumanCapsules(np.concatenate([h.segments for h in states]), np.concatenate([h.radii for h in states]),
+                             np.concatenate([h.velocities for h in states]),
+                             np.concatenate([h.velocity_known for h in states]))
+
+    @staticmethod
     def from_arrays(segments, radii, velocities=None, velocity_known=None) -> "HumanCapsules":
         """Build from array-likes; missing velocities mean 'unknown' (worst-case approach speed)."""
         seg = np.asarray(segments, dtype=float).reshape(-1, 2, 3)

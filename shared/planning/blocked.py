@@ -27,7 +27,7 @@ import numpy as np
 from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel
 from shared.safety.parameters import SsmParameters
-from shared.safety.ssm import pair_ssm
+from shared.safety.ssm import human_distance, pair_ssm
 
 TOLERANCE = 1e-3   # m: a separation this much smaller counts as closer (a robot at its goal is not blocked)
 
@@ -59,7 +59,8 @@ def goal_block(robot: RobotModel, ssm: SsmParameters, q_now: np.ndarray, q_goal:
     staying = HumanCapsules(humans.segments, humans.radii, np.zeros_like(humans.velocities), humans.velocity_known)
     goal = pair_ssm(robot.capsule_segments(np.asarray(q_goal, dtype=float)), robot.radii, still, staying, ssm)
     now = pair_ssm(robot.capsule_segments(np.asarray(q_now, dtype=float)), robot.radii, still, staying, ssm)
-    no_approach = goal.human_speed * ssm.horizon + ssm.fixed_distance + ssm.tracking_margin * ssm.horizon
+    no_approach = human_distance(goal.human_speed, ssm, goal.distance) + ssm.fixed_distance \
+        + ssm.tracking_margin * ssm.horizon
     blocked = (goal.distance < no_approach) & (goal.distance < now.distance - TOLERANCE)
     if not blocked.any():
         return None

@@ -68,7 +68,7 @@ class TimeCostOptions:
 
 @numba.njit(cache=True)
 def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, frames, frame_vel, frame_step,
-                    human_rad, human_known, horizon, fixed, near_d, v_near, v_far, margin, extrapolation, stay,
+                    human_rad, human_known, horizon, fixed, near_d, v_near, v_far, a_h, margin, extrapolation, stay,
                     floor, wait_step, ends):
     """Sum of dts[k] / alpha_k along the samples, the people where the forecast has them by the time
     already predicted (frames (F, M, 2, 3) every frame_step s, linear in between, the last held; and, in
@@ -103,7 +103,7 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
                         moved[j, e, c] = frames[i, j, e, c] + frac * (frames[nxt, j, e, c] - frames[i, j, e, c])
             _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
                                                         vel.reshape(n_links, 2, 3), moved, human_rad, frame_vel[i],
-                                                        human_known, horizon, fixed, near_d, v_near, v_far)
+                                                        human_known, horizon, fixed, near_d, v_near, v_far, a_h)
             alpha = _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin)
             if alpha <= 0.0 and stay < np.inf:
                 # inside a person's no-approach distance, approaching: the robot does not pass here while

@@ -278,13 +278,20 @@ class ReactionWindow:
     """Turns instantaneous speed exceedances into violations the way the standard's formula allows them.
 
     ISO/TS 15066's S_p = v_h (T_r + T_s) + v_r T_r + B + C + Z_d + Z_r assumes that, once the separation
-    reaches S_p, the robot reacts within T_r (it may keep its speed) and then brakes to a stop within T_s.
-    So when the limit falls below a pair's approach speed (a person appears, or comes faster than the
-    robot can be slowed by one command), the robot is allowed, for that (link, capsule) pair:
+    reaches S_p, the robot reacts within T_r and then brakes to a stop within T_s. So when the limit falls
+    below a pair's approach speed (a person appears, their velocity turns unknown, or they come faster than
+    the robot can be slowed by one command), the robot is allowed, for that (link, capsule) pair:
     * up to T_r at the speed it had (v_ref: the highest approach speed seen in the first T_r), then
     * a braking envelope down to zero over T_s: v_ref (1 - (t - T_r) / T_s).
     An exceedance that rises above the envelope (it did not brake), or outlasts T_r + T_s (it did not stop),
-    is a violation. A separation below d_min is a violation at once.
+    is a violation; an episode ends at the pair's first compliant state. A separation below d_min is a
+    violation at once. tolerance (m/s): measurement noise allowed on top.
+
+    A stricter reading (within T_r no faster than at the episode's first state: the v_r T_r term at the
+    speed of then) was tried and is not this rule: a robot braking at its full deceleration along a curved
+    path turns towards a person, its approach rising from a near-tangent 3 mm/s to 25 mm/s (random walk,
+    seed 2, 5.89 s), which no command can avoid; the formula's braking term covers that travel. The scaling
+    layer does not speed up towards a capsule of unknown velocity (shared.scaling.layer.unknown_within_reach).
     """
 
     def __init__(self, reaction_time: float, stopping_time: float, tolerance: float = 0.01) -> None:
@@ -355,6 +362,21 @@ class HumanHistory:
         k = bisect_right(self._stamps, stamp)
         return (self._stamps[k - 1], self._states[k - 1]) if k else None
 
+    def pair_since(self, stamp: float, after: float) -> tuple[float, HumanCapsules | None] | None:
+        """Like ``pair``, for a joint state at `stamp` whose predecessor was measured at `after`: the people of
+        every sample in force during (after, stamp] (the one in force at `after` and every one taken since) as
+        one state (``HumanCapsules.union``, newest first), so that a state that held for less than a joint
+        state's period is checked too; the newest sample's time, and None when that newest sample is an
+        invalid track. Only one sample in force: ``pair(stamp)``."""
+        lo, hi = max(bisect_right(self._stamps, after) - 1, 0), bisect_right(self._stamps, stamp)
+        if hi - lo <= 1:
+            return self.pair(stamp)
+        newest = self._states[hi - 1]
+        if newest is None:
+            return self._stamps[hi - 1], None
+        valid = [self._states[k] for k in range(hi - 1, lo - 1, -1) if self._states[k] is not None]
+        return self._stamps[hi - 1], HumanCapsules.union(valid)
+
     def at(self, stamp: float) -> HumanCapsules | None:
         """The person at `stamp`: the newest sample taken at or before it. A joint state older than every
         kept sample gets the oldest kept (the nearest in time there is); none kept: None."""
@@ -381,8 +403,10 @@ class Backlog:
     """The joint states waiting for the monitor, and the rule for when each can be checked (pure).
 
     A state is checked against the person of its own moment: the newest human sample taken at or before
-    it (``HumanHistory.pair``). That pairing is final once a sample newer than the state has arrived; until
-    then the state waits, at most ``pair_wait`` seconds. A robot at rest (every joint slower than AT_REST)
+    it, and every other sample taken since the state before it (``HumanHistory.pair_since``: a person state
+    shorter than the joint states' period counts too). That pairing is final once a sample newer than the
+    state has arrived; until then the state waits, at most ``pair_wait`` seconds.
+    A robot at rest (every joint slower than AT_REST)
     needs no person and no wait: the rule counts nothing where no link approaches, so such a state passes
     whoever is there (checked against the person of its moment when that one is already known, for the
     figures). A state is *unchecked* (counted and reported, never a violation and never a pass) when no
@@ -397,6 +421,7 @@ class Backlog:
     pair_age: float = 0.1
     deadline: float = 0.5
     _pending: list = field(default_factory=list)
+    _previous: float = -np.inf           # when the last state taken (checked or not) was measured
 
     def add(self, stamp: float, q: np.ndarray, qd: np.ndarray) -> None:
         self._pending.append((stamp, q, qd))
@@ -419,7 +444,8 @@ class Backlog:
             if not at_rest and (newest is None or newest <= stamp) and age < self.pair_wait:
                 keep.append((stamp, q, qd))                   # the person of its moment may still arrive
                 continue
-            paired = history.pair(stamp)
+            paired = history.pair_since(stamp, self._previous)
+            self._previous = max(self._previous, stamp)
             known = paired is not None and paired[1] is not None and stamp - paired[0] <= self.pair_age
             if known:
                 ready.append((stamp, q, qd, paired[1]))

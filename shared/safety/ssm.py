@@ -27,6 +27,31 @@ from shared.core.humans import HumanCapsules
 from shared.safety.parameters import SsmParameters
 
 
+@numba.njit(cache=True)
+def human_travel(speed: float, cap: float, acceleration: float, horizon: float) -> float:
+    """How far (m) a person approaching at `speed` (m/s) may come within `horizon` (T_r + T_s) when their
+    speed may grow at `acceleration` (m/s^2) up to the ISO 13855 speed `cap` (m/s): the integral of
+    min(speed + acceleration t, cap) over the horizon; a measured speed above the cap is held. acceleration
+    0: speed x horizon, the paper's formula (the measured speed held)."""
+    if acceleration <= 0.0 or speed >= cap:
+        return speed * horizon
+    rise = (cap - speed) / acceleration
+    if rise >= horizon:
+        return speed * horizon + 0.5 * acceleration * horizon * horizon
+    return speed * rise + 0.5 * acceleration * rise * rise + cap * (horizon - rise)
+
+
+_travel = np.vectorize(human_travel, otypes=[float])
+
+
+def human_distance(human_speed: np.ndarray, params: SsmParameters, separation: np.ndarray | None = None) -> np.ndarray:
+    """The human's part of S_p (m): how far a person now approaching at human_speed (m/s) may come within
+    T_r + T_s under the cell's human model (``human_travel``, capped at the ISO 13855 speed for that
+    separation; without a separation at the near speed, the larger)."""
+    cap = params.human_speed_near if separation is None else default_human_speed(separation, params)
+    return _travel(human_speed, cap, params.human_acceleration, params.horizon)
+
+
 def default_human_speed(separation: np.ndarray, params: SsmParameters) -> np.ndarray:
     """ISO 13855 approach speed for an untracked human: 2.0 m/s within 0.5 m, 1.6 m/s beyond."""
     return np.where(np.asarray(separation) <= params.human_near_distance,
@@ -35,13 +60,16 @@ def default_human_speed(separation: np.ndarray, params: SsmParameters) -> np.nda
 
 def protective_separation_distance(robot_speed: np.ndarray, human_speed: np.ndarray,
                                    params: SsmParameters) -> np.ndarray:
-    """S_p (m) for a robot approaching at robot_speed and a human at human_speed (m/s, >= 0)."""
-    return (np.asarray(human_speed) + np.asarray(robot_speed)) * params.horizon + params.fixed_distance
+    """S_p (m) for a robot approaching at robot_speed and a human at human_speed (m/s, >= 0), the human's
+    part under the cell's human model (``human_distance``, capped at the near ISO 13855 speed)."""
+    return human_distance(human_speed, params) + np.asarray(robot_speed) * params.horizon + params.fixed_distance
 
 
 def velocity_limit(separation: np.ndarray, human_speed: np.ndarray, params: SsmParameters) -> np.ndarray:
-    """v_r_max (m/s): the largest robot approach speed at this separation; negative means 'do not approach'."""
-    return (np.asarray(separation) - np.asarray(human_speed) * params.horizon - params.fixed_distance) / params.horizon
+    """v_r_max (m/s): the largest robot approach speed at this separation; negative means 'do not approach'.
+    The human's part is ``human_distance`` (the paper's v_h (T_r + T_s) where human_acceleration is 0)."""
+    separation = np.asarray(separation)
+    return (separation - human_distance(human_speed, params, separation) - params.fixed_distance) / params.horizon
 
 
 @dataclass(slots=True)
@@ -84,7 +112,7 @@ def _closest(distance, limit, robot_speed, alpha):
 
 @numba.njit(cache=True)
 def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, human_vel, human_known,
-                     horizon, fixed, near_d, v_near, v_far):
+                     horizon, fixed, near_d, v_near, v_far, a_h):
     n_l, n_m = robot_seg.shape[0], human_seg.shape[0]
     dist, robot_speed = np.empty((n_l, n_m)), np.empty((n_l, n_m))
     human_speed, limit = np.empty((n_l, n_m)), np.empty((n_l, n_m))
@@ -118,10 +146,11 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
                     rs = max(rs, nx * robot_vel[i, e, 0] + ny * robot_vel[i, e, 1] + nz * robot_vel[i, e, 2])
                     hs = max(hs, -(nx * human_vel[j, e, 0] + ny * human_vel[j, e, 1] + nz * human_vel[j, e, 2]))
                 robot_speed[i, j] = rs
+            cap = v_near if d <= near_d else v_far
             if not human_known[j]:
-                hs = v_near if d <= near_d else v_far
+                hs = cap
             human_speed[i, j] = hs
-            limit[i, j] = (d - hs * horizon - fixed) / horizon
+            limit[i, j] = (d - human_travel(hs, cap, a_h, horizon) - fixed) / horizon
     return dist, robot_speed, human_speed, limit
 
 

@@ -9,6 +9,8 @@ reported for benchmarks (Ruckig's pattern: the control call never raises, it ret
 Safety rules kept here:
 * no human data yet, or data older than ``human_timeout``: alpha = 0 (stop), whatever the solver says;
 * the SSM rows are hard; acceleration limits take a slack;
+* the robot never speeds up while a human capsule within reach has no known velocity (``unknown_within_reach``,
+  method '+unknown'): the formula lets it keep its speed through T_r, not gain on it;
 * beta (replan request) follows the *safe* bound on alpha, not alpha itself, so the acceleration ramp
   after a stop never asks for a replan (the bound includes the check of where the command leads, so a
   robot held at the start of a path from rest, whose tangent there is zero, asks too); it rises at bound <= alpha_min
@@ -43,8 +45,18 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.robot.model import RobotModel
 from shared.safety.parameters import SsmParameters
+from shared.safety.ssm import PairSsm
 from shared.scaling.parameters import ScalingParameters
 from shared.scaling.problem import PiqpScalingSolver, build_rows, solve, ssm_alpha_bound
+
+
+def unknown_within_reach(pairs: PairSsm, velocity_known: np.ndarray) -> bool:
+    """Whether a human capsule whose velocity the tracker does not know is near enough that the path at full
+    speed would approach it faster than its limit (pairs at alpha = 1). Then the robot does not speed up this
+    cycle (alpha at most the last cycle's): the SSM rows already take the ISO 13855 speed for such a capsule,
+    and speeding up meanwhile is what the formula's v_r T_r does not cover (shared.safety.monitor.ReactionWindow)."""
+    unknown = ~np.asarray(velocity_known, dtype=bool)
+    return bool(unknown.any() and (pairs.robot_speed[:, unknown] > pairs.limit[:, unknown]).any())
 
 
 @numba.njit(cache=True)
@@ -302,18 +314,22 @@ class ScalingLayer:
                                           self.sdot, self.robot.limits.monitor_acceleration)
         return max(0.0, self.sdot - deceleration * self.params.period)
 
-    def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool) -> StepStatus:
-        """What this cycle may do with its inputs: stop for missing or stale human data (the age check
-        also catches NaN), finished at the end of the path, else running."""
+    def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool,
+                     stale_after: float | None = None) -> StepStatus:
+        """What this cycle may do with its inputs: stop for missing or stale human data (older than
+        stale_after, default human_timeout; the age check also catches NaN), finished at the end of the
+        path, else running."""
         if humans is None:
             return StepStatus.NO_HUMAN_DATA
-        if not human_age <= self.params.human_timeout:
+        if not human_age <= (self.params.human_timeout if stale_after is None else stale_after):
             return StepStatus.STALE_HUMAN_DATA
         return StepStatus.RUNNING if running else StepStatus.FINISHED
 
     def step(self, humans: HumanCapsules | None, human_age: float,
-             q_measured: np.ndarray | None = None) -> ScalingStep:
-        """One control cycle. humans=None means no human data has ever arrived; human_age in seconds.
+             q_measured: np.ndarray | None = None, stale_after: float | None = None) -> ScalingStep:
+        """One control cycle. humans=None means no human data has ever arrived; human_age in seconds;
+        stale_after: the age at which this source's data is stale (s; default human_timeout: a slower
+        source's bound is shared.tracking.tracker.stale_bound).
 
         q_measured: where the robot really is (the SSM rows are written there; its offset from the path
         is carried to the commanded point); None means the robot is where the path says.
@@ -331,7 +347,7 @@ class ScalingLayer:
         running = self.s < traj.duration
         alpha, safe_alpha, method = 0.0, 0.0, "none"
         min_sep = min_margin = math.inf
-        status = self.input_status(humans, human_age, running)
+        status = self.input_status(humans, human_age, running, stale_after)
         if status is StepStatus.FINISHED:
             alpha, safe_alpha = 1.0, 1.0
         elif status is StepStatus.RUNNING:
@@ -342,6 +358,8 @@ class ScalingLayer:
             if lowered:              # the bound where the command leads: what the SSM allows (and beta sees;
                 method += "+verified"  # at the start of a path from rest the rows alone see no motion)
                 safe_alpha = min(safe_alpha, alpha)
+            if rows.ssm is not None and alpha > self.sdot and unknown_within_reach(rows.ssm, humans.velocity_known):
+                alpha, method = self.sdot, method + "+unknown"
             if rows.ssm is not None:
                 min_sep, min_margin = rows.ssm.closest(alpha)
         cap = self._stop_cap(dq, ddq)

@@ -118,7 +118,7 @@ def _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration):
 @numba.njit(cache=True)
 def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, acceleration, placement, parent, local,
                 joint, ancestry, radii, human_seg, human_rad, human_vel, human_known, horizon, fixed, near_d,
-                v_near, v_far, margin):
+                v_near, v_far, a_h, margin):
     """``build_rows`` in one compiled call: the joint speeds at alpha = 1, every pair's SSM row (kinematics and
     ``_pair_ssm_kernel``; empty without people), the hard rows' bound, the acceleration rows and whether they
     all hold at that bound (a cycle paid about 6 us of Python between the five calls this replaces)."""
@@ -129,7 +129,7 @@ def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, accelerat
         points, vel = chain_points_and_velocities(q, tangent, placement, parent, local, joint, ancestry)
         dist, robot_speed, human_speed, limit = _pair_ssm_kernel(
             points.reshape(n_links, 2, 3), radii, vel.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
-            human_known, horizon, fixed, near_d, v_near, v_far)
+            human_known, horizon, fixed, near_d, v_near, v_far, a_h)
     else:
         dist = robot_speed = human_speed = limit = np.zeros((n_links, 0))
     upper = _upper_bound(joint_speed, velocity, robot_speed, limit - margin)
@@ -169,7 +169,7 @@ _NO_ROWS = np.zeros(0)
 
 @numba.njit(cache=True)
 def motion_alpha_bound(q, joint_velocity, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
-                       human_vel, human_known, horizon, fixed, near_d, v_near, v_far, margin):
+                       human_vel, human_known, horizon, fixed, near_d, v_near, v_far, a_h, margin):
     """``ssm_alpha_bound`` in one compiled call (the kinematics, every pair's SSM row, their bound; the kernels
     the scaling rows and the planning layer's time cost use): the scaling layer checks every command with it,
     without the Python between three calls that a control cycle pays for on cold caches."""
@@ -177,7 +177,7 @@ def motion_alpha_bound(q, joint_velocity, placement, parent, local, joint, ances
     points, velocities = chain_points_and_velocities(q, joint_velocity, placement, parent, local, joint, ancestry)
     _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
                                                 velocities.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
-                                                human_known, horizon, fixed, near_d, v_near, v_far)
+                                                human_known, horizon, fixed, near_d, v_near, v_far, a_h)
     return _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin)
 
 

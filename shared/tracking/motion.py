@@ -269,6 +269,14 @@ class RecordedMotion:
     def duration(self) -> float:
         return float(self.times[-1])
 
+    @property
+    def rate(self) -> float | None:
+        """The source's frame rate (Hz): one over the median interval between frames; None for a single frame.
+        A feed sends the motion at this rate (each frame once, as its tracker did)."""
+        if self.times.size < 2:
+            return None
+        return 1.0 / float(np.median(np.diff(self.times)))
+
     def frame(self, t: float) -> ReplayFrame:
         k = int(np.searchsorted(self.times, t, side="right")) - 1
         return self.frames[max(0, k)]

@@ -26,9 +26,27 @@ import numpy as np
 
 from shared.core.humans import HumanCapsules
 
+STALE_INTERVALS = 2.0      # a source's data is stale after this many of its own sample intervals (at the least)
+RATE_SAMPLES = 16          # intervals the measured sample interval is the median of
+
+
+def stale_bound(configured: float, interval: float) -> float:
+    """The age (s) past which human data counts as stale: the configured bound (50 ms: motion capture at
+    120-240 Hz), or STALE_INTERVALS of the source's own measured sample interval where that is longer (a
+    15-60 Hz camera tracker: a 30 Hz skeleton is 33 ms old just before the next one comes, and one frame
+    late under load must not read as a lost person). The tracker's dropout and the scaler's stale-data
+    stop both use it; that the system's reaction time still covers such an age is checked against T_r
+    (the report's reaction_time_covers_p99 adds the interval to the measured chain)."""
+    return max(configured, STALE_INTERVALS * interval)
+
 
 @dataclass(frozen=True)
 class TrackerParameters:
+    """window (s): the velocity fit's span, at the least; min_samples: the fit needs this many clean samples;
+    at a source's rate the window stretches to hold them (``HumanTracker.window``). max_speed (m/s): a step
+    faster than this between two samples is a glitch. dropout (s): no sample for this long (at the least:
+    ``stale_bound``) and the track is invalid."""
+
     window: float = 0.04
     min_samples: int = 4
     max_speed: float = 4.0
@@ -90,8 +108,12 @@ class HumanTracker:
         self._first = self._end = 0
         self._radii = np.zeros(0)
         self._last_arrival = -np.inf
+        self._last_time = -np.inf            # the sample time of the last sample taken
         self._trusted_from = np.inf          # sample time from which the window holds only clean samples
         self._ghost: tuple[np.ndarray, np.ndarray] | None = None   # (segments, radii) before the last step
+        self._intervals = np.zeros(RATE_SAMPLES)                    # the last sample intervals (s), a ring
+        self._interval_count = 0
+        self.interval = 0.0          # s: the median of the last RATE_SAMPLES sample intervals (0: not known yet)
         self.glitches = 0
 
     @staticmethod
@@ -114,6 +136,9 @@ class HumanTracker:
         held = self._end > self._first
         if held and sample_time <= self._times[self._end - 1]:
             return None                                          # out of order or repeated
+        if np.isfinite(self._last_time):
+            self._measure_interval(sample_time - self._last_time)
+        self._last_time = sample_time
         if seg.shape[0] != self._points.shape[1]:
             self._restart(sample_time, seg.shape[0])
         elif held:
@@ -127,11 +152,29 @@ class HumanTracker:
             self._trusted_from = sample_time
         self._append(sample_time, seg)
         self._radii = np.asarray(radii, dtype=float).reshape(-1)
-        times = self._times
-        while times[self._first] < sample_time - p.window:
+        times, window = self._times, self.window
+        while times[self._first] < sample_time - window:
             self._first += 1
         self._last_arrival = arrival
         return self._estimate(sample_time)
+
+    def _measure_interval(self, dt: float) -> None:
+        self._intervals[self._interval_count % RATE_SAMPLES] = dt
+        self._interval_count += 1
+        self.interval = float(np.median(self._intervals[:min(self._interval_count, RATE_SAMPLES)]))
+
+    @property
+    def window(self) -> float:
+        """The velocity fit's span (s): the configured window, stretched where the source's rate is too low
+        for it to hold min_samples samples (a 30 Hz skeleton: 3.5 intervals, 117 ms, where 40 ms would never
+        hold four and the velocity would stay unknown for good)."""
+        return max(self.params.window, (self.params.min_samples - 0.5) * self.interval)
+
+    @property
+    def dropout(self) -> float:
+        """No sample for this long (s) and the track is invalid: ``stale_bound`` of the configured dropout and
+        the measured interval."""
+        return stale_bound(self.params.dropout, self.interval)
 
     def _append(self, sample_time: float, seg: np.ndarray) -> None:
         if self._end == self._times.shape[0]:                    # move the window to the front
@@ -165,9 +208,9 @@ class HumanTracker:
 
     def valid(self, now: float) -> bool:
         """False once no sample has arrived for longer than the dropout bound."""
-        return now - self._last_arrival <= self.params.dropout
+        return now - self._last_arrival <= self.dropout
 
     @property
     def valid_until(self) -> float:
         """The arrival time after which the track is invalid unless a sample comes (-inf before any)."""
-        return self._last_arrival + self.params.dropout
+        return self._last_arrival + self.dropout

@@ -22,10 +22,10 @@ def trajectory_from_msg(msg: TrajectoryMsg) -> Trajectory:
 
 
 def humans_to_msg(humans: HumanCapsules, valid: bool, sample_stamp: float, seq: int = 0,
-                  stamp: float = 0.0) -> HumanState:
+                  stamp: float = 0.0, sample_interval: float = 0.0) -> HumanState:
     return HumanState(segments=humans.segments, radii=humans.radii, velocities=humans.velocities,
-                      velocity_known=humans.velocity_known, valid=valid, sample_stamp=sample_stamp, seq=seq,
-                      stamp=stamp)
+                      velocity_known=humans.velocity_known, valid=valid, sample_stamp=sample_stamp,
+                      sample_interval=sample_interval, seq=seq, stamp=stamp)
 
 
 def humans_from_msg(msg: HumanState) -> HumanCapsules | None:

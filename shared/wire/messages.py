@@ -81,19 +81,22 @@ class HumanRaw(Message):
 @dataclass(frozen=True)
 class HumanState(Message):
     """Filtered human state: capsules, end-point velocities (m/s), whether each velocity is known,
-    whether the track is valid, and the monotonic time the underlying sample arrived (s)."""
+    whether the track is valid, the monotonic time the underlying sample arrived (s), and the tracker's
+    measured interval between samples (s; 0 while not known): the source's rate, from which the age at
+    which the data counts as stale is derived (shared.tracking.tracker.stale_bound)."""
 
     KIND: ClassVar[str] = "human_state"
     SPEC: ClassVar[dict[str, Spec]] = {
         "segments": Spec("farray", (-1, 2, 3)), "radii": Spec("farray", (-1,), minimum=0.0),
         "velocities": Spec("farray", (-1, 2, 3)), "velocity_known": Spec("barray", (-1,)),
-        "valid": B, "sample_stamp": F}
+        "valid": B, "sample_stamp": F, "sample_interval": Spec("float", minimum=0.0)}
     segments: np.ndarray
     radii: np.ndarray
     velocities: np.ndarray
     velocity_known: np.ndarray
     valid: bool
     sample_stamp: float
+    sample_interval: float = 0.0
 
     def check(self) -> None:
         _same_rows(self, "segments", "radii", "velocities", "velocity_known")

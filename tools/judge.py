@@ -1,0 +1,105 @@
+"""An independent recount of a recorded run's SSM violations (pure: recorded messages in, a count out).
+
+The monitor service and the report's figures share one pairing (shared.safety.monitor.HumanHistory,
+Backlog), one compiled check (``SafetyMonitor.check_batch``) and one rule (``ReactionWindow``). This judge
+shares none of them, so that a mistake in one of those shows up as a disagreement in the report:
+
+* its own timeline: the joint states and the human states merged by their stamps, each joint state judged
+  against every human state in force during its period (the one in force when the period began and every
+  one that began within it), each on its own, so that a person state shorter than a period counts (the
+  capsules numbered newest state first, as the monitor numbers them);
+* the geometry of coal (``SafetyMonitor.check``, the reference the batch check is tested against, one
+  human state at a time), not the compiled closest points;
+* its own code for the standard's reaction window: for each (link, human capsule), an episode begins at
+  the first exceeding state and ends at the first compliant one; within it the robot has T_r to react,
+  then must stay under the braking line from its fastest approach of those T_r down to zero over T_s
+  (plus ``tolerance``), and the episode may not outlast T_r + T_s.
+
+A joint state with no human state of its moment (before the first, older than PAIR_AGE, an invalid track)
+is unchecked, as the monitor has it, never a violation and never a pass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.config import CellConfig
+from shared.robot.model import RobotModel
+from shared.safety.monitor import SafetyMonitor
+from shared.wire.convert import humans_from_msg
+from shared.wire.messages import HumanState, JointState
+
+PAIR_AGE = 0.1      # s: a person state older than this at a joint state is not the person of its moment
+
+
+@dataclass
+class Recount:
+    """violations: states judged late (speeding up, not braking, not stopped) or too close, per pair;
+    exceedances: pairs above the limit at all, the reaction window aside; unchecked: joint states with no
+    person of their moment; states: joint states judged."""
+
+    violations: int = 0
+    exceedances: int = 0
+    unchecked: int = 0
+    states: int = 0
+
+
+def _in_force(human_stamps: np.ndarray, start: float, end: float) -> range:
+    """Indices of the human states in force during (start, end]: the newest at or before start, and every
+    one stamped within."""
+    first = int(np.searchsorted(human_stamps, start, side="right")) - 1
+    last = int(np.searchsorted(human_stamps, end, side="right"))
+    return range(max(first, 0), last) if last > 0 else range(0)
+
+
+def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState], human_states: list[HumanState],
+            tolerance: float = 0.01) -> Recount:
+    """The recount over a run's joint states and human states (each list in any order)."""
+    ssm = config.ssm
+    monitor = SafetyMonitor(robot, ssm)
+    people = sorted(human_states, key=lambda m: m.sample_stamp)
+    stamps = np.array([m.sample_stamp for m in people])
+    states = sorted(joint_states, key=lambda m: m.stamp)
+    out = Recount()
+    episodes: dict[tuple[str, int], tuple[float, float]] = {}       # (link, capsule) -> (start, speed then)
+    previous = -np.inf
+    for js in states:
+        indices = _in_force(stamps, previous, js.stamp)
+        previous = js.stamp
+        if np.abs(js.qd).max() <= 1e-4:                  # at rest: nothing approaches, an episode ends
+            episodes = {}
+            out.states += 1
+            continue
+        seen = [humans_from_msg(people[k]) for k in indices]
+        if not seen or seen[-1] is None or js.stamp - stamps[indices[-1]] > PAIR_AGE:
+            out.unchecked += 1
+            continue
+        out.states += 1
+        worst: dict[tuple[str, int], float] = {}
+        offset = 0
+        for humans in reversed(seen):                  # newest first: capsule numbers as the monitor's union
+            if humans is None:
+                continue
+            for v in monitor.check(js.q, js.qd, humans).violations:
+                if v.kind == "separation":
+                    out.violations += 1
+                    continue
+                pair = (v.link, offset + v.capsule)
+                worst[pair] = max(worst.get(pair, -np.inf), v.approach_speed)
+            offset += humans.count
+        out.exceedances += len(worst)
+        kept = {}
+        for pair, speed in worst.items():
+            start, reference = episodes.get(pair, (js.stamp, speed))
+            elapsed = js.stamp - start
+            if elapsed <= ssm.reaction_time:          # reacting: the fastest approach of these T_r is the one
+                kept[pair] = (start, max(reference, speed))      # braking must start from
+                continue
+            kept[pair] = (start, reference)
+            allowed = reference * max(0.0, 1.0 - (elapsed - ssm.reaction_time) / ssm.stopping_time)
+            if elapsed > ssm.horizon or speed > allowed + tolerance:
+                out.violations += 1
+        episodes = kept
+    return out
