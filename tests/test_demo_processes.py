@@ -27,7 +27,9 @@ ROOT = Path(__file__).resolve().parents[1]
 def report(tmp_path_factory):
     require_namespace("the same experiment runs in-process in tests/test_cli_and_demo.py")
     out = tmp_path_factory.mktemp("demo")
-    run = subprocess.run([sys.executable, "-m", "tools.cli", "demo", "--out", str(out)], cwd=ROOT,
+    # the paper's experiment as the paper had it (its formula: the measured human speed held); the shipped
+    # human model's cost on it is measured in docs/real-people.md, not asserted here
+    run = subprocess.run([sys.executable, "-m", "tools.cli", "demo", "--paper-formula", "--out", str(out)], cwd=ROOT,
                          capture_output=True, text=True, timeout=300,
                          env=dict(os.environ, PYTHONPATH=str(ROOT)))
     print(run.stdout[-3000:], run.stderr[-3000:])
