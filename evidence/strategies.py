@@ -11,6 +11,8 @@
 * oracle (a bound too; ``bench/compare.py --oracle``): foresight with a search eight times as large,
   planning free of time and every predicted gain taken (``evidence.foresight.oracle_options``): the most
   this planning layer could add at all, so that what it leaves is the people in the way, under the SSM.
+* scale_only_paper, full_paper (``bench/compare.py --paper``): the same under the paper's formula (the measured
+  human speed held), judged, as every run, by the shipped model's monitor.
 Every run is judged by the independent monitor's rule (evidence.sim). ``Strategies`` builds the robot, the
 collision model and the planner once per process and runs any (strategy, scenario) on them, and the
 shuttle in an empty cell (``empty_cell``): the most any strategy can do in a scenario's time.
@@ -38,6 +40,9 @@ from shared.scaling.layer import ScalingLayer
 
 STRATEGIES = ("zones", "scale_only", "full")
 BOUNDS = ("foresight", "oracle")
+# the same two layers under the paper's formula (the measured human speed held; ``bench/compare.py --paper``),
+# judged by the shipped model's monitor: what the shipped model costs, and what the formula lets through
+PAPER = ("scale_only_paper", "full_paper")
 
 
 class Strategies:
@@ -55,6 +60,8 @@ class Strategies:
         self.foreseeing = Replanner(self.collision, self.replanner.planner, self.config.ssm,
                                     options=foresight_options())
         self.oracle = Replanner(self.collision, self.replanner.planner, self.config.ssm, options=oracle_options())
+        self.paper_ssm = self.config.ssm.paper_formula()
+        self.paper_replanner = Replanner(self.collision, self.replanner.planner, self.paper_ssm, forecaster=forecaster)
         lim = self.robot.limits
         shuttle = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration)
         s = np.linspace(0.0, shuttle.duration, 200)
@@ -91,4 +98,9 @@ class Strategies:
             return run_shuttle(self.robot, cfg, foreseen, Q_START, Q_GOAL, duration, replanner=planner,
                                charge_planning=CELL_BUDGET if strategy == "foresight" else False,
                                monitor=self.monitor)
-        raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES + BOUNDS}")
+        if strategy in PAPER:
+            layer = ScalingLayer(self.robot, self.paper_ssm, cfg.scaling)
+            replanner = self.paper_replanner if strategy == "full_paper" else None
+            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, replanner=replanner,
+                               charge_planning=CELL_BUDGET if replanner is not None else False, monitor=self.monitor)
+        raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES + BOUNDS + PAPER}")

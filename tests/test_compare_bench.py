@@ -70,3 +70,16 @@ def test_a_bound_adds_its_column_with_its_ratios_and_only_it(tmp_path, bound, ot
     assert (tmp_path / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # without it, neither the column nor its ratios
     assert load_bench("compare").ratios([row(1.0, 1.0, 2.0)]).keys() == {"full/scale_only", "full/zones"}
+
+
+def test_the_paper_formula_runs_beside_the_shipped_model_on_the_same_scenarios(tmp_path):
+    """--paper: scale_only and full under the paper's formula, their ratios to the shipped model's; judged by
+    the shipped model's monitor like every column."""
+    done = run("--scenarios", "1", "--kinds", "paper", "--duration", "2.0", "--workers", "1", "--paper",
+               tmp_path=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert set(result["kinds"]["paper"]) == {"zones", "scale_only", "full", "scale_only_paper", "full_paper"}
+    assert {"scale_only/scale_only_paper", "full/full_paper", "full_paper/zones"} <= set(result["ratios"]["overall"])
+    assert "won_back_scale_only_paper" not in result and "won_back_full_paper" not in result
+    assert result["strategies"]["full_paper"]["violations"] >= 0

@@ -36,14 +36,18 @@ PAIR_AGE = 0.1      # s: a person state older than this at a joint state is not 
 
 @dataclass
 class Recount:
-    """violations: states judged late (speeding up, not braking, not stopped) or too close, per pair;
-    exceedances: pairs above the limit at all, the reaction window aside; unchecked: joint states with no
-    person of their moment; states: joint states judged."""
+    """violations: pairs judged late (not braking, not stopped) or too close; exceedances: pairs above the
+    limit at all, the reaction window aside; unchecked: joint states with no person of their moment; states:
+    joint states judged; speedups: pairs whose approach rose, within the first T_r of an episode, more than
+    the tolerance above its speed at the episode's first state (the stricter reading of v_r T_r; not counted
+    as violations: a robot braking at full deceleration along a curved path does it, see
+    shared.safety.monitor.ReactionWindow)."""
 
     violations: int = 0
     exceedances: int = 0
     unchecked: int = 0
     states: int = 0
+    speedups: int = 0
 
 
 def _in_force(human_stamps: np.ndarray, start: float, end: float) -> range:
@@ -63,13 +67,14 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
     stamps = np.array([m.sample_stamp for m in people])
     states = sorted(joint_states, key=lambda m: m.stamp)
     out = Recount()
-    episodes: dict[tuple[str, int], tuple[float, float]] = {}       # (link, capsule) -> (start, speed then)
+    episodes: dict[tuple[str, int], tuple[float, float]] = {}       # (link, capsule) -> (start, fastest in T_r)
+    first: dict[tuple[str, int], float] = {}                          # (link, capsule) -> speed at the start
     previous = -np.inf
     for js in states:
         indices = _in_force(stamps, previous, js.stamp)
         previous = js.stamp
         if np.abs(js.qd).max() <= 1e-4:                  # at rest: nothing approaches, an episode ends
-            episodes = {}
+            episodes, first = {}, {}
             out.states += 1
             continue
         seen = [humans_from_msg(people[k]) for k in indices]
@@ -91,11 +96,13 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
             offset += humans.count
         out.exceedances += len(worst)
         kept = {}
+        first = {pair: first.get(pair, speed) for pair, speed in worst.items()}
         for pair, speed in worst.items():
             start, reference = episodes.get(pair, (js.stamp, speed))
             elapsed = js.stamp - start
             if elapsed <= ssm.reaction_time:          # reacting: the fastest approach of these T_r is the one
                 kept[pair] = (start, max(reference, speed))      # braking must start from
+                out.speedups += speed > first[pair] + tolerance
                 continue
             kept[pair] = (start, reference)
             allowed = reference * max(0.0, 1.0 - (elapsed - ssm.reaction_time) / ssm.stopping_time)
