@@ -66,6 +66,7 @@ def test_the_tracker_measures_a_camera_rate_and_scales_its_window_and_dropout():
     assert out.velocities[0, 0, 0] == pytest.approx(0.5)
     assert tracker.dropout == pytest.approx(2 / 30) == stale_bound(0.05, 1 / 30)
     assert tracker.valid(7 / 30 + 0.06) and not tracker.valid(7 / 30 + 0.07)
+    assert stale_bound(0.05, 1.0) == 0.1 and stale_bound(0.3, 1.0) == 0.3     # a slow source: not by its rate
     fast = HumanTracker()                                    # 240 Hz motion capture keeps the 50 ms and 40 ms
     for k in range(20):
         fast.update(seg, np.array([0.1]), k / 240, k / 240)

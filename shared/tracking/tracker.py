@@ -27,17 +27,20 @@ import numpy as np
 from shared.core.humans import HumanCapsules
 
 STALE_INTERVALS = 2.0      # a source's data is stale after this many of its own sample intervals (at the least)
+STALE_CEILING = 0.1        # s: ... but never later than this by the source's rate alone
 RATE_SAMPLES = 16          # intervals the measured sample interval is the median of
 
 
 def stale_bound(configured: float, interval: float) -> float:
     """The age (s) past which human data counts as stale: the configured bound (50 ms: motion capture at
     120-240 Hz), or STALE_INTERVALS of the source's own measured sample interval where that is longer (a
-    15-60 Hz camera tracker: a 30 Hz skeleton is 33 ms old just before the next one comes, and one frame
-    late under load must not read as a lost person). The tracker's dropout and the scaler's stale-data
-    stop both use it; that the system's reaction time still covers such an age is checked against T_r
-    (the report's reaction_time_covers_p99 adds the interval to the measured chain)."""
-    return max(configured, STALE_INTERVALS * interval)
+    20-60 Hz camera tracker: a 30 Hz skeleton is 33 ms old just before the next one comes, and one frame
+    late under load must not read as a lost person), at most STALE_CEILING: a slower source (or one that
+    falls silent between samples) is stopped for as stale unless the cell configures a larger bound itself,
+    with a T_r that covers it. The tracker's dropout and the scaler's stale-data stop both use it; that the
+    reaction time covers the age is checked against T_r (the report's reaction_time_covers_p99 adds the
+    interval to the measured chain)."""
+    return max(configured, min(STALE_INTERVALS * interval, STALE_CEILING))
 
 
 @dataclass(frozen=True)
