@@ -26,7 +26,8 @@ import numpy as np
 
 from shared.core.humans import HumanCapsules
 
-STALE_INTERVALS = 2.0      # a source's data is stale after this many of its own sample intervals (at the least)
+STALE_INTERVALS = 2.5      # a source's data is stale after this many of its own sample intervals (at the least):
+                           # one lost frame (a gap of two intervals, and some jitter) is not a lost person
 STALE_CEILING = 0.1        # s: ... but never later than this by the source's rate alone
 RATE_SAMPLES = 16          # intervals the measured sample interval is the median of
 
