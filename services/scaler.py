@@ -12,6 +12,8 @@ the braking that followed overshot the stop). Rules of the shell:
   its start; a merged one when the follower has not passed its junction (it continues at the same s);
 * a replan request raised while the robot crawls brings it to rest, where it awaits the plan (the status's
   stop_s says where; the core's rule, ``ScalingLayer._await``; not with --no-await);
+* the tracking margin covers the drive lag the robot driver measures (its DriveLagReport, once a second),
+  where that is longer than the configured ssm.drive_lag (``SsmParameters.covering_lag``);
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
   (the core's rule; the bound at a slow source's rate is shared.tracking.tracker.stale_bound); an invalid
   or malformed message counts as no message;
@@ -37,7 +39,15 @@ from shared.robot.model import default_robot
 from shared.scaling.layer import ScalingLayer
 from shared.tracking.tracker import stale_bound
 from shared.wire.convert import humans_from_msg, trajectory_from_msg
-from shared.wire.messages import HumanState, JointCommand, JointState, ScalerStatus, TrajectoryMsg, encode
+from shared.wire.messages import (
+    DriveLagReport,
+    HumanState,
+    JointCommand,
+    JointState,
+    ScalerStatus,
+    TrajectoryMsg,
+    encode,
+)
 
 START_TOLERANCE = 0.02     # rad: how close the robot must be to a fresh plan's start to take it
 
@@ -71,6 +81,9 @@ class Scaler:
         # the human states, queued by Zenoh and taken at each tick: no callback thread woken for each of
         # 120-240 samples a second; a tick checks against every one since the last (HumanCapsules.union)
         self.humans_in = shell.queue(keys.human_state, HumanState)
+        # the robot driver's drive lag (once a second): the tracking margin covers the lag measured
+        self.configured_ssm = layer.ssm
+        self.lag_in = shell.latest(keys.drive_lag, DriveLagReport)
         shell.subscribe(keys.joint_state, JointState, self.on_joints)
         shell.subscribe(keys.trajectory, TrajectoryMsg, self.on_trajectory)
 
@@ -85,6 +98,18 @@ class Scaler:
             self.human_stamp = newest.sample_stamp if newest.valid else -np.inf
             self.human_published = newest.stamp
             self.stale_after = stale_bound(self.layer.params.human_timeout, newest.sample_interval)
+
+    def cover_drive_lag(self) -> None:
+        """The scaling layer's margin from the newest drive lag report, if one came: the configured drive_lag
+        or the worst joint's measured p99, the longer (``SsmParameters.covering_lag``)."""
+        msg = self.lag_in.take()
+        if msg is None:
+            return
+        ssm = self.configured_ssm.covering_lag(float(np.max(msg.lag)))
+        if (ssm is self.configured_ssm) != (self.layer.ssm is self.configured_ssm):
+            self.shell.log.warning("tracking margin %.3f m/s for a drive lag of %.1f ms (configured %.1f ms)",
+                                   ssm.tracking_margin, ssm.drive_lag * 1e3, self.configured_ssm.drive_lag * 1e3)
+        self.layer.ssm = ssm
 
     def on_joints(self, msg: JointState) -> None:
         with self.lock:
@@ -114,6 +139,7 @@ class Scaler:
         self.shell.log.info("following trajectory %d (%s)", msg.version, msg.reason)
 
     def tick(self, now: float) -> None:
+        self.cover_drive_lag()
         with self.lock:
             self.take_humans()
             if self.pending is not None:

@@ -25,7 +25,16 @@ from shared.scaling.layer import ScalingLayer
 from shared.scheduling import WAKE_LATE as LATE
 from shared.tracking.tracker import HumanTracker, TrackerParameters
 from shared.wire.convert import humans_to_msg, trajectory_to_msg
-from shared.wire.messages import HumanRaw, HumanState, JointCommand, JointState, MonitorReport, SafetyEvent, ScalerStatus
+from shared.wire.messages import (
+    DriveLagReport,
+    HumanRaw,
+    HumanState,
+    JointCommand,
+    JointState,
+    MonitorReport,
+    SafetyEvent,
+    ScalerStatus,
+)
 from tests.fake_shell import FakeShell
 
 ROBOT = default_robot()
@@ -67,9 +76,9 @@ def test_the_scaler_follows_a_fresh_trajectory_and_publishes_a_command_and_a_sta
 
 
 def test_the_scaler_takes_the_newest_human_state_at_its_tick_and_reports_its_latency_once():
-    """Human states are kept by Zenoh (a ring of one) and taken at the tick: of two that came between ticks
-    the newer is used, and the first command computed from it carries its sample time and how long it
-    waited since tracker_ingest published it; the commands after it carry neither."""
+    """Human states are queued by Zenoh and taken at the tick: of two that came between ticks both are checked
+    (HumanCapsules.union), the newer dates them, and the first command computed from it carries its sample
+    time and how long it waited since tracker_ingest published it; the commands after it carry neither."""
     shell, scaler, keys = scaler_at_start()
     traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
     shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
@@ -84,6 +93,40 @@ def test_the_scaler_takes_the_newest_human_state_at_its_tick_and_reports_its_lat
     assert first.human_sample_stamp == pytest.approx(now - 0.006)
     assert first.human_wait == pytest.approx(0.004)
     assert second.human_sample_stamp is None and second.human_wait is None
+
+
+def test_the_scaler_keeps_its_margin_over_the_drive_lag_the_driver_measures():
+    """A drive lag report of 22 ms (a slow phase of the machine) raises the tracking margin from 12 ms x 4.4
+    m/s^2 to 22 ms x 4.4 m/s^2; a report within the configured lag brings it back; the configuration's own
+    value is never undercut."""
+    shell, scaler, keys = scaler_at_start()
+
+    def report(lag):
+        return DriveLagReport(source="robot_driver", lag=np.array([0.010, lag, 0.0, 0.0, 0.0, 0.0]),
+                              samples=np.full(6, 100.0), following_error=np.zeros(6), bound=0.012, stopped_by="")
+
+    now = time.monotonic()
+    shell.deliver(keys.drive_lag, report(0.022))
+    scaler.tick(now)
+    assert scaler.layer.ssm.drive_lag == pytest.approx(0.022)
+    assert scaler.layer.ssm.tracking_margin == pytest.approx(0.022 * 4.4)
+    shell.deliver(keys.drive_lag, report(0.004))
+    scaler.tick(now + 0.01)
+    assert scaler.layer.ssm is scaler.configured_ssm and scaler.layer.ssm.drive_lag == CONFIG.ssm.drive_lag
+
+
+def test_a_camera_rate_source_is_stale_after_its_own_bound():
+    """A 30 Hz source (HumanState.sample_interval 1/30): 70 ms without a sample is one lost frame, not stale
+    data; 90 ms is (2.5 intervals, 83 ms)."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    shell.deliver(keys.human_state, humans_to_msg(FAR, True, now, sample_interval=1 / 30))
+    scaler.tick(now + 0.07)
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].status == "running"
+    scaler.tick(now + 0.09)
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].status == "stale_human_data"
 
 
 def test_the_scaler_stops_the_robot_on_stale_human_data():

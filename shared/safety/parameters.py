@@ -81,6 +81,15 @@ class SsmParameters:
             raise ConfigError(f"ssm.drive_lag: must be positive (the drives cannot follow without lag), "
                               f"got {self.drive_lag!r}")
 
+    def covering_lag(self, measured: float) -> "SsmParameters":
+        """The same parameters with drive_lag raised to a measured lag (s) where that is longer, never lowered:
+        the tracking margin (drive_lag x link_acceleration) then covers the drives as they run now (the
+        scaler takes the robot driver's reports; a slow phase of the machine put the joints 21-22 ms behind
+        their setpoints against the 12 ms configured)."""
+        if not measured > self.drive_lag:          # NaN or no longer: as configured
+            return self
+        return replace(self, drive_lag=float(measured))
+
     def paper_formula(self) -> "SsmParameters":
         """The same parameters with the paper's human model: the measured speed held over T_r + T_s
         (human_acceleration 0), for reproducing the paper; not safe for a person who starts to move."""

@@ -16,8 +16,8 @@ PUBLISHERS: dict[str, tuple[str, ...]] = {
     "scaler": ("command", "scaler_status"),
     "tracker_ingest": ("human_state", "safety_events"),
     "planner": ("trajectory", "safety_events"),
-    "robot_driver": ("joint_state", "safety_events", "latency"),
-    "safety_monitor": ("safety_events",),
+    "robot_driver": ("joint_state", "safety_events", "latency", "drive_lag"),
+    "safety_monitor": ("safety_events", "monitor"),
     "operator": ("goal", "human_raw", "driver_request"),        # the hrc tools, the tracker bridge, an HMI
 }
 IDENTITIES = (*PUBLISHERS, "router")
