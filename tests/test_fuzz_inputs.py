@@ -80,6 +80,20 @@ def test_replay_csv_loader_takes_any_table(rows):
 
 
 @FUZZ
+@given(st.lists(st.lists(st.text(alphabet="0123456789.-eE naNinf", max_size=10), max_size=20), max_size=6))
+def test_the_camera_skeleton_readers_take_any_table(rows):
+    """The human-assembly rows and a keypoints CSV: a motion or ConfigError, whatever the numbers (a NaN is a
+    keypoint not seen, a dropout frame), never another exception."""
+    from shared.tracking.keypoints import FrameTransform, read_assembly, read_keypoints, to_motion
+
+    for reader, sep in ((read_assembly, " "), (read_keypoints, ",")):
+        try:
+            to_motion(reader("\n".join(sep.join(r) for r in rows), "fuzz"), FrameTransform(camera=True))
+        except ConfigError:
+            pass
+
+
+@FUZZ
 @given(st.binary(max_size=200), st.sampled_from([(load_config, ".yaml"), (load_scene, ".yaml"),
                                                  (load_replay, ".json"), (load_replay, ".csv")]))
 def test_every_loader_takes_raw_bytes(payload, loader_suffix):
