@@ -405,9 +405,9 @@ class Backlog:
     A state is checked against the person of its own moment: the newest human sample taken at or before
     it, and every other sample taken since the state before it (``HumanHistory.pair_since``: a person state
     shorter than the joint states' period counts too). That pairing is final once a sample newer than the
-    state has arrived; until then the state waits, at most ``pair_wait`` seconds.
-    A robot at rest (every joint slower than AT_REST)
-    needs no person and no wait: the rule counts nothing where no link approaches, so such a state passes
+    state has arrived; until then the state waits, at most ``pair_wait`` seconds. A robot at rest (every
+    joint slower than AT_REST) needs no person and no wait: the rule counts nothing where no link
+    approaches, so such a state passes
     whoever is there (checked against the person of its moment when that one is already known, for the
     figures). A state is *unchecked* (counted and reported, never a violation and never a pass) when no
     human state of its moment is known: none taken at or before it, the one before it older than

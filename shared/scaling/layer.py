@@ -10,7 +10,7 @@ Safety rules kept here:
 * no human data yet, or data older than ``human_timeout``: alpha = 0 (stop), whatever the solver says;
 * the SSM rows are hard; acceleration limits take a slack;
 * the robot never speeds up while a human capsule within reach has no known velocity (``unknown_within_reach``,
-  method '+unknown'): the formula lets it keep its speed through T_r, not gain on it;
+  method '+unknown'): the formula's v_r T_r is the distance at the speed it has, not at one it gains;
 * beta (replan request) follows the *safe* bound on alpha, not alpha itself, so the acceleration ramp
   after a stop never asks for a replan (the bound includes the check of where the command leads, so a
   robot held at the start of a path from rest, whose tangent there is zero, asks too); it rises at bound <= alpha_min
@@ -54,7 +54,8 @@ def unknown_within_reach(pairs: PairSsm, velocity_known: np.ndarray) -> bool:
     """Whether a human capsule whose velocity the tracker does not know is near enough that the path at full
     speed would approach it faster than its limit (pairs at alpha = 1). Then the robot does not speed up this
     cycle (alpha at most the last cycle's): the SSM rows already take the ISO 13855 speed for such a capsule,
-    and speeding up meanwhile is what the formula's v_r T_r does not cover (shared.safety.monitor.ReactionWindow)."""
+    and a robot that gains speed towards a person it cannot judge covers more than the formula's v_r T_r at
+    the speed it had (the independent recount counts such speed-ups: tools.judge, ``speedups``)."""
     unknown = ~np.asarray(velocity_known, dtype=bool)
     return bool(unknown.any() and (pairs.robot_speed[:, unknown] > pairs.limit[:, unknown]).any())
 
