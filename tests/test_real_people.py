@@ -158,3 +158,33 @@ def test_the_independent_recount_counts_a_robot_that_does_not_brake_and_agrees_w
     counted = sum(len(window.update(js.stamp, r)) for js, r in zip(joints, results))
     assert judged.exceedances > 0 and judged.violations == counted > 0
     assert judged.unchecked == 0 and judged.states == 50
+
+
+def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unknown():
+    """The shuttle slowed to about 0.3 of its path speed by a person 1.2 m off; the person steps back to 1.5 m
+    with the velocity unknown (a glitch): the SSM alone would let the robot speed up again (its bound is above
+    the path speed), but it holds its speed; once the velocity is known it speeds up."""
+    from evidence.scenarios import Q_GOAL, Q_START
+    from shared.core.trajectory import straight_line_trajectory
+    from shared.robot.model import default_robot
+    from shared.safety.parameters import SsmParameters
+    from shared.scaling.layer import ScalingLayer
+
+    robot = default_robot()
+
+    def person(x, known):
+        return HumanCapsules(np.array([[[x, -0.9, 0.4], [x, -0.9, 1.5]]]), np.array([0.2]), np.zeros((1, 2, 3)),
+                             np.array([known]))
+
+    lay = ScalingLayer(robot, SsmParameters())
+    lay.set_trajectory(straight_line_trajectory(Q_START, Q_GOAL, robot.limits.velocity, robot.limits.acceleration))
+    for _ in range(40):
+        lay.step(person(-3.0, True), 0.0)
+    for _ in range(15):
+        step = lay.step(person(-1.2, True), 0.0)
+    held = step.sdot
+    assert 0.1 < held < 0.5
+    for _ in range(5):
+        step = lay.step(person(-1.5, False), 0.0)
+        assert step.sdot == held and step.safe_alpha > held and step.method.endswith("+unknown")
+    assert lay.step(person(-1.5, True), 0.0).sdot > held
