@@ -101,6 +101,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     extra = {"mode": "processes", "can": interface, "services_alive_at_end": alive, "exit_codes": codes,
              "cpu_s": cpu, "cpus": os.cpu_count(),
              "bad_messages_seen": recorder.bad, "no_beta": no_beta,
+             "human_feed": {"rate_hz": round(feed.rate, 3), "skipped": feed.skipped},
              "human": human_name or "built-in: the paper's four phases"}
     return write_report(out, robot, config, rec, extra)
 
