@@ -41,15 +41,23 @@ def human_travel(speed: float, cap: float, acceleration: float, horizon: float) 
     return speed * rise + 0.5 * acceleration * rise * rise + cap * (horizon - rise)
 
 
-_travel = np.vectorize(human_travel, otypes=[float])
+@numba.njit(cache=True)
+def _travel_each(speed, cap, acceleration, horizon):
+    out = np.empty(speed.shape[0])
+    for k in range(speed.shape[0]):
+        out[k] = human_travel(speed[k], cap[k], acceleration, horizon)
+    return out
 
 
 def human_distance(human_speed: np.ndarray, params: SsmParameters, separation: np.ndarray | None = None) -> np.ndarray:
     """The human's part of S_p (m): how far a person now approaching at human_speed (m/s) may come within
     T_r + T_s under the cell's human model (``human_travel``, capped at the ISO 13855 speed for that
-    separation; without a separation at the near speed, the larger)."""
+    separation; without a separation at the near speed, the larger). Element by element, compiled."""
     cap = params.human_speed_near if separation is None else default_human_speed(separation, params)
-    return _travel(human_speed, cap, params.human_acceleration, params.horizon)
+    speed, cap = np.broadcast_arrays(np.asarray(human_speed, dtype=float), np.asarray(cap, dtype=float))
+    out = _travel_each(np.ascontiguousarray(speed).ravel(), np.ascontiguousarray(cap).ravel(),
+                       float(params.human_acceleration), float(params.horizon))
+    return out.reshape(speed.shape) if speed.shape else float(out[0])
 
 
 def default_human_speed(separation: np.ndarray, params: SsmParameters) -> np.ndarray:
