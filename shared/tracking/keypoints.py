@@ -143,25 +143,18 @@ def read_assembly(text: str, name: str = "recording", rate: float = ASSEMBLY_RAT
         if len(cells) != 3 * len(ASSEMBLY_KEYPOINTS):
             raise ConfigError(f"{name}: line {line_no}: expected {3 * len(ASSEMBLY_KEYPOINTS)} numbers (xyz of "
                               f"{', '.join(ASSEMBLY_KEYPOINTS)}), got {len(cells)}")
-        try:
-            values = np.array([float(c) for c in cells])
-        except ValueError:
-            bad = next(c for c in cells if not _is_number(c))
-            raise ConfigError(f"{name}: line {line_no}: {bad!r} is not a number") from None
+        values = np.empty(len(cells))
+        for k, cell in enumerate(cells):
+            try:
+                values[k] = float(cell)
+            except ValueError:
+                raise ConfigError(f"{name}: line {line_no}: {cell!r} is not a number") from None
         body = {k: values[3 * i:3 * i + 3] for i, k in enumerate(ASSEMBLY_KEYPOINTS)
                 if np.all(np.isfinite(values[3 * i:3 * i + 3]))}
         frames.append((len(frames) / rate, {"person": body}))
     if not frames:
         raise ConfigError(f"{name}: no frames")
     return frames
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-        return True
-    except ValueError:
-        return False
 
 
 def to_motion(frames, transform: FrameTransform) -> tuple[dict, int]:
