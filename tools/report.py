@@ -160,6 +160,8 @@ def tracker_summary(rec: Recording) -> dict:
             start = stamps[k]
         if not flag and start is not None:
             longest, start = max(longest, stamps[k] - start), None
+    if start is not None:                                  # a run still open when the recording ends
+        longest = max(longest, stamps[-1] - start)
     return {"states": len(valid),
             "sample_interval_ms": round(float(np.median(intervals)) * 1e3, 2) if intervals.size else None,
             "velocity_unknown_share": round(float(unknown.mean()), 4) if unknown.size else None,
