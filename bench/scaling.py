@@ -24,7 +24,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
-from shared.scaling.layer import ScalingLayer
+from shared.scaling.layer import ScalingInputs, ScalingLayer
 from shared.scaling.parameters import ScalingParameters
 
 
@@ -52,7 +52,7 @@ def measure(solver: str, capsules: int, cycles: int, seed: int) -> dict:
         humans, s, sdot = cases[k % len(cases)]
         layer.s, layer.sdot = s, sdot
         t0 = time.perf_counter_ns()
-        step = layer.step(humans, 0.0)
+        step = layer.step(ScalingInputs(humans=humans))
         t1 = time.perf_counter_ns()
         if k >= 200:
             times[k - 200] = (t1 - t0) / 1e3

@@ -32,12 +32,14 @@ from evidence.scenarios import ScriptedHuman
 from shared.config import CellConfig
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.decision import HoldClock
-from shared.planning.loop import PlanningInputs, PlanningLoop, PlanningOutcome, held_by_ssm
+from shared.planning.inputs import planning_inputs
+from shared.planning.loop import PlanningLoop, PlanningOutcome
 from shared.planning.replanner import Replanner
 from shared.robot.model import RobotModel
 from shared.safety.monitor import MonitorResult, ReactionWindow, SafetyMonitor
 from shared.safety.ssm import pair_ssm
-from shared.scaling.layer import ScalingLayer, ScalingStep, StepStatus
+from shared.scaling.layer import ScalingInputs, ScalingLayer, ScalingStep, StepStatus
+from shared.scaling.report import ScalerReport
 
 START_TOLERANCE = 1e-3   # rad: the simulated robot is exactly on its path (the scaler allows 0.02 for the drives)
 
@@ -167,13 +169,15 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     ends = [np.asarray(q_a, dtype=float), np.asarray(q_b, dtype=float)]
     result = SimResult()
     leg = 0
-    layer.set_trajectory(straight_line_trajectory(ends[0], ends[1], lim.velocity, lim.acceleration))
-    beta = False                      # the scaling layer's last beta flag (what its status said)
+    first = straight_line_trajectory(ends[0], ends[1], lim.velocity, lim.acceleration)
+    layer.set_trajectory(first)
+    handed = {first.version: first}   # the trajectories handed to the scaling layer, by version (the service's too)
+    in_flight = False                 # one was handed since the last step: not reported on yet
+    report: ScalerReport | None = None   # what the planning layer reads of the last step (the service: its status)
+    q_now = ends[0]                   # where the robot is: the last command (the simulated drives follow exactly)
     held = HoldClock()                # how long the scaling layer has been asking for a replan
     pending_leg = False               # a shuttle ended: the next one waits for its plan
     busy_until = -1.0                 # charge_planning: the planner is computing until then
-    speed_now = 0.0                   # the robot's commanded joint speed after the last step (rad/s)
-    ssm_held = False                  # that speed was the SSM's bound (or braking), not a ramp below it
     waiting: tuple | None = None      # (ready at, PlanningOutcome, compute ms)
 
     def log_replan(event: ReplanEvent) -> None:
@@ -182,10 +186,12 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             on_replan(event)
 
     def take(t: float, outcome: PlanningOutcome, elapsed: float) -> None:
-        nonlocal pending_leg
+        nonlocal pending_leg, in_flight
         res = outcome.result
-        here = layer.trajectory.sample(layer.s)[0]
-        if layer.take(res.trajectory, res.from_rest, res.junction, here, START_TOLERANCE) is None:
+        handed[res.trajectory.version], in_flight = res.trajectory, True
+        for old in [v for v in handed if v < res.trajectory.version - 8]:
+            del handed[old]
+        if layer.take(res.trajectory, res.from_rest, res.junction, q_now, START_TOLERANCE) is None:
             if outcome.action == "goal":
                 pending_leg = False
             else:
@@ -195,11 +201,11 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         """One turn of the planner's loop on what the scaler last reported; its result is taken at once, or
         when its charged time has passed."""
         nonlocal busy_until, waiting
-        following = None if pending_leg or layer.pending is not None or layer.s >= layer.trajectory.duration \
-            else (layer.trajectory, layer.s)       # a plan the scaler is stopping for: nothing to follow yet
-        inputs = PlanningInputs(ends[(leg + 1) % 2], pending_leg, layer.trajectory.sample(layer.s)[0], humans, k,
-                                following, speed_now, beta, held.waited(t), layer.trajectory.version + 1, ssm_held,
-                                layer.awaiting, ends[leg % 2])      # then: the shuttle's next goal, back
+        inputs = planning_inputs(goal=ends[(leg + 1) % 2], new_goal=pending_leg, q=q_now, humans=humans,
+                                 human_sample=k, report=report,
+                                 followed=None if report is None else handed.get(report.version),
+                                 in_flight=in_flight, waited=held.waited(t), newest_version=max(handed),
+                                 then=ends[leg % 2])      # then: the shuttle's next goal, back
         started = time.perf_counter()
         outcome = loop.step(t, inputs)
         elapsed = time.perf_counter() - started
@@ -225,12 +231,10 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             take(t, outcome, elapsed)
         if loop is not None and t >= busy_until:
             planning_turn(t, k, humans)
-        step = layer.step(humans, 0.0)
-        speed_now = float(np.abs(step.qd_command).max())
-        ssm_held = held_by_ssm(step.alpha, step.safe_alpha)
-        if step.beta and not beta:
+        step = layer.step(ScalingInputs(humans=humans))
+        if step.beta and not (report is not None and report.beta):
             result.beta_requests += 1
-        beta = step.beta
+        report, in_flight, q_now = ScalerReport.of_step(step), False, step.q_command
         held.update(t, step.beta)
         margin = judge.judge(t, step, humans, result)
         if step.status is StepStatus.FINISHED and not pending_leg:
@@ -238,8 +242,9 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             leg += 1
             start, goal = ends[leg % 2], ends[(leg + 1) % 2]
             if loop is None:
-                layer.set_trajectory(straight_line_trajectory(start, goal, lim.velocity, lim.acceleration,
-                                                              version=layer.trajectory.version + 1))
+                shuttle = straight_line_trajectory(start, goal, lim.velocity, lim.acceleration,
+                                                   version=step.trajectory_version + 1)
+                layer.set_trajectory(shuttle)
             else:
                 pending_leg = True          # a new goal: the planner takes a turn on it at once (when free)
                 if t >= busy_until:

@@ -24,11 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from shared.core.geometry import capsule_pair_distances
-from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import protective_separation_distance
-from shared.scaling.layer import ScalingLayer, ScalingStep, StepStatus
+from shared.scaling.layer import ScalingInputs, ScalingLayer, ScalingStep, StepStatus, held_by_ssm
 from shared.scaling.parameters import ScalingParameters
 
 ISO_13855_SPEED = 2.0        # m/s, the approach speed the zones are sized for
@@ -74,16 +73,16 @@ class ZoneScalingLayer(ScalingLayer):
         fastest = fastest_point_speed(self.robot, q, dq)
         return 1.0 if fastest <= self.zones.reduced_speed else self.zones.reduced_speed / fastest
 
-    def step(self, humans: HumanCapsules | None, human_age: float,
-             q_measured: np.ndarray | None = None) -> ScalingStep:
+    def step(self, inputs: ScalingInputs) -> ScalingStep:
         start = time.perf_counter()
         traj = self.trajectory
         if traj is None:
-            return super().step(humans, human_age, q_measured)
+            return super().step(inputs)
+        humans = inputs.humans
         q_nom, dq, _ = traj.sample(self.s)
         running = self.s < traj.duration
         separation, target = math.inf, 0.0
-        status = self.input_status(humans, human_age, running)
+        status = self.input_status(humans, inputs.human_age, running)
         if status is StepStatus.RUNNING:
             if humans.count:
                 pairs = capsule_pair_distances(self.robot.capsule_segments(q_nom), self.robot.radii,
@@ -102,4 +101,5 @@ class ZoneScalingLayer(ScalingLayer):
         return ScalingStep(alpha=alpha, safe_alpha=target, beta=False, s=self.s, sdot=alpha, q_command=q_c,
                            qd_command=dq_c * alpha, status=status, method="zones", trajectory_version=traj.version,
                            min_separation=separation, min_margin=math.inf,
-                           compute_us=(time.perf_counter() - start) * 1e6)
+                           compute_us=(time.perf_counter() - start) * 1e6,
+                           speed=float(np.abs(dq_c).max()) * alpha, held=held_by_ssm(alpha, target))

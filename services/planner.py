@@ -32,17 +32,18 @@ from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock
 from shared.planning.horizon import reach_gap
-from shared.planning.loop import PlanningInputs, PlanningLoop, held_by_ssm, idle_time, warm_up
+from shared.planning.inputs import planning_inputs
+from shared.planning.loop import PlanningLoop, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import Scene, load_scene
 from shared.robot.model import default_robot
-from shared.wire.convert import humans_from_msg, trajectory_to_msg
+from shared.wire.convert import humans_from_msg, report_from_status, trajectory_to_msg
 from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
-TAKE_WAIT = 1.0      # s: a trajectory the scaler has not taken by then was refused or dropped (it logs why)
+TAKE_WAIT = 1.0      # s: a trajectory the scaler has not reported on by then was lost on the way (or the scaler restarted)
 POLL = 0.02          # s: the worker's cadence (the planning loop's horizon period); a goal wakes it at once
 
 
@@ -115,17 +116,13 @@ class PlannerService:
                     ms)
 
     # ------------------------------------------------------------------------------------- work
-    def _following(self, now: float) -> tuple[Trajectory, float] | None:
-        """The trajectory the scaler follows and where it is on it, if it is ours and not finished. While the
-        newest is on its way (or the scaler is bringing the robot to rest for it), none; once the scaler has
-        refused or dropped it (TAKE_WAIT without taking it), the one it still follows."""
+    def _in_flight(self, now: float) -> bool:
+        """The newest published trajectory is on its way: the scaler's status has not yet reported deciding on it
+        (``ScalerStatus.received``), for at most TAKE_WAIT (a message lost, or a scaler restarted, is not waited
+        for forever)."""
         st = self.status
-        if self.trajectory is None or st is None:
-            return None
-        trajectory = self.published.get(st.trajectory_version)
-        if trajectory is None or (trajectory is not self.trajectory and now < self.published_at + TAKE_WAIT):
-            return None
-        return (trajectory, st.s) if st.s < trajectory.duration - 1e-6 else None
+        return (self.trajectory is not None and (st is None or st.received < self.trajectory.version)
+                and now < self.published_at + TAKE_WAIT)
 
     def work_once(self, now: float) -> None:
         """One turn of the planning loop on the latest inputs; its outcome published (a trajectory, or an
@@ -136,17 +133,13 @@ class PlannerService:
             if goal is None or q is None:        # keep a goal until the robot's position is known
                 return
             self.new_goal = False
-            following = self._following(now)
-            speed = None
-            if following is not None and status is not None:
-                speed = float(np.abs(following[0].sample(following[1])[1]).max() * status.alpha)
+            report = None if status is None else report_from_status(status)
             # above every version the scaler has reported: a restarted planner must not publish an old number
-            version = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen) + 1
-            inputs = PlanningInputs(goal.q, new_goal, q, humans, self.human_seq, following, speed,
-                                    status is not None and status.beta, self.held.waited(now), version,
-                                    status is not None and held_by_ssm(status.alpha, status.safe_alpha),
-                                    status.stop_s if status is not None else None,
-                                    goal.then[0] if len(goal.then) else None)
+            newest = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen)
+            inputs = planning_inputs(goal=goal.q, new_goal=new_goal, q=q, humans=humans, human_sample=self.human_seq,
+                                     report=report, followed=None if report is None else self.published.get(report.version),
+                                     in_flight=self._in_flight(now), waited=self.held.waited(now),
+                                     newest_version=newest, then=goal.then[0] if len(goal.then) else None)
         if new_goal:
             self.goal_id = goal.goal_id
         started = time.perf_counter()
@@ -170,7 +163,7 @@ class PlannerService:
         if result.from_rest:
             self._publish(now, result.trajectory, result.reason, 0.0, -1, ms, result.detail)
         else:
-            self._publish(now, result.trajectory, result.reason, result.junction, following[0].version, ms,
+            self._publish(now, result.trajectory, result.reason, result.junction, inputs.following[0].version, ms,
                           result.detail)
 
     def pause(self) -> float:

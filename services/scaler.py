@@ -36,7 +36,7 @@ import numpy as np
 from services.common import ServiceShell, open_service, run_synced, serve, service_parser, setup_logging
 from shared.core.humans import HumanCapsules
 from shared.robot.model import default_robot
-from shared.scaling.layer import ScalingLayer
+from shared.scaling.layer import ScalingInputs, ScalingLayer
 from shared.tracking.tracker import stale_bound
 from shared.wire.convert import humans_from_msg, trajectory_from_msg
 from shared.wire.messages import (
@@ -74,6 +74,7 @@ class Scaler:
         self.joint_state_arrived = threading.Event()       # wakes the tick: one a SYNC
         self.pending: TrajectoryMsg | None = None
         self.version = -1
+        self.received = -1                 # the newest trajectory version decided on (followed, stopped for, refused)
         self.seq = 0
         keys = shell.keys
         self.cmd_pub = shell.session.declare_publisher(keys.command)
@@ -124,6 +125,7 @@ class Scaler:
 
     def _take_pending(self) -> None:
         msg, self.pending = self.pending, None
+        self.received = max(self.received, msg.version)
         fresh = msg.base_version == -1
         followed = self.layer.trajectory.version if self.layer.trajectory is not None else -1
         if not fresh and msg.base_version != followed:       # (not self.version: a plan it stops for is not followed yet)
@@ -155,12 +157,12 @@ class Scaler:
             self.layer.hold(q_meas)
         if self.layer.trajectory is None:
             return
-        step = self.layer.step(humans, age if humans is not None else np.inf, stale_after=self.stale_after)
-        if self.layer.dropped is not None:
-            self.shell.log.warning("trajectory dropped: %s", self.layer.dropped)
-            self.layer.dropped = None
+        step = self.layer.step(ScalingInputs(humans=humans, human_age=age if humans is not None else np.inf,
+                                             stale_after=self.stale_after))
+        if step.dropped is not None:
+            self.shell.log.warning("trajectory dropped: %s", step.dropped)
             with self.lock:         # the planner numbers its next plan from the followed one: it may come with
-                self.version = self.layer.trajectory.version       # the dropped plan's number and is taken
+                self.version = step.trajectory_version       # the dropped plan's number and is taken
         self.seq += 1
         fresh = np.isfinite(stamp) and stamp != self.reported_stamp      # first command from this sample
         if fresh:
@@ -175,7 +177,8 @@ class Scaler:
             s=step.s, alpha=step.alpha, safe_alpha=step.safe_alpha, beta=step.beta, q_command=step.q_command,
             trajectory_version=step.trajectory_version, status=step.status.value, method=step.method,
             min_separation=finite(step.min_separation), min_margin=finite(step.min_margin),
-            compute_us=step.compute_us, stop_s=self.layer.awaiting, seq=self.seq, stamp=now)))
+            compute_us=step.compute_us, stop_s=step.awaiting, speed=step.speed, held=step.held,
+            pending=-1 if step.pending is None else step.pending, received=self.received, seq=self.seq, stamp=now)))
 
 
 def main(argv: list[str] | None = None) -> int:

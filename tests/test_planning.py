@@ -259,7 +259,7 @@ def test_a_crawling_robot_held_by_the_ssm_is_stopped_a_little_ahead_and_planned_
     plan starts from rest just ahead on its path, where the scaling layer brings it to rest, and may leave
     in any direction; a merge would have to leave at the old nominal speed. A robot merely speeding up
     again (not held) is merged into as before."""
-    from shared.scaling.layer import ScalingLayer
+    from shared.scaling.layer import ScalingInputs, ScalingLayer
 
     replanner = Replanner(CM, PLANNER, PAPER_SSM)
     crawl = 0.1 * float(np.abs(OLD.sample(0.3)[1]).max())
@@ -276,7 +276,7 @@ def test_a_crawling_robot_held_by_the_ssm_is_stopped_a_little_ahead_and_planned_
     layer.s, layer.sdot = 0.3, 0.1
     assert layer.take(stop.trajectory, True, 0.0, OLD.sample(0.3)[0], 1e-3) is None
     for _ in range(200):
-        step = layer.step(STANDING, 0.0)
+        step = layer.step(ScalingInputs(humans=STANDING))
         if layer.trajectory is stop.trajectory:
             break
     assert layer.trajectory is stop.trajectory and np.allclose(step.q_command, OLD.sample(stop.junction)[0])
@@ -284,7 +284,7 @@ def test_a_crawling_robot_held_by_the_ssm_is_stopped_a_little_ahead_and_planned_
 
 def test_a_robot_brought_to_rest_to_await_its_plan_is_planned_for_from_rest_where_it_stops():
     """The scaler stops a crawling robot that asked for a replan and awaits the plan (stop_at,
-    ScalingLayer.awaiting): the plan starts from rest exactly there, and the old trajectory is predicted from
+    ScalingStep.awaiting): the plan starts from rest exactly there, and the old trajectory is predicted from
     rest there too (it has to get back up to speed), whatever the robot's speed when the planner looked."""
     replanner = Replanner(CM, PLANNER, PAPER_SSM)
     crawl = 0.1 * float(np.abs(OLD.sample(0.3)[1]).max())

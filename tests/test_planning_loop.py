@@ -16,6 +16,7 @@ from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
 from shared.planning.horizon import reach_gap
+from shared.planning.inputs import planning_inputs
 from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, StillClock, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import SearchOptions
@@ -23,6 +24,7 @@ from shared.planning.replanner import PreparedPlan, Replanner, ReplanOptions
 from shared.planning.scene import load_scene
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
+from shared.scaling.report import ScalerReport
 from shared.wire.convert import humans_to_msg
 from shared.wire.messages import Goal, JointState, SafetyEvent, ScalerStatus, TrajectoryMsg
 from tests.fake_shell import FakeShell
@@ -438,7 +440,7 @@ def test_the_planner_service_plans_a_goal_and_answers_beta_through_the_loop(repl
     shell.deliver(keys.scaler_status, ScalerStatus(s=0.3, alpha=0.0, safe_alpha=0.0, beta=True, q_command=Q_START,
                                                    trajectory_version=sent[0].version, status="running",
                                                    method="piqp", min_separation=None, min_margin=None,
-                                                   compute_us=50.0))
+                                                   compute_us=50.0, received=sent[0].version))
     service.work_once(2.0)
     events = shell.published(keys.safety_events, SafetyEvent)
     assert events[-1].event in ("trajectory_beta", "replan_refused")     # answered, one way or the other
@@ -463,7 +465,7 @@ def test_the_planner_service_prepares_the_goal_after_and_publishes_it_at_once_wh
     shell.deliver(keys.scaler_status, ScalerStatus(s=end - 0.2, alpha=1.0, safe_alpha=1.0, beta=False,
                                                    q_command=leg.positions[-1], trajectory_version=leg.version,
                                                    status="running", method="piqp", min_separation=None,
-                                                   min_margin=None, compute_us=50.0))
+                                                   min_margin=None, compute_us=50.0, received=leg.version))
     shell.deliver(keys.human_state, humans_to_msg(someone, True, 1.9))
     service.work_once(2.0)
     events = shell.published(keys.safety_events, SafetyEvent)
@@ -474,7 +476,7 @@ def test_the_planner_service_prepares_the_goal_after_and_publishes_it_at_once_wh
     shell.deliver(keys.scaler_status, ScalerStatus(s=end, alpha=1.0, safe_alpha=1.0, beta=False,
                                                    q_command=leg.positions[-1], trajectory_version=leg.version,
                                                    status="finished", method="piqp", min_separation=None,
-                                                   min_margin=None, compute_us=50.0))
+                                                   min_margin=None, compute_us=50.0, received=leg.version))
     shell.deliver(keys.goal, Goal(goal_id=8, name="q_s", q=Q_START, then=Q_GOAL[None]))
     service.work_once(3.0)
     back = shell.published(keys.trajectory, TrajectoryMsg)[-1]
@@ -497,7 +499,7 @@ def test_the_planner_service_plans_from_where_the_scaler_awaits_its_plan(replann
         shell.deliver(keys.scaler_status, ScalerStatus(
             s=stop_s - 0.01, alpha=0.05, safe_alpha=0.05, beta=True, q_command=Q_START, trajectory_version=goal.version,
             status="running", method="piqp+stopping", min_separation=None, min_margin=None, compute_us=50.0,
-            stop_s=stop_s))
+            stop_s=stop_s, received=service.trajectory.version))
         service.work_once(now)
         return shell.published(keys.safety_events, SafetyEvent)[-1]
 
@@ -523,23 +525,48 @@ def test_the_planner_service_drops_bad_bytes_and_goes_on(replanner):
 
 
 def test_the_planner_goes_on_with_the_version_the_scaler_follows_when_a_plan_was_not_taken(replanner):
+    """A published plan is on its way until the scaler's status says it has decided on it (``received``):
+    nothing is replanned meanwhile; once the scaler has refused it, the one it still follows is; a plan never
+    reported on (lost, or a scaler restarted) is on its way for TAKE_WAIT at most."""
     shell, service = planner_given_a_goal(replanner, 1)
     keys = shell.keys
     first = shell.published(keys.trajectory, TrajectoryMsg)[-1]
 
-    def status(version: int) -> ScalerStatus:
+    def status(version: int, received: int) -> ScalerStatus:
         return ScalerStatus(s=0.3, alpha=1.0, safe_alpha=1.0, beta=False, q_command=Q_START,
                             trajectory_version=version, status="running", method="piqp", min_separation=None,
-                            min_margin=None, compute_us=50.0)
+                            min_margin=None, compute_us=50.0, received=received)
 
-    shell.deliver(keys.scaler_status, status(first.version))
-    service.work_once(1.1)
-    assert service._following(1.1)[0].version == first.version
+    assert service._in_flight(1.0)                           # published, no status yet
+    shell.deliver(keys.scaler_status, status(first.version, first.version))
+    service.poll(1.1)
+    assert not service._in_flight(1.1)
     service.trajectory = dataclasses.replace(service.trajectory, version=first.version + 1)   # a newer plan, sent
     service.published[first.version + 1], service.published_at = service.trajectory, 1.2
-    assert service._following(1.5) is None                   # on its way: nothing to replan on yet
-    following = service._following(1.2 + TAKE_WAIT)         # not taken in time: the one still followed
-    assert following is not None and following[0].version == first.version
+    assert service._in_flight(1.5)                           # on its way: nothing to replan on yet
+    assert not service._in_flight(1.2 + TAKE_WAIT)           # never reported on: not waited for forever
+    shell.deliver(keys.scaler_status, status(first.version, first.version + 1))        # decided on: refused
+    service.poll(1.6)
+    assert not service._in_flight(1.6)
+
+
+def test_the_planning_inputs_follow_what_the_scaler_reports_and_nothing_while_a_plan_is_on_its_way():
+    """The one rule the planner service and the simulation share (``planning_inputs``): the followed
+    trajectory where the scaler reports following it, not finished; nothing while a plan is in flight, while the
+    scaler brings the robot to rest for a plan (pending) or at the trajectory's end; the robot's speed, beta,
+    held and the wait from the report; a new version above every one handed and followed."""
+    report = ScalerReport(version=OLD.version, s=0.5, speed=0.4, beta=True, held=True, awaiting=0.7)
+    common = dict(goal=Q_GOAL, new_goal=False, q=Q_START, humans=None, human_sample=3, waited=0.2)
+    got = planning_inputs(report=report, followed=OLD, in_flight=False, newest_version=OLD.version + 4, **common)
+    assert got.following == (OLD, 0.5) and (got.speed, got.beta, got.held, got.stop_at) == (0.4, True, True, 0.7)
+    assert got.version == OLD.version + 5 and got.waited == 0.2 and got.human_sample == 3
+    assert planning_inputs(report=report, followed=OLD, in_flight=True, newest_version=0, **common).following is None
+    assert planning_inputs(report=dataclasses.replace(report, pending=OLD.version + 1), followed=OLD,
+                           in_flight=False, newest_version=0, **common).following is None
+    assert planning_inputs(report=dataclasses.replace(report, s=OLD.duration), followed=OLD, in_flight=False,
+                           newest_version=0, **common).following is None
+    nothing = planning_inputs(report=None, followed=None, in_flight=False, newest_version=0, **common)
+    assert nothing.following is None and nothing.speed is None and not nothing.beta and nothing.version == 1
 
 
 # ------------------------------------------------------------------------------ the keep-or-replace rule

@@ -168,7 +168,7 @@ def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unkno
     from shared.core.trajectory import straight_line_trajectory
     from shared.robot.model import default_robot
     from shared.safety.parameters import SsmParameters
-    from shared.scaling.layer import ScalingLayer
+    from shared.scaling.layer import ScalingInputs, ScalingLayer
 
     robot = default_robot()
 
@@ -179,12 +179,12 @@ def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unkno
     lay = ScalingLayer(robot, SsmParameters())
     lay.set_trajectory(straight_line_trajectory(Q_START, Q_GOAL, robot.limits.velocity, robot.limits.acceleration))
     for _ in range(40):
-        lay.step(person(-3.0, True), 0.0)
+        lay.step(ScalingInputs(humans=person(-3.0, True)))
     for _ in range(15):
-        step = lay.step(person(-1.2, True), 0.0)
+        step = lay.step(ScalingInputs(humans=person(-1.2, True)))
     held = step.sdot
     assert 0.1 < held < 0.5
     for _ in range(5):
-        step = lay.step(person(-1.5, False), 0.0)
+        step = lay.step(ScalingInputs(humans=person(-1.5, False)))
         assert step.sdot == held and step.safe_alpha > held and step.method.endswith("+unknown")
-    assert lay.step(person(-1.5, True), 0.0).sdot > held
+    assert lay.step(ScalingInputs(humans=person(-1.5, True))).sdot > held

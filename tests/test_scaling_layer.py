@@ -14,7 +14,7 @@ from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import pair_ssm
-from shared.scaling.layer import ScalingLayer, StepStatus
+from shared.scaling.layer import ScalingInputs, ScalingLayer, StepStatus
 from shared.scaling.parameters import ScalingParameters
 
 # The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
@@ -36,11 +36,11 @@ def test_no_human_data_stops_the_robot_as_fast_as_the_drives_brake_along_the_pat
     no command the drives cannot follow), the robot stays on its path and comes to rest, then stays."""
     lay = layer()
     for _ in range(50):
-        lay.step(NOBODY, 0.0)
+        lay.step(ScalingInputs(humans=NOBODY))
     assert lay.sdot > 0.9
     qd = [lay.trajectory.sample(lay.s)[1] * lay.sdot]
     for k in range(60):
-        step = lay.step(None, math.inf)
+        step = lay.step(ScalingInputs(humans=None, human_age=math.inf))
         assert step.status is StepStatus.NO_HUMAN_DATA and not step.beta
         assert np.allclose(step.q_command, lay.trajectory.sample(step.s)[0])          # on the path
         qd.append(step.qd_command)
@@ -49,23 +49,23 @@ def test_no_human_data_stops_the_robot_as_fast_as_the_drives_brake_along_the_pat
     assert joint_acc.max() >= 0.9 * 6.0                           # and all of it: the fastest stop
     at_rest = step.s
     assert step.alpha == 0.0 and np.all(step.qd_command == 0)
-    assert lay.step(None, math.inf).s == at_rest                  # stays there
+    assert lay.step(ScalingInputs(humans=None, human_age=math.inf)).s == at_rest                  # stays there
 
 
 @pytest.mark.parametrize("age", [0.051, 1.0, math.inf, math.nan])
 def test_stale_human_data_stops_the_robot(age):
     lay = layer(human_timeout=0.05)
-    lay.step(NOBODY, 0.0)
-    step = lay.step(NOBODY, age)
+    lay.step(ScalingInputs(humans=NOBODY))
+    step = lay.step(ScalingInputs(humans=NOBODY, human_age=age))
     assert step.status is StepStatus.STALE_HUMAN_DATA and step.alpha == 0.0 and step.sdot == 0.0
 
 
 def test_path_parameter_advances_by_alpha_times_the_period_and_the_goal_is_reached():
     lay = layer()
-    step = lay.step(NOBODY, 0.0)
+    step = lay.step(ScalingInputs(humans=NOBODY))
     assert step.s == pytest.approx(step.alpha * 0.01)
     for _ in range(1000):
-        step = lay.step(NOBODY, 0.0)
+        step = lay.step(ScalingInputs(humans=NOBODY))
         if step.status is StepStatus.FINISHED:
             break
     assert step.status is StepStatus.FINISHED
@@ -75,7 +75,7 @@ def test_path_parameter_advances_by_alpha_times_the_period_and_the_goal_is_reach
 def test_nominal_duration_is_kept_when_nobody_is_there():
     lay = layer()
     n = 0
-    while lay.step(NOBODY, 0.0).status is not StepStatus.FINISHED:
+    while lay.step(ScalingInputs(humans=NOBODY)).status is not StepStatus.FINISHED:
         n += 1
     assert n * 0.01 == pytest.approx(lay.trajectory.duration, abs=0.02)
 
@@ -92,7 +92,7 @@ def test_beta_rises_at_alpha_min_and_falls_only_above_alpha_release():
     history = []
     for x in list(np.linspace(-2.5, -0.7, 60)) + list(np.linspace(-0.7, -2.5, 60)):
         lay.s = 1.0                       # keep the robot at the same point of its path
-        step = lay.step(_human_at(x), 0.0)
+        step = lay.step(ScalingInputs(humans=_human_at(x)))
         history.append((step.safe_alpha, step.beta))
     beta = False
     for safe, got in history:
@@ -105,12 +105,12 @@ def test_beta_rises_at_alpha_min_and_falls_only_above_alpha_release():
 def test_a_new_trajectory_keeps_the_path_speed_and_clears_beta():
     lay = layer()
     for _ in range(100):
-        lay.step(NOBODY, 0.0)
+        lay.step(ScalingInputs(humans=NOBODY))
     lay.beta = True
     sdot = lay.sdot
     lay.set_trajectory(lay.trajectory.with_version(7), s=lay.s)
     assert lay.sdot == sdot and not lay.beta
-    assert lay.step(NOBODY, 0.0).trajectory_version == 7
+    assert lay.step(ScalingInputs(humans=NOBODY)).trajectory_version == 7
 
 
 @given(st.integers(0, 2 ** 31 - 1), st.floats(0.0, 2.4))
@@ -123,7 +123,7 @@ def test_every_command_meets_the_ssm_limit(seed, s):
                                        + rng.normal(scale=0.15, size=(m, 2, 3)), rng.uniform(0.03, 0.15, m),
                                        rng.normal(scale=0.8, size=(m, 2, 3)), rng.random(m) < 0.8)
     floor = lay.braking_floor(*lay.trajectory.sample(lay.s)[1:])
-    step = lay.step(humans, 0.0)
+    step = lay.step(ScalingInputs(humans=humans))
     points, jac = ROBOT.capsule_kinematics(step.q_command)
     check = pair_ssm(points, ROBOT.radii, jac @ step.qd_command, humans, PAPER_SSM)
     if step.method.endswith("+braking"):          # the drives cannot slow down faster: braking at their limit
@@ -135,7 +135,7 @@ def test_every_command_meets_the_ssm_limit(seed, s):
 
 def test_no_trajectory_commands_nothing():
     lay = ScalingLayer(ROBOT)
-    step = lay.step(NOBODY, 0.0, q_measured=Q_START)
+    step = lay.step(ScalingInputs(humans=NOBODY, q_measured=Q_START))
     assert step.status is StepStatus.NO_TRAJECTORY and np.allclose(step.q_command, Q_START)
 
 
@@ -155,7 +155,7 @@ def test_one_rule_takes_a_new_trajectory_without_a_jump():
     assert "already passed" in layer.take(old, False, junction=0.1, q_here=None, start_tolerance=0.02)
     elsewhere = straight_line_trajectory(np.array([0.3, 0, 0, 0, 0, 0]), a, lim.velocity, lim.acceleration, version=3)
     assert "not at its start" in layer.take(elsewhere, True, 0.0, q_here=a, start_tolerance=0.02)
-    assert layer.trajectory is merged and layer.pending is None
+    assert layer.trajectory is merged and layer.step(ScalingInputs(humans=NOBODY)).pending is None
     fresh = straight_line_trajectory(b, a, lim.velocity, lim.acceleration, version=3)
     layer.set_trajectory(old, old.duration)
     layer.sdot = 0.0                                                              # at rest at b
@@ -179,16 +179,17 @@ def test_a_plan_from_rest_ahead_of_a_crawling_robot_is_taken_where_the_robot_sto
     stop_at = 1.04
     back = straight_line_trajectory(old.sample(stop_at)[0], Q_START, lim.velocity, lim.acceleration, version=2)
     assert lay.take(back, True, 0.0, q_here=old.sample(1.0)[0], start_tolerance=1e-3) is None
-    assert lay.trajectory is old and lay.pending is not None
+    assert lay.trajectory is old
     velocity = old.sample(lay.s)[1] * lay.sdot
     methods = []
     one_period = lim.acceleration.max() * 0.01               # rad/s: the most a period's braking takes off
     for _ in range(100):
-        step = lay.step(NOBODY, 0.0)
+        step = lay.step(ScalingInputs(humans=NOBODY))
         assert np.abs(step.qd_command - velocity).max() <= one_period + 1e-9     # the plan's first step too
         velocity = step.qd_command
         if step.trajectory_version == 2:
             break
+        assert step.pending == 2                             # the step says which plan it stops for
         methods.append(step.method)
         assert step.s <= stop_at + 1e-9
         arrived = step
@@ -197,21 +198,21 @@ def test_a_plan_from_rest_ahead_of_a_crawling_robot_is_taken_where_the_robot_sto
     assert np.abs(arrived.q_command - old.sample(stop_at)[0]).max() < 1e-9
     assert 0.0 < np.abs(arrived.qd_command).max() <= one_period + 1e-9
     assert step.trajectory_version == 2 and (lay.s, lay.sdot) == (0.0, 0.0) and not step.qd_command.any()
-    later = [lay.step(NOBODY, 0.0) for _ in range(20)]
+    later = [lay.step(ScalingInputs(humans=NOBODY)) for _ in range(20)]
     assert later[-1].trajectory_version == 2 and lay.s > 0.0           # on its way back, from rest
     # a start ahead but within the tolerance of where the robot is: still reached by stopping, not jumped to
     lay.set_trajectory(old)
     lay.s, lay.sdot = 1.0, 0.2
     near = straight_line_trajectory(old.sample(1.005)[0], Q_START, lim.velocity, lim.acceleration, version=3)
     assert lay.take(near, True, 0.0, q_here=old.sample(1.0)[0], start_tolerance=0.02) is None
-    assert lay.trajectory is old and lay.pending[0] is near
+    assert lay.trajectory is old and lay.step(ScalingInputs(humans=NOBODY)).pending == near.version
 
     lay.set_trajectory(old)
     lay.s, lay.sdot = 1.02, 1.0                              # at full speed: it cannot stop in 0.02 s of path
     assert lay.take(back, True, 0.0, q_here=old.sample(1.02)[0], start_tolerance=1e-3) is None
-    steps = [lay.step(NOBODY, 0.0) for _ in range(3)]
-    assert all(st.trajectory_version == 1 for st in steps) and lay.pending is None
-    assert "could not stop" in lay.dropped
+    steps = [lay.step(ScalingInputs(humans=NOBODY)) for _ in range(3)]
+    assert all(st.trajectory_version == 1 for st in steps) and steps[-1].pending is None
+    assert "could not stop" in next(st.dropped for st in steps if st.dropped is not None)
 
 
 def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_it_is_held_at_rest():
@@ -228,17 +229,18 @@ def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_i
     lay.set_trajectory(old)
     lay.s, lay.sdot = 1.0, 0.2
     back = straight_line_trajectory(old.sample(1.04)[0], Q_START, lim.velocity, lim.acceleration, version=2)
-    assert lay.take(back, True, 0.0, q_here=q, start_tolerance=1e-3) is None and lay.pending is not None
-    steps = []
-    while lay.pending is not None and len(steps) < 100:
-        steps.append(lay.step(person, 0.0))
-    assert lay.pending is None and lay.dropped.startswith("held by the SSM") and "plan 2" in lay.dropped
+    assert lay.take(back, True, 0.0, q_here=q, start_tolerance=1e-3) is None
+    steps = [lay.step(ScalingInputs(humans=person))]
+    while steps[-1].pending is not None and len(steps) < 100:
+        steps.append(lay.step(ScalingInputs(humans=person)))
+    assert all(st.pending == 2 and st.dropped is None for st in steps[:-1]) and len(steps) > 1
+    assert steps[-1].dropped.startswith("held by the SSM") and "plan 2" in steps[-1].dropped
     assert all(st.trajectory_version == 1 and st.s < 1.04 for st in steps)
     assert np.abs(old.sample(lay.s)[1] * lay.sdot).max() < 0.02            # at rest, short of the start
     here = old.sample(lay.s)[0]
     fresh = straight_line_trajectory(here, Q_START, lim.velocity, lim.acceleration, version=3)
     for _ in range(5):                                    # the braking floor has brought it to rest exactly
-        lay.step(person, 0.0)
+        lay.step(ScalingInputs(humans=person))
     assert lay.take(fresh, True, 0.0, q_here=old.sample(lay.s)[0], start_tolerance=0.02) is None
     assert lay.trajectory is fresh
 
@@ -267,30 +269,30 @@ def test_a_crawling_robot_that_asks_for_a_replan_stops_and_awaits_the_plan_where
     lim = ROBOT.limits
     one_period = lim.acceleration.max() * 0.01
     velocity = old.sample(lay.s)[1] * lay.sdot
-    first = lay.step(person, 0.0)
-    assert first.beta and lay.awaiting is not None and lay.awaiting > first.s
-    stop_at = lay.awaiting
+    first = lay.step(ScalingInputs(humans=person))
+    assert first.beta and first.awaiting is not None and first.awaiting > first.s
+    stop_at = first.awaiting
     steps = [first]
     for _ in range(15):
-        steps.append(lay.step(person, 0.0))
+        steps.append(lay.step(ScalingInputs(humans=person)))
     for step in steps:
         assert np.abs(step.qd_command - velocity).max() <= one_period + 1e-9
         assert step.s <= stop_at + 1e-12 and step.trajectory_version == 1
         velocity = step.qd_command
-    assert lay.awaiting == stop_at and steps[-1].s == stop_at and not steps[-1].qd_command.any()
+    assert steps[-1].awaiting == stop_at and steps[-1].s == stop_at and not steps[-1].qd_command.any()
     assert "+stopping" in steps[2].method
     here = old.sample(stop_at)[0]
     assert np.abs(steps[-1].q_command - here).max() < 1e-12
     plan = straight_line_trajectory(here, Q_START, lim.velocity, lim.acceleration, version=2)
     assert lay.take(plan, True, 0.0, q_here=here, start_tolerance=1e-3) is None
-    assert lay.trajectory is plan and lay.awaiting is None
+    assert lay.trajectory is plan and lay.step(ScalingInputs(humans=person)).awaiting is None
 
     lay, old, person = _crawling_beside_a_person()          # no plan comes: it waits await_plan, then goes on
-    steps = [lay.step(person, 0.0) for _ in range(60)]
+    steps = [lay.step(ScalingInputs(humans=person)) for _ in range(60)]
     waiting = [k for k, step in enumerate(steps) if lay.params.period * k <= 0.3 and step.sdot == 0.0]
     assert waiting and all(step.beta for step in steps)
-    assert steps[-1].sdot > 0.0 and steps[-1].s > steps[waiting[-1]].s and lay.awaiting is None
+    assert steps[-1].sdot > 0.0 and steps[-1].s > steps[waiting[-1]].s and steps[-1].awaiting is None
 
     lay, old, person = _crawling_beside_a_person(await_plan=0.0)  # nobody answers: it never stands to wait
-    steps = [lay.step(person, 0.0) for _ in range(20)]
-    assert steps[0].beta and lay.awaiting is None and all(step.sdot > 0.0 for step in steps)
+    steps = [lay.step(ScalingInputs(humans=person)) for _ in range(20)]
+    assert steps[0].beta and all(step.awaiting is None and step.sdot > 0.0 for step in steps)

@@ -171,7 +171,9 @@ def test_after_the_layer_drops_a_plan_the_scaler_takes_the_next_plan_numbered_li
                                      version=2)    # a plan from rest just ahead: too close to stop for
     shell.deliver(keys.trajectory, trajectory_to_msg(ahead, 1, "beta", 0.0, -1))
     ticks(5)
-    assert scaler.layer.trajectory.version == 1 and scaler.layer.pending is None and scaler.version == 1
+    assert scaler.layer.trajectory.version == 1 and scaler.version == 1
+    last = shell.published(keys.scaler_status, ScalerStatus)[-1]
+    assert last.pending == -1 and last.received == 2           # decided on (dropped: it could not stop there)
     merged = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=2)
     shell.deliver(keys.trajectory, trajectory_to_msg(merged, 1, "beta", scaler.layer.s + 0.3, base_version=1))
     ticks(1)
@@ -276,7 +278,7 @@ def test_the_scaler_says_where_it_awaits_the_replan_it_asked_for_and_takes_the_p
     statuses = shell.published(keys.scaler_status, ScalerStatus)
     assert statuses[0].stop_s is None and statuses[-1].beta and statuses[-1].alpha == 0.0
     stop_s = statuses[-1].stop_s
-    assert stop_s is not None and statuses[-1].s == stop_s and stop_s == scaler.layer.awaiting
+    assert stop_s is not None and statuses[-1].s == stop_s and statuses[-1].pending == -1
     here = traj.sample(stop_s)[0]
     shell.deliver(keys.joint_state, joint_state(here))
     plan = straight_line_trajectory(here, Q_START, LIM.velocity, LIM.acceleration, version=2)

@@ -13,6 +13,7 @@ from shared.core.trajectory import straight_line_trajectory
 from shared.planning.replanner import ReplanOptions
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
+from shared.scaling.layer import ScalingInputs
 
 ROBOT = default_robot()
 
@@ -50,14 +51,15 @@ def test_stop_zone_ramps_to_rest_within_the_stopping_time_and_no_data_stops_at_o
     layer = zone_layer()
     far = person_at(4.0)
     for _ in range(60):
-        step = layer.step(far, 0.0)
+        step = layer.step(ScalingInputs(humans=far))
     assert step.alpha == 1.0
     near = person_at(0.9)
-    alphas = [layer.step(near, 0.0).alpha for _ in range(40)]
+    alphas = [layer.step(ScalingInputs(humans=near)).alpha for _ in range(40)]
     assert alphas[0] > 0.9                                          # a category 2 stop, not a jump ...
     assert alphas[29] == 0.0 and max(alphas[30:]) == 0.0            # ... at rest within T_s = 0.3 s
-    layer.step(far, 0.0)
-    assert layer.step(None, 0.0).alpha == 0.0 and layer.step(far, 1.0).alpha == 0.0
+    layer.step(ScalingInputs(humans=far))
+    assert layer.step(ScalingInputs(humans=None)).alpha == 0.0
+    assert layer.step(ScalingInputs(humans=far, human_age=1.0)).alpha == 0.0
 
 
 @pytest.mark.parametrize("kind", sorted(SCENARIO_KINDS))

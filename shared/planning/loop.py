@@ -43,45 +43,10 @@ from shared.core.humans import STANDING_SPEED, HumanCapsules
 from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.blocked import GoalBlock, goal_block
 from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
+from shared.planning.inputs import PlanningInputs
 from shared.planning.ompl_planner import PlanningError
 from shared.planning.replanner import PreparedPlan, Replanner
 from shared.planning.timing import TimingError
-
-
-@dataclass(frozen=True)
-class PlanningInputs:
-    """What the planning layer knows at one moment.
-
-    goal: the goal configuration (rad; None: none yet). new_goal: it has not been planned for yet.
-    q: where the robot is (rad; None: not known yet). humans: the latest human state (None: none).
-    human_sample: a counter of human samples (a new value is a new sample). following: the trajectory the
-    scaler follows and its path parameter s, None when it follows none of ours or has finished it.
-    speed: the robot's joint speed (rad/s, max over joints; None: unknown). beta: the scaler asks for a
-    replan. waited: how long it has been asking (s, HoldClock). version: the number a new trajectory from
-    rest gets (above every version the scaler has followed). held: the robot's speed is the SSM's bound
-    (``held_by_ssm``). stop_at: the s of the followed trajectory where the scaler has brought (or brings) the
-    robot to rest to await the plan it asked for (``ScalingLayer.awaiting``; None: it does not wait). then: the
-    goal that follows this one (rad; None: not known), whose plan the loop prepares before the robot arrives."""
-
-    goal: np.ndarray | None
-    new_goal: bool
-    q: np.ndarray | None
-    humans: HumanCapsules | None
-    human_sample: int
-    following: tuple[Trajectory, float] | None
-    speed: float | None
-    beta: bool
-    waited: float
-    version: int
-    held: bool = False
-    stop_at: float | None = None
-    then: np.ndarray | None = None
-
-
-def held_by_ssm(alpha: float, safe_alpha: float) -> bool:
-    """PlanningInputs.held from a scaling step or the scaler's status: the path speed alpha is the SSM's
-    bound safe_alpha (or above it, braking), not an acceleration ramp below it."""
-    return safe_alpha <= alpha + 1e-6
 
 
 @dataclass(frozen=True)
@@ -307,7 +272,8 @@ def warm_up(replanner: Replanner) -> int:
     for k, (new_goal, at, speed, beta, held) in enumerate(turns):
         following = None if at is None else (shuttle, at * shuttle.duration)
         q = q_a if at is None else shuttle.sample(at * shuttle.duration)[0]
-        inputs = PlanningInputs(q_b, new_goal, q, person, k, following, speed, beta, 0.0, 1, held)
+        inputs = PlanningInputs(goal=q_b, new_goal=new_goal, q=q, humans=person, human_sample=k, following=following,
+                                speed=speed, beta=beta, waited=0.0, version=1, held=held)
         taken += loop.step(float(k), inputs) is not None
     replanner.forget()
     replanner.finishing = finishing

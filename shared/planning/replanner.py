@@ -46,7 +46,7 @@ from shared.planning.path_search import PathSearch, SearchOptions
 from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
 from shared.planning.timing import TimingError, parameterize
 from shared.safety.parameters import SsmParameters
-from shared.scaling.layer import REST_SPEED, STOP_DECELERATION
+from shared.scaling.stopping import REST_SPEED, stopping_time
 
 REMEMBERED = 4          # searched paths to the current goal kept as seeds of the next searches
 FINISHING_EASE = 0.1    # how far a planning action's learnt finishing time falls towards a shorter one (end)
@@ -393,7 +393,7 @@ class Replanner:
                    humans: HumanCapsules | None, reason: str, waited: float) -> ReplanResult:
         """For a robot crawling at `rate` of its nominal path speed: a plan from rest at the point of its path where the
         scaler brings it to rest (``ScalingLayer.take``), allowing stop_lead for the plan to arrive and the scaler's
-        STOP_DECELERATION of the joints' deceleration for the stop. A merge would have to leave its junction at the old
+        stop (``shared.scaling.stopping``). A merge would have to leave its junction at the old
         *nominal* velocity and so keep a nominal stopping distance of old path, into the person's slowdown that makes the
         robot crawl; a crawling robot can stop in a few millimetres and then leave in any direction. The prediction
         counts the crawl to that point. Where the crawl gets by then is the time cost's (``SsmTimeCost.reached``), never
@@ -402,7 +402,7 @@ class Replanner:
         the robot has passed when the plan comes cannot be taken, so stop_lead errs long. Raises ReplanFailed."""
         started = time.perf_counter()
         v_nominal = np.abs(old.sample(float(s_now))[1])
-        stopping = rate * float(np.max(v_nominal / (STOP_DECELERATION * self.limits.acceleration)))   # s, robot time
+        stopping = rate * stopping_time(v_nominal, self.limits.acceleration)                      # s, robot time
         lead = self.options.stop_lead + 0.5 * stopping                                    # with a linear stop
         # where the crawl gets to by then: at most its present rate, less where the SSM slows it further, and
         # never within the robot's own stopping distance (the scaler could not stop it there)

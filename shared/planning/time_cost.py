@@ -42,7 +42,7 @@ from shared.planning.forecast import ConstantVelocity, Forecaster, PeopleForecas
 from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import _pair_ssm_kernel
-from shared.scaling.problem import _NO_ROWS, _upper_bound
+from shared.scaling.problem import pairs_alpha_bound
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
             _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
                                                         vel.reshape(n_links, 2, 3), moved, human_rad, frame_vel[i],
                                                         human_known, horizon, fixed, near_d, v_near, v_far, a_h)
-            alpha = _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin)
+            alpha = pairs_alpha_bound(robot_speed, limit - margin)
             if alpha <= 0.0 and stay < np.inf:
                 # inside a person's no-approach distance, approaching: the robot does not pass here while
                 # they stay (the floor would charge 50 samples' time for a wait that has no end)

@@ -38,7 +38,6 @@ import math
 import time
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from shared.core.humans import HumanCapsules
@@ -48,6 +47,7 @@ from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import PairSsm
 from shared.scaling.parameters import ScalingParameters
 from shared.scaling.problem import PiqpScalingSolver, build_rows, solve, ssm_alpha_bound
+from shared.scaling.stopping import REST_SPEED, STOP_DECELERATION, path_deceleration
 
 
 def unknown_within_reach(pairs: PairSsm, velocity_known: np.ndarray) -> bool:
@@ -60,28 +60,13 @@ def unknown_within_reach(pairs: PairSsm, velocity_known: np.ndarray) -> bool:
     return bool(unknown.any() and (pairs.robot_speed[:, unknown] > pairs.limit[:, unknown]).any())
 
 
-@numba.njit(cache=True)
-def _path_deceleration(dq_ds, d2q_ds2, sdot, acceleration):
-    """The largest path deceleration d (1/s^2) at which no joint's acceleration q'_j (-d) + q''_j sdot^2
-    leaves +-a_j: min over the moving joints of (a_j + sign(q'_j) q''_j sdot^2) / |q'_j|, at least 0 (inf
-    when no joint moves). The curvature term counts: where the nominal trajectory itself decelerates, less
-    path deceleration is left to the drives."""
-    best = np.inf
-    for j in range(dq_ds.shape[0]):
-        speed = abs(dq_ds[j])
-        if speed > 1e-9:
-            curvature = d2q_ds2[j] * sdot * sdot
-            best = min(best, (acceleration[j] + (curvature if dq_ds[j] > 0 else -curvature)) / speed)
-    return max(best, 0.0)
-
-
 STOP_REACH = 0.5          # nominal s: how far ahead a plan for a crawling robot may start (``ScalingLayer.take``)
-# the fraction of the joints' deceleration (max_acceleration, 3.49 rad/s^2, inside the 6 rad/s^2 of the
-# braking floor) a stop for a plan from rest uses (``ScalingLayer._stop_cap``); the planner puts the plan's
-# start where such a stop can end (``shared.planning.replanner``). Half of it made that stop take twice as
-# long: 75 of the 340 ms a replan request stalled the robot in hrc demo, and the plan's start further on.
-STOP_DECELERATION = 1.0
-REST_SPEED = 0.02         # rad/s (fastest joint): below it the robot counts as at rest (the planner's too)
+
+
+def held_by_ssm(alpha: float, safe_alpha: float) -> bool:
+    """The path speed alpha is the SSM's bound safe_alpha (or above it, braking), not an acceleration ramp below
+    it (``ScalingStep.held``: what the planning layer is told of the robot's speed)."""
+    return safe_alpha <= alpha + 1e-6
 
 
 class StepStatus(str, enum.Enum):
@@ -94,12 +79,33 @@ class StepStatus(str, enum.Enum):
     STALE_HUMAN_DATA = "stale_human_data"
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ScalingInputs:
+    """What one control cycle is given. humans: the latest human capsules (None: no human data has ever
+    arrived); human_age: how old they are (s; inf or NaN count as stale); q_measured: where the robot really is
+    (rad; the SSM rows are written there and its offset from the path is carried to the commanded point; None:
+    where the path says); stale_after: the age at which this source's data is stale (s; None: the layer's
+    human_timeout; a slower source's bound is ``shared.tracking.tracker.stale_bound``)."""
+
+    humans: HumanCapsules | None
+    human_age: float = 0.0
+    q_measured: np.ndarray | None = None
+    stale_after: float | None = None
+
+
 @dataclass(slots=True, kw_only=True)
 class ScalingStep:
-    """One cycle's result. alpha: path speed scaling in [0, 1]; safe_alpha: the largest alpha the hard
-    rows allow; beta: replan request; s: path parameter after the step; q_command, qd_command: joint
-    position (rad) and velocity (rad/s) to send; min_separation (m) and min_margin (m/s, limit minus
-    approach speed, over all pairs, at the commanded alpha); compute_us: time spent in the step."""
+    """One cycle's result: everything a caller (the scaler service, the simulation) needs, so that none reads
+    the layer's state. alpha: path speed scaling in [0, 1]; safe_alpha: the largest alpha the hard rows allow;
+    beta: replan request; s: path parameter after the step; sdot: the path speed it moves on at; q_command,
+    qd_command: joint position (rad) and velocity (rad/s) to send; status and method: what the step did and
+    which rule set alpha; trajectory_version: the trajectory followed; min_separation (m) and min_margin (m/s,
+    limit minus approach speed, over all pairs, at the commanded alpha); compute_us: time spent in the step.
+    For the planning layer: speed, the commanded joint speed (rad/s, fastest joint); held, the speed is the
+    SSM's bound (``held_by_ssm``), not a ramp below it; awaiting, the s where the robot is brought (or stands)
+    at rest to await the replan it asked for (None: it does not wait); pending, the version of a plan from
+    rest it is bringing the robot to rest for (None: none); dropped, why a plan it was stopping for was given
+    up in this step (None: none was)."""
 
     alpha: float
     safe_alpha: float
@@ -114,6 +120,11 @@ class ScalingStep:
     min_separation: float
     min_margin: float
     compute_us: float
+    speed: float = 0.0
+    held: bool = False
+    awaiting: float | None = None
+    pending: int | None = None
+    dropped: str | None = None
 
 
 class ScalingLayer:
@@ -130,11 +141,11 @@ class ScalingLayer:
         self.s = 0.0
         self.sdot = 0.0
         self.beta = False
-        self.pending: tuple[Trajectory, float] | None = None   # a plan from rest that starts ahead, at that s
-        self.dropped: str | None = None      # why the last pending plan was dropped (the service logs it)
+        self._pending: tuple[Trajectory, float] | None = None   # a plan from rest that starts ahead, at that s
+        self._dropped: str | None = None     # why the pending plan was dropped in this step (ScalingStep.dropped)
         # the s where the robot is brought to rest to await the plan it asked for (None: not awaiting; how long it
         # may stand there is params.await_plan, 0 where no planning layer answers), and how long it has stood
-        self.awaiting: float | None = None
+        self._awaiting: float | None = None
         self._awaited = 0.0
 
     def warm_up(self) -> None:
@@ -143,7 +154,8 @@ class ScalingLayer:
         q = (self.robot.limits.lower + self.robot.limits.upper) / 2
         self.set_trajectory(Trajectory(np.array([0.0, 1.0]), np.vstack([q, q + 0.1]), np.full((2, q.size), 0.1)))
         seg = self.robot.capsule_segments(q)[-1] + np.array([0.5, 0.0, 0.0])
-        self.step(HumanCapsules(seg[None], np.array([0.05]), np.zeros((1, 2, 3)), np.array([True])), 0.0)
+        self.step(ScalingInputs(humans=HumanCapsules(seg[None], np.array([0.05]), np.zeros((1, 2, 3)),
+                                                     np.array([True]))))
         self.trajectory, self.s, self.sdot, self.beta = None, 0.0, 0.0, False
 
     def set_trajectory(self, trajectory: Trajectory, s: float = 0.0) -> None:
@@ -155,7 +167,7 @@ class ScalingLayer:
         self.trajectory = trajectory
         self.s = float(min(max(s, 0.0), trajectory.duration))
         self.beta = False
-        self.pending = self.awaiting = None
+        self._pending = self._awaiting = None
 
     def take(self, trajectory: Trajectory, from_rest: bool, junction: float, q_here: np.ndarray | None,
              start_tolerance: float) -> str | None:
@@ -195,20 +207,20 @@ class ScalingLayer:
             best, grid = float(grid[k]), np.linspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], 21)
         if gap[k] > tolerance:
             return "its start is not ahead on the path"
-        self.pending, self.dropped = (trajectory, best), None
+        self._pending, self._dropped = (trajectory, best), None
         return None
 
     def _stop_deceleration(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
         """The path deceleration (1/s^2) of a stop for a plan: STOP_DECELERATION of the joints' deceleration
         along the path (``_path_deceleration``)."""
-        return STOP_DECELERATION * _path_deceleration(
+        return STOP_DECELERATION * path_deceleration(
             np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64), self.sdot,
             self.robot.limits.acceleration)
 
     def _target(self) -> float | None:
         """Where the robot is being brought to rest: the pending plan's start, else the s where it awaits the
         plan it asked for (None: neither)."""
-        return self.pending[1] if self.pending is not None else self.awaiting
+        return self._pending[1] if self._pending is not None else self._awaiting
 
     def _stop_cap(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
         """The path speed that brings the robot to rest at its target (``_target``: a pending plan's start, or
@@ -246,20 +258,20 @@ class ScalingLayer:
             if self.braking_floor(dq_ds, d2q_ds2) <= 0.0:
                 self.s = target
                 return
-            if self.pending is not None:
-                plan, self.pending = self.pending[0], None
-                self.dropped = f"could not stop at s={target:.3f} for plan {plan.version}"
+            if self._pending is not None:
+                plan, self._pending = self._pending[0], None
+                self._dropped = f"could not stop at s={target:.3f} for plan {plan.version}"
             else:
-                self.awaiting = None
+                self._awaiting = None
         self.s = s_next
 
     def _arrived(self) -> bool:
         """Take the pending plan once the robot has arrived at its start (``_advance``); True when taken: that
         step stands at the start (zero velocity), so a plan that leaves the other way starts from rest, not
         from a reversal of 2 d T in one period."""
-        if self.pending is None or self.s < self.pending[1] - 1e-9:
+        if self._pending is None or self.s < self._pending[1] - 1e-9:
             return False
-        self.set_trajectory(self.pending[0], 0.0)
+        self.set_trajectory(self._pending[0], 0.0)
         self.sdot = 0.0
         return True
 
@@ -271,13 +283,13 @@ class ScalingLayer:
         a crawling robot would have got to by the time it comes, made the robot crawl on for 100-150 ms after it
         had come (hrc demo). The wait ends with the new trajectory (``set_trajectory``), when beta falls, or after
         await_plan seconds (a refused request: the robot then goes on at the SSM's speed)."""
-        if self.awaiting is not None:
+        if self._awaiting is not None:
             self._awaited += self.params.period
             if not self.beta or self._awaited > self.params.await_plan:
-                self.awaiting = None
-        elif self.beta and not asked and self.params.await_plan > 0.0 and self.pending is None \
+                self._awaiting = None
+        elif self.beta and not asked and self.params.await_plan > 0.0 and self._pending is None \
                 and alpha <= self.params.alpha_release:
-            self.awaiting = min(self.trajectory.duration,
+            self._awaiting = min(self.trajectory.duration,
                                 self.s + alpha * self.params.period + self._stop_distance(alpha, dq_ds, d2q_ds2))
             self._awaited = 0.0
 
@@ -311,7 +323,7 @@ class ScalingLayer:
         (``monitor_acceleration``, 6 rad/s^2, as the driver's setpoint limiter would brake) takes off in one
         period along a path of tangent dq_ds (rad per unit s) and curvature d2q_ds2 (rad per unit s^2). 0
         once the robot can be at rest by the end of the period."""
-        deceleration = _path_deceleration(np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
+        deceleration = path_deceleration(np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
                                           self.sdot, self.robot.limits.monitor_acceleration)
         return max(0.0, self.sdot - deceleration * self.params.period)
 
@@ -326,15 +338,10 @@ class ScalingLayer:
             return StepStatus.STALE_HUMAN_DATA
         return StepStatus.RUNNING if running else StepStatus.FINISHED
 
-    def step(self, humans: HumanCapsules | None, human_age: float,
-             q_measured: np.ndarray | None = None, stale_after: float | None = None) -> ScalingStep:
-        """One control cycle. humans=None means no human data has ever arrived; human_age in seconds;
-        stale_after: the age at which this source's data is stale (s; default human_timeout: a slower
-        source's bound is shared.tracking.tracker.stale_bound).
-
-        q_measured: where the robot really is (the SSM rows are written there; its offset from the path
-        is carried to the commanded point); None means the robot is where the path says.
-        """
+    def step(self, inputs: ScalingInputs) -> ScalingStep:
+        """One control cycle on `inputs` (``ScalingInputs``); the result says all it did (``ScalingStep``)."""
+        humans, human_age, q_measured = inputs.humans, inputs.human_age, inputs.q_measured
+        self._dropped = None
         start = time.perf_counter()
         at_rest = self._arrived()
         traj = self.trajectory
@@ -342,13 +349,14 @@ class ScalingLayer:
             q_hold = np.zeros(self.robot.nq) if q_measured is None else np.asarray(q_measured, dtype=float)
             return ScalingStep(alpha=0.0, safe_alpha=0.0, beta=False, s=0.0, sdot=0.0, q_command=q_hold,
                                qd_command=np.zeros(self.robot.nq), status=StepStatus.NO_TRAJECTORY, method="none",
-                               trajectory_version=-1, min_separation=math.inf, min_margin=math.inf, compute_us=0.0)
+                               trajectory_version=-1, min_separation=math.inf, min_margin=math.inf, compute_us=0.0,
+                               held=True)
         q_nom, dq, ddq = traj.sample(self.s)
         q_kin = q_nom if q_measured is None else np.asarray(q_measured, dtype=float)
         running = self.s < traj.duration
         alpha, safe_alpha, method = 0.0, 0.0, "none"
         min_sep = min_margin = math.inf
-        status = self.input_status(humans, human_age, running, stale_after)
+        status = self.input_status(humans, human_age, running, inputs.stale_after)
         if status is StepStatus.FINISHED:
             alpha, safe_alpha = 1.0, 1.0
         elif status is StepStatus.RUNNING:
@@ -372,13 +380,13 @@ class ScalingLayer:
         if at_rest:
             alpha, method = 0.0, method + "+at rest"
         held_short = status is StepStatus.RUNNING and safe_alpha < cap and float(np.abs(dq).max()) * alpha < REST_SPEED
-        if self.pending is not None and held_short:
-            plan, s_stop = self.pending   # the SSM holds it short of the start, where it would wait for as long as
-            self.pending = None           # the person stays: dropped, so that a plan from where it stands can follow
-            self.dropped = (f"held by the SSM at s={self.s:.3f}, short of the start of plan {plan.version} "
+        if self._pending is not None and held_short:
+            plan, s_stop = self._pending   # the SSM holds it short of the start, where it would wait for as long as
+            self._pending = None           # the person stays: dropped, so that a plan from where it stands can follow
+            self._dropped = (f"held by the SSM at s={self.s:.3f}, short of the start of plan {plan.version} "
                             f"at s={s_stop:.3f}")
-        elif self.awaiting is not None and held_short:
-            self.awaiting = self.s + alpha * self.params.period      # it awaits its plan where the SSM holds it
+        elif self._awaiting is not None and held_short:
+            self._awaiting = self.s + alpha * self.params.period      # it awaits its plan where the SSM holds it
         asked = self.beta
         if status is StepStatus.RUNNING and safe_alpha <= self.params.alpha_min:
             self.beta = True
@@ -389,7 +397,10 @@ class ScalingLayer:
         self._advance(traj, dq, ddq)
         traj = self.trajectory
         q_c, dq_c, _ = traj.sample(self.s)
+        qd_c = dq_c * self.sdot
         return ScalingStep(alpha=alpha, safe_alpha=safe_alpha, beta=self.beta, s=self.s, sdot=self.sdot, q_command=q_c,
-                           qd_command=dq_c * self.sdot, status=status, method=method, trajectory_version=traj.version,
+                           qd_command=qd_c, status=status, method=method, trajectory_version=traj.version,
                            min_separation=min_sep, min_margin=min_margin,
-                           compute_us=(time.perf_counter() - start) * 1e6)
+                           compute_us=(time.perf_counter() - start) * 1e6, speed=float(np.abs(qd_c).max()),
+                           held=held_by_ssm(alpha, safe_alpha), awaiting=self._awaiting,
+                           pending=None if self._pending is None else self._pending[0].version, dropped=self._dropped)

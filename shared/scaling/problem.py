@@ -168,6 +168,14 @@ _NO_ROWS = np.zeros(0)
 
 
 @numba.njit(cache=True)
+def pairs_alpha_bound(robot_speed, limit):
+    """The largest alpha in [0, 1] every pair's SSM row allows: min(1, max(limit, 0) / robot speed) over the pairs
+    that move (robot_speed, limit: per pair, m/s, at alpha = 1; the limit already less any margin). The planning
+    layer's time cost predicts the scaling layer's speed with it."""
+    return _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit)
+
+
+@numba.njit(cache=True)
 def motion_alpha_bound(q, joint_velocity, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
                        human_vel, human_known, horizon, fixed, near_d, v_near, v_far, a_h, margin):
     """``ssm_alpha_bound`` in one compiled call (the kinematics, every pair's SSM row, their bound; the kernels
@@ -178,7 +186,7 @@ def motion_alpha_bound(q, joint_velocity, placement, parent, local, joint, ances
     _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
                                                 velocities.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
                                                 human_known, horizon, fixed, near_d, v_near, v_far, a_h)
-    return _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit - margin)
+    return pairs_alpha_bound(robot_speed, limit - margin)
 
 
 @numba.njit(cache=True)

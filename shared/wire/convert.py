@@ -6,7 +6,8 @@ import numpy as np
 
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory
-from shared.wire.messages import HumanState, TrajectoryMsg
+from shared.scaling.report import ScalerReport
+from shared.wire.messages import HumanState, ScalerStatus, TrajectoryMsg
 
 
 def trajectory_to_msg(trajectory: Trajectory, goal_id: int, reason: str, junction: float = 0.0,
@@ -34,3 +35,9 @@ def humans_from_msg(msg: HumanState) -> HumanCapsules | None:
         return None
     return HumanCapsules(np.asarray(msg.segments), np.asarray(msg.radii), np.asarray(msg.velocities),
                          np.asarray(msg.velocity_known))
+
+
+def report_from_status(msg: ScalerStatus) -> ScalerReport:
+    """What the planning layer reads of the scaler's status (the same record a step in this process gives)."""
+    return ScalerReport(version=msg.trajectory_version, s=msg.s, speed=msg.speed, beta=msg.beta, held=msg.held,
+                        awaiting=msg.stop_s, pending=None if msg.pending < 0 else msg.pending)

@@ -171,14 +171,20 @@ class JointCommand(Message):
 
 @dataclass(frozen=True)
 class ScalerStatus(Message):
-    """What the scaling layer did in one cycle (see shared.scaling.layer.ScalingStep); stop_s: the s where it
-    brings the robot to rest to await the replan it asked for (ScalingLayer.awaiting; None: it does not wait)."""
+    """What the scaling layer did in one cycle (``shared.scaling.layer.ScalingStep``, and what the planner reads of
+    it, ``shared.planning.inputs.ScalerReport``): stop_s, the s where it brings the robot to rest to await the
+    replan it asked for (None: it does not wait); speed, the commanded joint speed (rad/s, fastest joint); held,
+    that speed is the SSM's bound, not a ramp below it; pending, the version of a plan from rest it brings the
+    robot to rest for (-1: none); received, the newest trajectory version it has decided on (followed, stopped
+    for or refused; -1: none yet), so the planner knows when a trajectory it published is no longer on its way."""
 
     KIND: ClassVar[str] = "scaler_status"
     SPEC: ClassVar[dict[str, Spec]] = {
         "s": F, "alpha": F, "safe_alpha": F, "beta": B, "q_command": Q, "trajectory_version": Spec("int", minimum=-1),
         "status": S, "method": S, "min_separation": Spec("float", optional=True),
-        "min_margin": Spec("float", optional=True), "compute_us": F, "stop_s": Spec("float", optional=True)}
+        "min_margin": Spec("float", optional=True), "compute_us": F, "stop_s": Spec("float", optional=True),
+        "speed": Spec("float", minimum=0.0), "held": B, "pending": Spec("int", minimum=-1),
+        "received": Spec("int", minimum=-1)}
     s: float
     alpha: float
     safe_alpha: float
@@ -190,7 +196,11 @@ class ScalerStatus(Message):
     min_separation: float | None
     min_margin: float | None
     compute_us: float
-    stop_s: float | None = None     # where the robot is brought to rest to await the replan it asked for
+    stop_s: float | None = None
+    speed: float = 0.0
+    held: bool = False
+    pending: int = -1
+    received: int = -1
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,70 @@
+"""What the planning layer knows at one moment (``PlanningInputs``), and the one rule that builds it from what the
+scaling layer last reported (``planning_inputs``): the planner service (from the scaler's status over Zenoh) and
+the simulation (from the step in its own process) call the same function, so the evidence measures the planning
+layer on the cell's own inputs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import Trajectory
+from shared.scaling.report import ScalerReport
+
+FINISHED_WITHIN = 1e-6     # s of path parameter: a trajectory followed to within this of its end is finished
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanningInputs:
+    """What the planning layer knows at one moment.
+
+    goal: the goal configuration (rad; None: none yet). new_goal: it has not been planned for yet.
+    q: where the robot is (rad; None: not known yet). humans: the latest human state (None: none).
+    human_sample: a counter of human samples (a new value is a new sample). following: the trajectory the
+    scaler follows and its path parameter s, None when it follows none of ours or has finished it.
+    speed: the robot's joint speed (rad/s, max over joints; None: unknown). beta: the scaler asks for a
+    replan. waited: how long it has been asking (s, HoldClock). version: the number a new trajectory from
+    rest gets (above every version the scaler has followed). held: the robot's speed is the SSM's bound
+    (``shared.scaling.layer.held_by_ssm``). stop_at: the s of the followed trajectory where the scaler has brought
+    (or brings) the robot to rest to await the plan it asked for (``ScalingStep.awaiting``; None: it does not
+    wait). then: the goal that follows this one (rad; None: not known), whose plan the loop prepares before the
+    robot arrives."""
+
+    goal: np.ndarray | None
+    new_goal: bool
+    q: np.ndarray | None
+    humans: HumanCapsules | None
+    human_sample: int
+    following: tuple[Trajectory, float] | None
+    speed: float | None
+    beta: bool
+    waited: float
+    version: int
+    held: bool = False
+    stop_at: float | None = None
+    then: np.ndarray | None = None
+
+
+def planning_inputs(*, goal: np.ndarray | None, new_goal: bool, q: np.ndarray | None, humans: HumanCapsules | None,
+                    human_sample: int, report: ScalerReport | None, followed: Trajectory | None, in_flight: bool,
+                    waited: float, newest_version: int, then: np.ndarray | None = None) -> PlanningInputs:
+    """PlanningInputs from the scaling layer's last report. followed: the trajectory of the report's version (None:
+    not one of the planner's); in_flight: a trajectory handed to the scaling layer has not been reported on yet
+    (nothing is followed meanwhile: the planner would plan on a path about to be replaced); newest_version: the
+    highest version handed to the scaling layer (a new one is numbered above it and above the followed one).
+
+    Nothing is followed while none is reported, a handed one is in flight, the scaler is bringing the robot to rest
+    for a plan (``ScalerReport.pending``), or the followed trajectory is finished."""
+    following = None
+    if report is not None and followed is not None and not in_flight and report.pending is None \
+            and report.s < followed.duration - FINISHED_WITHIN:
+        following = (followed, report.s)
+    return PlanningInputs(goal=goal, new_goal=new_goal, q=q, humans=humans, human_sample=human_sample,
+                          following=following, speed=None if report is None else report.speed,
+                          beta=report is not None and report.beta, waited=waited,
+                          version=max(newest_version, -1 if report is None else report.version) + 1,
+                          held=report is not None and report.held,
+                          stop_at=None if report is None else report.awaiting, then=then)
