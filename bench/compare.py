@@ -63,8 +63,8 @@ _WORKER: Strategies | None = None
 def _init(forecaster: str | None = None) -> None:
     global _WORKER
     from shared.planning.forecast import load_forecaster
-    from shared.planning.scene import load_scene
-    _WORKER = Strategies(scene=load_scene(ROOT / "deploy" / "scene.yaml"),
+    from shared.planning.scene import DEFAULT_SCENE, load_scene
+    _WORKER = Strategies(scene=load_scene(DEFAULT_SCENE),
                          forecaster=None if forecaster is None else load_forecaster(forecaster))
 
 

@@ -36,7 +36,7 @@ from shared.planning.horizon import HorizonOptions, horizon_check
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
-from shared.planning.scene import load_scene
+from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.planning.timing import ACCELERATION_HEADROOM, TimingError, chord_points, chord_spline, parameterize
 from shared.planning.topp import fastest_law, toppra_law
 from shared.robot.model import default_robot
@@ -78,7 +78,7 @@ def main() -> None:
     if args.placements < 1 or args.stay < 0:
         parser.error("--placements must be >= 1 and --stay >= 0")
     robot = default_robot()
-    collision = CollisionModel(robot, load_scene("deploy/scene.yaml"))
+    collision = CollisionModel(robot, load_scene(DEFAULT_SCENE))
     planner = JointPlanner(collision, PlannerOptions(seed=args.seed, time_budget=1.0))
     replanner = Replanner(collision, planner, SsmParameters(), options=ReplanOptions(patience=args.stay))
     in_cell = Replanner(collision, planner, SsmParameters(), options=ReplanOptions(

@@ -37,12 +37,11 @@ from shared.planning.loop import PlanningLoop, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
 from shared.planning.replanner import Replanner, ReplanOptions
-from shared.planning.scene import Scene, load_scene
+from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.robot.model import default_robot
 from shared.wire.convert import humans_from_msg, report_from_status, trajectory_to_msg
 from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
-DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
 TAKE_WAIT = 1.0      # s: a trajectory the scaler has not reported on by then was lost on the way (or the scaler restarted)
 POLL = 0.02          # s: the worker's cadence (the planning loop's horizon period); a goal wakes it at once
 
@@ -193,8 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     try:
-        scene = load_scene(args.scene) if args.scene else (load_scene(DEFAULT_SCENE) if DEFAULT_SCENE.exists()
-                                                           else Scene(floor_z=0.0))
+        scene = load_scene(args.scene or DEFAULT_SCENE)      # a missing file is refused, saying which
     except HrcError as exc:
         print(f"planner: error: {exc}", file=sys.stderr)
         return 2

@@ -1,8 +1,8 @@
 """The cell configuration: one YAML file, validated section by section.
 
     cell:    {prefix: hrc/cell1}
-    ssm:     ISO/TS 15066 parameters (shared.safety.ssm.SsmParameters)
-    scaling: control loop parameters (shared.scaling.layer.ScalingParameters)
+    ssm:     ISO/TS 15066 parameters (shared.safety.parameters.SsmParameters)
+    scaling: control loop parameters (shared.scaling.parameters.ScalingParameters)
 
 A missing file section takes the defaults; an unknown section or key, a wrong type, a negative time or a
 NaN raises ConfigError naming the field. ``deploy/cell.yaml`` is the shipped configuration.

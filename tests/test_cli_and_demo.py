@@ -67,10 +67,10 @@ def test_the_paper_phases_with_both_layers():
     from shared.planning.collision import CollisionModel
     from shared.planning.ompl_planner import JointPlanner, PlannerOptions
     from shared.planning.replanner import Replanner, ReplanOptions
-    from shared.planning.scene import load_scene
+    from shared.planning.scene import DEFAULT_SCENE, load_scene
 
     robot, config = default_robot(), PAPER
-    collision = CollisionModel(robot, load_scene("deploy/scene.yaml"), config.ssm.min_separation)
+    collision = CollisionModel(robot, load_scene(DEFAULT_SCENE), config.ssm.min_separation)
     def both_layers(options: ReplanOptions):
         replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm, options=options)
         return run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0, replanner=replanner)

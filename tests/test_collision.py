@@ -10,7 +10,7 @@ from evidence.scenarios import Q_GOAL, Q_START
 from shared.core.errors import ConfigError
 from shared.core.humans import HumanCapsules
 from shared.planning.collision import CollisionMargins, CollisionModel, _segment_box
-from shared.planning.scene import Scene, load_scene, scene_from_mapping
+from shared.planning.scene import DEFAULT_SCENE, Scene, load_scene, scene_from_mapping
 from shared.robot.model import CAPSULES_PATH, RobotModel, default_robot
 
 ROBOT = default_robot()
@@ -55,7 +55,7 @@ def test_self_pairs_are_checked(tmp_path):
 
 
 def test_paper_shuttle_ends_are_feasible_in_the_shipped_scene():
-    cm = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
+    cm = CollisionModel(ROBOT, load_scene(DEFAULT_SCENE))
     assert cm.feasible(Q_START) and cm.feasible(Q_GOAL)
     assert cm.motion_free(Q_START, Q_GOAL) == (True, 1.0)
 

@@ -22,7 +22,7 @@ from shared.planning.ompl_planner import (
     StartInCollision,
 )
 from shared.planning.replanner import Replanner, ReplanOptions
-from shared.planning.scene import load_scene
+from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.planning.timing import TimingError, parameterize
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
@@ -36,7 +36,7 @@ PAPER_SSM = SsmParameters().paper_formula()
 
 ROBOT = default_robot()
 LIM = ROBOT.limits
-CM = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
+CM = CollisionModel(ROBOT, load_scene(DEFAULT_SCENE))
 PLANNER = JointPlanner(CM, PlannerOptions(seed=7))
 OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration)
 

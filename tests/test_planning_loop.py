@@ -21,7 +21,7 @@ from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, P
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import SearchOptions
 from shared.planning.replanner import PreparedPlan, Replanner, ReplanOptions
-from shared.planning.scene import load_scene
+from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
 from shared.scaling.report import ScalerReport
@@ -36,7 +36,7 @@ PAPER_SSM = SsmParameters().paper_formula()
 ROBOT = default_robot()
 LIM = ROBOT.limits
 OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=3)
-COLLISION = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
+COLLISION = CollisionModel(ROBOT, load_scene(DEFAULT_SCENE))
 
 
 class RecordingReplanner:
@@ -409,7 +409,7 @@ def test_nothing_is_prepared_for_people_on_the_move_until_they_stand():
 # ------------------------------------------------------------------------ the service, in-process
 @pytest.fixture(scope="module")
 def replanner() -> Replanner:
-    collision = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
+    collision = CollisionModel(ROBOT, load_scene(DEFAULT_SCENE))
     return Replanner(collision, JointPlanner(collision, PlannerOptions(seed=5)), PAPER_SSM,
                      options=ReplanOptions(seed=5))
 
@@ -652,3 +652,13 @@ def test_the_planner_service_polls_every_period_only_while_someone_is_within_rea
                                                    min_separation=None, min_margin=None, compute_us=50.0))
     service.work_once(1.7)
     assert service.pause() == POLL                          # a replan asked: every period whoever is where
+
+
+def test_the_planner_refuses_a_missing_scene_file_saying_which(tmp_path, capsys):
+    """No silent bare floor: a scene file that is not there stops the planner before it plans, naming it."""
+    from services.planner import main
+
+    missing = tmp_path / "no-such-scene.yaml"
+    assert main(["--scene", str(missing), "--connect", "tcp/127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert str(missing) in err and "cannot read scene" in err

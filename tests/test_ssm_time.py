@@ -9,7 +9,7 @@ from shared.core.trajectory import polyline_trajectory, straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.forecast import ConstantVelocity, PeopleForecast
 from shared.planning.path_search import PathSearch, SearchOptions
-from shared.planning.scene import load_scene
+from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
@@ -21,7 +21,7 @@ LIM = ROBOT.limits
 # numbers; the shipped human model's own figures are tests/test_ssm.py's and the cell's.
 SSM = SsmParameters().paper_formula()
 COST = SsmTimeCost(ROBOT, SSM)
-CM = CollisionModel(ROBOT, load_scene("deploy/scene.yaml"))
+CM = CollisionModel(ROBOT, load_scene(DEFAULT_SCENE))
 OLD = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration)
 
 

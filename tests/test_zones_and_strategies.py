@@ -99,10 +99,10 @@ def test_a_human_acceleration_allowance_covers_a_person_who_starts_walking_in_on
     (0.08 m more protective distance) the link is not that fast that close, and neither strategy violates."""
     import dataclasses
 
-    from shared.planning.scene import load_scene
+    from shared.planning.scene import DEFAULT_SCENE, load_scene
     config = CellConfig()
     config = dataclasses.replace(config, ssm=dataclasses.replace(config.ssm, human_acceleration=1.0))
-    allowing = Strategies(config=config, scene=load_scene("deploy/scene.yaml"))
+    allowing = Strategies(config=config, scene=load_scene(DEFAULT_SCENE))
     for strategy in ("scale_only", "full"):
         result = allowing.run(strategy, "random_walk", 357, 12.0)
         assert result.violations == 0 and result.command_exceedances == 0, strategy

@@ -218,20 +218,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "deploy" / "scene.yaml"
-PAPER_CONFIG = DEFAULT_SCENE.with_name("cell-paper.yaml")      # the paper's formula (--paper-formula)
+PAPER_CONFIG = Path(__file__).resolve().parents[1] / "deploy" / "cell-paper.yaml"   # the paper's formula
 
 
 def _scene(path: Path | None):
-    """The given scene file, else the shipped deploy/scene.yaml, else a bare floor (said on stderr)."""
-    from shared.planning.scene import Scene, load_scene
+    """The given scene file, else the shipped deploy/scene.yaml; a missing one is refused (ConfigError, naming it)."""
+    from shared.planning.scene import DEFAULT_SCENE, load_scene
 
-    if path is not None:
-        return load_scene(path)
-    if DEFAULT_SCENE.exists():
-        return load_scene(DEFAULT_SCENE)
-    print(f"hrc: no {DEFAULT_SCENE}; planning with a bare floor at z = 0", file=sys.stderr)
-    return Scene(floor_z=0.0)
+    return load_scene(path or DEFAULT_SCENE)
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
