@@ -231,8 +231,10 @@ def serve(shell: ServiceShell, ready: str, loop, on_stop=None) -> int:
 
     signal.signal(signal.SIGTERM, handler)
     signal.signal(signal.SIGINT, handler)
-    shell.announce()
-    print(f"{ready}, {scheduling}", flush=True)
-    loop(stop)
-    shell.close()
+    try:
+        shell.announce()
+        print(f"{ready}, {scheduling}", flush=True)
+        loop(stop)
+    finally:
+        shell.close()
     return 0

@@ -15,10 +15,11 @@ import pytest
 
 from evidence.scenarios import Q_START
 from hwsim.emulator import EmulatedNode, build_limits
-from services.robot_driver import CanMaster, Driver
+from services.robot_driver import Driver
 from shared.config import CellConfig
 from shared.drives.bus import open_bus
-from shared.drives.driver_core import DriverCore
+from shared.drives.driver_core import DriverCore, Mode
+from shared.drives.master import CanMaster
 from shared.drives.prbt import DIAGNOSTIC_EVERY, NODE_IDS, PERIOD
 from shared.robot.model import default_robot
 from shared.safety.latency import DriveLagMeter, LatencyMeter
@@ -79,7 +80,7 @@ def enabled_driver(master: CanMaster) -> tuple[FakeShell, Driver, threading.Even
     publish = driver.publish_state
     master.on_complete = lambda q, qd: (publish(q, qd), answered.set())
     hold(shell, driver, answered, Q_START, 40)
-    assert driver.core.mode.value == "running"
+    assert driver.core.mode is Mode.RUNNING
     return shell, driver, answered
 
 
@@ -106,7 +107,7 @@ def test_a_drive_fault_stops_the_driver_with_the_emcy(drives):
     hold(shell, driver, answered, Q_START, 5)
     stops = [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
     assert stops and stops[0].event in ("emcy", "drive_fault") and "joint 3" in stops[0].text
-    assert driver.core.mode.value == "stopped"
+    assert driver.core.mode is Mode.STOPPED
 
 
 def test_the_following_error_comes_every_tenth_sync_and_is_counted_once(drives):

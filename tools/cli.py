@@ -7,6 +7,7 @@ message and exit status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -388,10 +389,20 @@ def cmd_down(args: argparse.Namespace) -> int:
     return 0
 
 
-def _await_service(session, keys, service: str, timeout: float) -> bool:
+@contextlib.contextmanager
+def _client(args: argparse.Namespace, service: str | None = None):
+    """The Zenoh session of one client command (`hrc goal`, `recover`, `human`, `status`): (session, keys), once
+    `service` is reachable (None: at once); Unreachable when it is not within args.timeout. Closed however the
+    command ends."""
     from shared.transport.zenoh_session import await_liveliness
 
-    return await_liveliness(session, keys.alive(service), timeout)
+    session, keys = _session(args)
+    try:
+        if service is not None and not await_liveliness(session, keys.alive(service), args.timeout):
+            raise Unreachable(f"no {service} reachable at {args.connect} within {args.timeout:.0f} s")
+        yield session, keys
+    finally:
+        session.close()
 
 
 def cmd_goal(args: argparse.Namespace) -> int:
@@ -424,17 +435,10 @@ def cmd_goal(args: argparse.Namespace) -> int:
 
     name, q = configuration(args.q, "goal")
     then = np.zeros((0, 6)) if args.then is None else configuration(args.then, "--then")[1][None]
-    session, keys = _session(args)
-    try:
-        if not _await_service(session, keys, "planner", args.timeout):
-            print(f"hrc goal: error: no planner reachable at {args.connect} within {args.timeout:.0f} s",
-                  file=sys.stderr)
-            return 1
+    with _client(args, "planner") as (session, keys):
         goal_id = args.id if args.id is not None else int(time.time() * 1000) % (2 ** 31)
         session.put(keys.goal, encode(Goal(goal_id=goal_id, name=name, q=q, then=then, stamp=time.monotonic())))
-        print(f"hrc goal: sent goal {goal_id} {name or ''} {np.round(q, 4).tolist()}".replace("  ", " "))
-    finally:
-        session.close()
+    print(f"hrc goal: sent goal {goal_id} {name or ''} {np.round(q, 4).tolist()}".replace("  ", " "))
     return 0
 
 
@@ -443,16 +447,10 @@ def cmd_recover(args: argparse.Namespace) -> int:
 
     from shared.wire.messages import DriverRequest, encode
 
-    session, keys = _session(args)
-    try:
-        if not _await_service(session, keys, "robot_driver", args.timeout):
-            print(f"hrc recover: error: no robot_driver reachable at {args.connect}", file=sys.stderr)
-            return 1
+    with _client(args, "robot_driver") as (session, keys):
         session.put(keys.driver_request, encode(DriverRequest(action="recover", source="hrc recover",
                                                               stamp=time.monotonic())))
-        print("hrc recover: asked the robot driver to reset and re-enable the drives")
-    finally:
-        session.close()
+    print("hrc recover: asked the robot driver to reset and re-enable the drives")
     return 0
 
 
@@ -490,11 +488,7 @@ def _publish_raw(args: argparse.Namespace, what: str, frames) -> int:
 
     from shared.wire.messages import HumanRaw, encode
 
-    session, keys = _session(args)
-    try:
-        if not _await_service(session, keys, "tracker_ingest", args.timeout):
-            print(f"hrc human {what}: error: no tracker_ingest reachable at {args.connect}", file=sys.stderr)
-            return 1
+    with _client(args, "tracker_ingest") as (session, keys):
         pub = session.declare_publisher(keys.human_raw)
         start = time.monotonic()
         count = 0
@@ -504,9 +498,7 @@ def _publish_raw(args: argparse.Namespace, what: str, frames) -> int:
             pub.put(encode(HumanRaw(source=f"hrc {what}", sample_time=start + offset, segments=segments(offset),
                                     radii=radii, seq=k, stamp=now)))
             count += 1
-        print(f"hrc human {what}: published {count} pose(s)")
-    finally:
-        session.close()
+    print(f"hrc human {what}: published {count} pose(s)")
     return 0
 
 
@@ -601,7 +593,6 @@ def _view_log(args: argparse.Namespace) -> int:
         stream.save(str(args.save))
     else:
         stream = pipe_stream(args.pipe_fd)
-    session, keys = _session(args)
     logger = CellLogger(stream, default_robot(), CellConfig().ssm, time.monotonic())
     counts = {"logged": 0, "bad": 0}
 
@@ -616,21 +607,21 @@ def _view_log(args: argparse.Namespace) -> int:
             counts["logged"] += 1
         return on_sample
 
-    subs = [session.declare_subscriber(key, keep(kind)) for key, kind in (
-        (keys.joint_state, JointState), (keys.command, JointCommand), (keys.human_state, HumanState),
-        (keys.scaler_status, ScalerStatus), (keys.trajectory, TrajectoryMsg))]
-    started = time.monotonic()
-    try:
-        while args.duration is None or time.monotonic() - started < args.duration:
-            time.sleep(0.1)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        for sub in subs:
-            sub.undeclare()
-        session.close()
-        stream.flush()
-        stream.disconnect()
+    with _client(args) as (session, keys):
+        subs = [session.declare_subscriber(key, keep(kind)) for key, kind in (
+            (keys.joint_state, JointState), (keys.command, JointCommand), (keys.human_state, HumanState),
+            (keys.scaler_status, ScalerStatus), (keys.trajectory, TrajectoryMsg))]
+        started = time.monotonic()
+        try:
+            while args.duration is None or time.monotonic() - started < args.duration:
+                time.sleep(0.1)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            for sub in subs:
+                sub.undeclare()
+            stream.flush()
+            stream.disconnect()
     print(f"hrc view: {counts['logged']} messages logged ({counts['bad']} malformed ignored)"
           + (f" to {args.save}" if args.save else ""))
     return 0
@@ -643,7 +634,6 @@ def cmd_status(args: argparse.Namespace) -> int:
     from shared.wire.keys import SERVICES
     from shared.wire.messages import DriveLagReport, JointState, SafetyEvent, ScalerStatus, decode
 
-    session, keys = _session(args)
     latest: dict = {}
 
     def keep(kind):
@@ -657,11 +647,11 @@ def cmd_status(args: argparse.Namespace) -> int:
             latest[kind] = msg
         return on_sample
 
-    subs = [session.declare_subscriber(keys.joint_state, keep(JointState)),
-            session.declare_subscriber(keys.scaler_status, keep(ScalerStatus)),
-            session.declare_subscriber(keys.safety_events, keep(SafetyEvent)),
-            session.declare_subscriber(keys.drive_lag, keep(DriveLagReport))]
-    try:
+    with _client(args) as (session, keys):
+        subs = [session.declare_subscriber(keys.joint_state, keep(JointState)),
+                session.declare_subscriber(keys.scaler_status, keep(ScalerStatus)),
+                session.declare_subscriber(keys.safety_events, keep(SafetyEvent)),
+                session.declare_subscriber(keys.drive_lag, keep(DriveLagReport))]
         deadline = time.monotonic() + args.timeout      # until every report has come once (the monitor's is 1 Hz)
         while len(latest) < len(subs) and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -683,10 +673,8 @@ def cmd_status(args: argparse.Namespace) -> int:
                                  f"{st.trajectory_version}, s {st.s:.2f}, {st.status}" if st else "no status"))
         ev = latest.get(SafetyEvent)
         print(f"  monitor:  {ev.text if ev else 'no summary'}")
-    finally:
         for sub in subs:
             sub.undeclare()
-        session.close()
     return 0
 
 
@@ -736,6 +724,10 @@ class FaultArgumentError(HrcError):
     """hrc faults was asked for a fault it does not know, or there is no cell to inject into."""
 
 
+class Unreachable(HrcError):
+    """A client command found no service of the cell to talk to (exit 1)."""
+
+
 class UsageError(HrcError):
     """An option that does not fit the chosen mode, or a value out of range."""
 
@@ -761,6 +753,9 @@ def main(argv: list[str] | None = None) -> int:
         return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
                 "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults,
                 "certs": cmd_certs, "view": cmd_view}[args.command](args)
+    except Unreachable as exc:
+        print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except HrcError as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 2
