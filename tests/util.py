@@ -15,9 +15,10 @@ import pytest
 from tools.cell import namespace_reason
 from tools.launch import free_port
 
-__all__ = ["CliRun", "free_port", "load_bench", "namespace_reason", "require_namespace", "run_hrc"]
+__all__ = ["ROOT", "CliRun", "free_port", "load_bench", "namespace_reason", "require_namespace", "run_hrc"]
 
-BENCH = Path(__file__).resolve().parents[1] / "bench"
+ROOT = Path(__file__).resolve().parents[1]          # the repository: deploy/, bench/, tests/data/
+BENCH = ROOT / "bench"
 
 
 def load_bench(name: str):

@@ -6,7 +6,7 @@ Ericson, *Real-Time Collision Detection* (2005), section 5.1.9, including its de
 (point-like segments, parallel segments). The loop over pairs is compiled with numba: in numpy the
 ~40 whole-array operations cost ~70 us for 70 pairs, almost all of it per-call overhead; compiled, the
 same arithmetic takes a few microseconds. ``coal`` computes the same numbers pair by pair and
-``tests/test_geometry.py`` cross-checks the two.
+``tests/core/test_geometry.py`` cross-checks the two.
 """
 
 from __future__ import annotations

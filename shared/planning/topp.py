@@ -193,7 +193,7 @@ def fastest_law(path, gridpoints: np.ndarray, velocity: np.ndarray, acceleration
 
 def toppra_law(path, gridpoints: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray,
                start_speed: float, end_speed: float = 0.0):
-    """toppra's own TOPP-RA on the same problem, the reference this kernel is held against (tests/test_topp.py,
+    """toppra's own TOPP-RA on the same problem, the reference this kernel is held against (tests/planning/test_topp.py,
     bench/planning.py): toppra's trajectory (callable at times t, order 0 / 1; .duration), or None."""
     import toppra.algorithm
     import toppra.constraint

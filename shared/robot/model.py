@@ -200,7 +200,7 @@ class RobotModel:
         One compiled pass along the chain (T_k = T_parent M_k Rz(q_k), the joint placements M_k taken from
         the pinocchio model) places every joint; a point p carried by the chain then has the geometric
         Jacobian column z_k x (p - o_k) for every joint k that moves it. pinocchio's own kinematics give
-        the same numbers (tests/test_robot_model.py); this path skips its per-object Python overhead.
+        the same numbers (tests/core/test_robot_model.py); this path skips its per-object Python overhead.
         """
         points, jac = _chain_points_and_jacobians(np.asarray(q, dtype=np.float64), self._joint_placement,
                                                   self._parent, self._point_local, self._point_joint,

@@ -1,0 +1,137 @@
+"""`hrc demo` on the real processes (emulator on udp_multicast in a private namespace, five services over
+Zenoh), the paper's 24 s: it ends with zero violations counted by the monitor, the planner goes round the
+arm in the path and, after the replan request, past the person very close, and its report folder holds what
+docs/report-format.md promises."""
+
+import csv
+import json
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from evidence.scenarios import Q_GOAL, Q_START
+from shared.config import CellConfig
+from tests.util import ROOT, require_namespace
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    require_namespace("the same experiment runs in-process in tests/tools/test_cli_and_demo.py")
+    out = tmp_path_factory.mktemp("demo")
+    # the paper's experiment as the paper had it (its formula: the measured human speed held); the shipped
+    # human model's cost on it is measured in docs/real-people.md, not asserted here
+    run = subprocess.run([sys.executable, "-m", "tools.cli", "demo", "--paper-formula", "--out", str(out)], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300,
+                         env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    print(run.stdout[-3000:], run.stderr[-3000:])
+    return run, out
+
+
+def test_runs_to_the_end_with_zero_violations(report):
+    run, out = report
+    assert run.returncode == 0, run.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["violations"] == 0, summary["violation_events"]
+    assert summary["mode"] == "processes" and all(summary["services_alive_at_end"].values())
+    assert summary["cycles_completed"] > 2000 and abs(summary["mean_cycle_s"] - 0.01) < 0.002
+    assert summary["shuttles_completed"] >= 5                                # goal after goal reached
+    assert summary["min_margin_m"] is not None and summary["min_separation_m"] > 0.05
+    assert summary["latency"]["chains"] > 300 and summary["latency"]["sample_to_frame_ms"]["p99"] > 0
+    cycle = summary["scaling_cycle"]                     # the scaler's own compute, every cycle accounted for
+    assert cycle["cycles"] > 1000 and sum(cycle["methods"].values()) == cycle["cycles"]
+    assert cycle["compute_us"]["p50"] > 0 and cycle["methods"].get("presolved", 0) > 0
+    # the printed last line counts the replans taken and refused apart (one count of both read as taken)
+    printed = json.loads(run.stdout.strip().splitlines()[-2])
+    taken = sum(e["ok"] for e in summary["replans"])
+    assert (printed["replans_accepted"], printed["replans_refused"]) == (taken, len(summary["replans"]) - taken)
+    # and the replans' compute median and p95 (from the planner's events), as the issue measures them
+    computes = [e["compute_ms"] for e in summary["replans"]]
+    assert printed["replan_compute_ms"] == summary["replan_compute_ms"]
+    assert summary["replan_compute_ms"]["p50"] == (round(float(np.percentile(computes, 50)), 3) if computes else None)
+    # the shuttle names the way back with each goal, so the planner prepares the next leg on the way: with the
+    # person standing (phases 3 and 4) a goal comes prepared and is published without a search
+    goals = summary["goal_plans"]
+    assert goals["count"] >= summary["shuttles_completed"] and 1 <= goals["prepared"] <= goals["count"], goals
+    assert printed["goal_plans"] == goals
+    # every refusal says why, with the old and the new trajectory's predicted times (or the planning error,
+    # or the blocked goal)
+    for entry in summary["replans"]:
+        assert entry["reason"] in ("horizon", "beta", "slow") and entry["compute_ms"] is not None
+        assert entry["ok"] or re.search(r"predicted \d+\.\d\d s, not (\d+ % )?faster than the old \d+\.\d\d s",
+                                        entry["detail"]) \
+            or "Error" in entry["detail"] or "merge" in entry["detail"] \
+            or "not searched: the goal is blocked while the person stays: there" in entry["detail"], entry
+    # the paper's story. Phase 3 (the arm in the path from 13.8 s): the planner goes round it and the robot
+    # completes a shuttle while the arm stays. Phase 4 (the person closer from 19.2 s until 22.8 s): the robot
+    # is not held beside them until they leave: after the scaling layer's replan request a new plan takes it
+    # on, or (when its path gets through before a faster one is found) it reaches its goal. That the replan
+    # takes it to the goal before the person leaves is asserted on the simulated clock
+    # (tests/tools/test_cli_and_demo.py): on the processes the moment of the replan varies with load.
+    with (out / "trace.csv").open() as f:
+        rows = [r for r in csv.DictReader(f) if r["q_meas_1"]]
+    arrivals, was_there = [], True
+    for r in rows:
+        there = min(max(abs(float(r[f"q_meas_{k + 1}"]) - end[k]) for k in range(6)) for end in (Q_START, Q_GOAL)) < 0.02
+        if there and not was_there:
+            arrivals.append(float(r["t"]))
+        was_there = there
+    taken = [e for e in summary["replans"] if e["ok"]]
+    phase3 = [e["t"] for e in taken if 13.8 <= e["t"] < 18.0]
+    if phase3:      # held beside the arm: a replan takes the robot round it, and it arrives while the arm stays
+        assert any(phase3[0] < t < 18.0 for t in arrivals), (summary["replans"], arrivals)
+    else:           # or the goal planned as the arm came in already goes round it: it arrives while the arm
+        # stays, on a trajectory that leaves the straight shuttle, and is never held there for longer than a
+        # replan request's cooldown (with no request answered, that would be a stall the paper does not have)
+        assert any(13.8 <= t < 18.0 for t in arrivals), (summary["replans"], arrivals)
+        detours = [tr["t"] for tr in json.loads((out / "trajectories.json").read_text())
+                   if tr["reason"] == "goal" and 12.0 <= tr["t"] < 18.0 and off_the_line(tr["positions"]) > 0.1]
+        alpha_min = CellConfig().scaling.alpha_min
+        held = sum(1 for r in rows if 13.8 <= float(r["t"]) < 18.0 and float(r["alpha"]) < alpha_min)
+        assert detours and held <= 50, (summary["replans"], arrivals, detours, held)      # 0.5 s at 100 Hz
+    phase4 = [e for e in taken if 18.0 <= e["t"] < 22.8 and e["reason"] in ("beta", "slow")]   # (or the planner's
+    # own request, for the path ahead predicted slow: before the scaling layer had to ask)
+    moved_on = False
+    if phase4:
+        version = int(re.search(r"version (\d+)", phase4[0]["detail"]).group(1))
+        moved_on = sum(1 for r in rows if phase4[0]["t"] < float(r["t"]) < 22.8 and int(r["trajectory_version"]) == version
+                       and float(r["alpha"]) >= 0.5) >= 20              # 0.2 s at 100 Hz
+    assert moved_on or any(19.2 < t < 22.8 for t in arrivals), (summary["replans"], arrivals)
+    assert "t=" in run.stdout and "alpha=" in run.stdout                     # progress while it ran
+
+
+def test_report_folder_holds_the_trace_and_the_figures(report):
+    _, out = report
+    summary = json.loads((out / "summary.json").read_text())
+    for name in ("joints.png", "human.png", "scaling.png", "ssm.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with (out / "trace.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == summary["cycles_completed"]
+    assert {"t", "alpha", "beta", "trajectory_version", "q_cmd_1", "q_meas_6", "qd_meas_1", "phase"} <= rows[0].keys()
+    times = [float(r["t"]) for r in rows]
+    assert times == sorted(times)
+    with (out / "humans.csv").open() as f:
+        humans = list(csv.DictReader(f))
+    assert humans and {"t", "capsule", "ax", "radius", "vbz", "valid"} <= humans[0].keys()
+    trajectories = json.loads((out / "trajectories.json").read_text())
+    assert trajectories and all(len(t["times"]) == len(t["positions"]) for t in trajectories)
+    # the 3D recording of the run: robot, people, the closest pair, alpha, the planner's paths
+    from rerun.chunk import RrdReader
+    assert summary["recording"] == "recording.rrd"
+    rows: dict[str, int] = {}
+    for chunk in RrdReader(out / "recording.rrd").stream():
+        rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.num_rows
+    assert rows["/world/robot/measured"] > 2000 and rows["/world/humans"] > 1000, rows
+    assert rows["/scaling/alpha"] == summary["cycles_completed"] and rows["/world/planner/current"] >= 5, rows
+
+
+def off_the_line(positions) -> float:
+    """How far (rad, largest joint) a trajectory's knots leave the straight joint-space line between its ends."""
+    p = np.asarray(positions, dtype=float)
+    line = p[-1] - p[0]
+    u = np.clip((p - p[0]) @ line / max(float(line @ line), 1e-12), 0.0, 1.0)
+    return float(np.abs(p - p[0] - u[:, None] * line).max())

@@ -1,0 +1,290 @@
+"""The scaler, tracker_ingest and the safety monitor as service classes, in-process on a fake shell (the real
+ServiceShell over an in-memory session): their handling of every input, the messages they publish, and
+bad input dropped with the service going on. The multi-process tests (test_system, test_demo_processes)
+run the same classes over Zenoh."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from evidence.scenarios import Q_GOAL, Q_START
+from services.safety_monitor import MonitorService
+from services.scaler import Scaler
+from services.tracker_ingest import INVALID_PERIOD, TrackerIngest, next_check
+from shared.config import CellConfig
+from shared.core.humans import HumanCapsules
+from shared.core.trajectory import straight_line_trajectory
+from shared.robot.model import default_robot
+from shared.safety.monitor import SafetyMonitor
+from shared.safety.parameters import SsmParameters
+from shared.scaling.layer import ScalingLayer
+from shared.scheduling import WAKE_LATE as LATE
+from shared.tracking.tracker import HumanTracker, TrackerParameters
+from shared.wire.convert import humans_to_msg, trajectory_to_msg
+from shared.wire.messages import (
+    DriveLagReport,
+    HumanRaw,
+    HumanState,
+    JointCommand,
+    JointState,
+    MonitorReport,
+    SafetyEvent,
+    ScalerStatus,
+)
+from tests.fake_shell import FakeShell
+
+ROBOT = default_robot()
+# The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
+# numbers; the shipped human model's own figures are tests/safety/test_ssm.py's and the cell's.
+CONFIG = CellConfig(ssm=SsmParameters().paper_formula())
+LIM = ROBOT.limits
+FAR = HumanCapsules.from_arrays([[[-3.0, 0.0, 0.9], [-3.0, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
+
+
+def joint_state(q, enabled: bool = True) -> JointState:
+    return JointState(q=np.asarray(q, float), qd=np.zeros(6), drive_state="running:operation_enabled",
+                      enabled=enabled, fault=False, stamp=time.monotonic())
+
+
+# ---------------------------------------------------------------------------------------------- scaler
+def scaler_at_start() -> tuple[FakeShell, Scaler, object]:
+    """A scaler on a fake shell, told that the robot stands at q_s and follows commands."""
+    shell = FakeShell("scaler")
+    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, CONFIG.scaling))
+    shell.deliver(shell.keys.joint_state, joint_state(Q_START))
+    return shell, scaler, shell.keys
+
+
+def test_the_scaler_follows_a_fresh_trajectory_and_publishes_a_command_and_a_status_each_tick():
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    for k in range(30):
+        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now + k * 0.01))
+        scaler.tick(now + k * 0.01)
+    commands = shell.published(keys.command, JointCommand)
+    statuses = shell.published(keys.scaler_status, ScalerStatus)
+    assert len(commands) == len(statuses) == 30
+    assert scaler.version == 1 and statuses[-1].trajectory_version == 1
+    assert statuses[-1].s > 0.0 and statuses[-1].alpha > 0.9            # nobody near: full speed
+    assert not np.allclose(commands[-1].q, Q_START)                       # moving along the shuttle
+
+
+def test_the_scaler_takes_the_newest_human_state_at_its_tick_and_reports_its_latency_once():
+    """Human states are queued by Zenoh and taken at the tick: of two that came between ticks both are checked
+    (HumanCapsules.union), the newer dates them, and the first command computed from it carries its sample
+    time and how long it waited since tracker_ingest published it; the commands after it carry neither."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    older = humans_to_msg(FAR, True, now - 0.010, stamp=now - 0.009)
+    newer = humans_to_msg(FAR, True, now - 0.006, stamp=now - 0.004)
+    shell.deliver(keys.human_state, older)
+    shell.deliver(keys.human_state, newer)
+    scaler.tick(now)
+    scaler.tick(now + 0.01)
+    first, second = shell.published(keys.command, JointCommand)
+    assert first.human_sample_stamp == pytest.approx(now - 0.006)
+    assert first.human_wait == pytest.approx(0.004)
+    assert second.human_sample_stamp is None and second.human_wait is None
+
+
+def test_the_scaler_keeps_its_margin_over_the_drive_lag_the_driver_measures():
+    """A drive lag report of 22 ms (a slow phase of the machine) raises the tracking margin from 12 ms x 4.4
+    m/s^2 to 22 ms x 4.4 m/s^2; a report within the configured lag brings it back; the configuration's own
+    value is never undercut."""
+    shell, scaler, keys = scaler_at_start()
+
+    def report(lag):
+        return DriveLagReport(source="robot_driver", lag=np.array([0.010, lag, 0.0, 0.0, 0.0, 0.0]),
+                              samples=np.full(6, 100.0), following_error=np.zeros(6), bound=0.012, stopped_by="")
+
+    now = time.monotonic()
+    shell.deliver(keys.drive_lag, report(0.022))
+    scaler.tick(now)
+    assert scaler.layer.ssm.drive_lag == pytest.approx(0.022)
+    assert scaler.layer.ssm.tracking_margin == pytest.approx(0.022 * 4.4)
+    shell.deliver(keys.drive_lag, report(0.004))
+    scaler.tick(now + 0.01)
+    assert scaler.layer.ssm is scaler.configured_ssm and scaler.layer.ssm.drive_lag == CONFIG.ssm.drive_lag
+
+
+def test_a_camera_rate_source_is_stale_after_its_own_bound():
+    """A 30 Hz source (HumanState.sample_interval 1/30): 70 ms without a sample is one lost frame, not stale
+    data; 90 ms is (2.5 intervals, 83 ms)."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    shell.deliver(keys.human_state, humans_to_msg(FAR, True, now, sample_interval=1 / 30))
+    scaler.tick(now + 0.07)
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].status == "running"
+    scaler.tick(now + 0.09)
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].status == "stale_human_data"
+
+
+def test_the_scaler_stops_the_robot_on_stale_human_data():
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+    for k in range(60):                     # no new human sample for 0.6 s (the timeout is 0.05 s)
+        scaler.tick(now + k * 0.01)
+    last = shell.published(keys.scaler_status, ScalerStatus)[-1]
+    assert last.alpha == 0.0 and last.status == "stale_human_data"
+
+
+def test_the_scaler_refuses_a_merge_into_a_trajectory_it_does_not_follow_and_drops_garbage():
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=5)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "beta", 0.4, base_version=3))
+    shell.deliver(keys.trajectory, b"\xc1 not msgpack")
+    shell.deliver(keys.human_state, b"")
+    scaler.tick(time.monotonic())
+    assert scaler.version == -1 and shell.bad_messages == 2
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].trajectory_version == -1    # holding
+
+
+def test_after_the_layer_drops_a_plan_the_scaler_takes_the_next_plan_numbered_like_it():
+    """The planner numbers a replan from the trajectory the scaler follows, so the plan after a dropped one
+    carries the dropped one's number; the scaler must not take it for an old message (in the demo's phase 4
+    every replan for 4 s was ignored so, and the robot stood beside the arm until the person left)."""
+    shell, scaler, keys = scaler_at_start()
+    old = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(old, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    def ticks(n: int) -> None:
+        nonlocal now
+        for _ in range(n):
+            now += 0.01
+            shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+            scaler.tick(now)
+    ticks(60)                                      # at full speed
+    ahead = straight_line_trajectory(old.sample(scaler.layer.s + 0.02)[0], Q_START, LIM.velocity, LIM.acceleration,
+                                     version=2)    # a plan from rest just ahead: too close to stop for
+    shell.deliver(keys.trajectory, trajectory_to_msg(ahead, 1, "beta", 0.0, -1))
+    ticks(5)
+    assert scaler.layer.trajectory.version == 1 and scaler.version == 1
+    last = shell.published(keys.scaler_status, ScalerStatus)[-1]
+    assert last.pending == -1 and last.received == 2           # decided on (dropped: it could not stop there)
+    merged = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=2)
+    shell.deliver(keys.trajectory, trajectory_to_msg(merged, 1, "beta", scaler.layer.s + 0.3, base_version=1))
+    ticks(1)
+    assert scaler.version == 2 and scaler.layer.trajectory is not None and scaler.layer.trajectory.version == 2
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].trajectory_version == 2
+
+
+# -------------------------------------------------------------------------------------- tracker_ingest
+def test_tracker_ingest_publishes_each_sample_with_velocities_and_announces_a_dropout():
+    shell = FakeShell("tracker_ingest")
+    service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=0.04, dropout=0.05)))
+    keys = shell.keys
+    t0 = time.monotonic()
+    for k in range(10):                     # one capsule walking at 1 m/s along x
+        x = -2.0 + 0.01 * k
+        shell.deliver(keys.human_raw, HumanRaw(source="test", sample_time=t0 + 0.01 * k,
+                                               segments=np.array([[[x, 0.0, 0.9], [x, 0.0, 1.5]]]),
+                                               radii=np.array([0.2])))
+    states = shell.published(keys.human_state, HumanState)
+    assert len(states) == 10 and all(s.valid for s in states)
+    assert np.allclose(states[-1].velocities[0, :, 0], 1.0, atol=0.05) and states[-1].velocity_known[0]
+    service.check(time.monotonic())         # its 100 Hz check: tracking
+    assert [e.event for e in shell.published(keys.safety_events, SafetyEvent)] == ["tracker_ok"]
+    service.check(time.monotonic() + 1.0)   # nothing for a second
+    assert not shell.published(keys.human_state, HumanState)[-1].valid
+    event = shell.published(keys.safety_events, SafetyEvent)[-1]
+    assert event.event == "tracker_dropout" and event.severity == "stop"
+    shell.deliver(keys.human_raw, b"\x80")  # an empty map: not a message
+    assert shell.bad_messages == 1
+
+
+def test_the_dropout_watch_sleeps_until_the_bound_would_pass_and_repeats_the_invalid_state_while_silent():
+    assert next_check(10.0, 10.03) == pytest.approx(0.03 + LATE)    # valid: just after the bound would pass
+    assert next_check(10.0, 9.99) == INVALID_PERIOD        # invalid: the invalid state again every period
+    assert next_check(10.0, -np.inf) == INVALID_PERIOD     # no sample yet
+    assert HumanTracker(TrackerParameters(dropout=0.05)).valid_until == -np.inf
+    shell = FakeShell("tracker_ingest")
+    service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=0.04, dropout=0.05)))
+    stop = threading.Event()
+    watch = threading.Thread(target=service.watch, args=(stop,), daemon=True)
+    watch.start()
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() < t0 + 0.3:                  # samples at 100 Hz: tracking
+            shell.deliver(shell.keys.human_raw, HumanRaw(source="test", sample_time=time.monotonic(),
+                                                         segments=np.array([[[-2.0, 0.0, 0.9], [-2.0, 0.0, 1.5]]]),
+                                                         radii=np.array([0.2])))
+            time.sleep(0.01)
+        silent = time.monotonic()
+        deadline = silent + 5.0                              # then silence: the watch must say so (waits on it)
+        while time.monotonic() < deadline and "tracker_dropout" not in [
+                e.event for e in shell.published(shell.keys.safety_events, SafetyEvent)]:
+            time.sleep(0.01)
+        events = [e.event for e in shell.published(shell.keys.safety_events, SafetyEvent)]
+        assert events[-1] == "tracker_dropout" and "tracker_ok" in events
+        assert not shell.published(shell.keys.human_state, HumanState)[-1].valid
+    finally:
+        stop.set()
+        watch.join(2.0)
+    assert not watch.is_alive()
+
+
+# ------------------------------------------------------------------------------------------ the monitor
+def test_the_monitor_checks_states_paired_with_people_and_counts_the_rest_unchecked():
+    shell = FakeShell("safety_monitor")
+    service = MonitorService(shell, SafetyMonitor(ROBOT, CONFIG.ssm))
+    keys = shell.keys
+    now = time.monotonic()
+    shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.full(6, 0.2), drive_state="running", enabled=True,
+                                               fault=False, stamp=now - 0.9))      # nobody known then
+    for k in range(5):
+        t = now - 0.05 + 0.01 * k
+        shell.deliver(keys.human_state, humans_to_msg(FAR, True, t))
+        shell.deliver(keys.joint_state, JointState(q=Q_START, qd=np.full(6, 0.2), drive_state="running",
+                                                   enabled=True, fault=False, stamp=t))
+    service.check_pass(now + 0.2)
+    assert service.checks >= 4 and service.violations == 0 and service.unchecked >= 1
+    service.summary()
+    report = shell.published(keys.monitor, MonitorReport)[-1]
+    assert report.checks == service.checks and report.unchecked == service.unchecked and report.violations == 0
+    assert shell.published(keys.safety_events, SafetyEvent)[-1].event == "monitor_summary"
+
+
+def test_the_scaler_says_where_it_awaits_the_replan_it_asked_for_and_takes_the_plan_from_there():
+    """A crawling robot that asks for a replan is stopped, and the status says where (stop_s): the planner's plan
+    from rest there is taken at once. Before the request, and once the plan is taken, stop_s is None."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+    scaler.tick(now)
+    q, dq, _ = traj.sample(1.0)
+    points, velocities = ROBOT.capsule_motion(q, dq)
+    ahead = points[-1, 1] + 0.65 * velocities[-1, 1] / np.linalg.norm(velocities[-1, 1])
+    person = HumanCapsules.from_arrays([[ahead, ahead]], [0.1], np.zeros((1, 2, 3)), [True])
+    scaler.layer.s, scaler.layer.sdot = 1.0, 0.17                # crawling towards the person
+    for _ in range(20):
+        now += 0.01
+        shell.deliver(keys.human_state, humans_to_msg(person, True, now))
+        scaler.tick(now)
+    statuses = shell.published(keys.scaler_status, ScalerStatus)
+    assert statuses[0].stop_s is None and statuses[-1].beta and statuses[-1].alpha == 0.0
+    stop_s = statuses[-1].stop_s
+    assert stop_s is not None and statuses[-1].s == stop_s and statuses[-1].pending == -1
+    here = traj.sample(stop_s)[0]
+    shell.deliver(keys.joint_state, joint_state(here))
+    plan = straight_line_trajectory(here, Q_START, LIM.velocity, LIM.acceleration, version=2)
+    shell.deliver(keys.trajectory, trajectory_to_msg(plan, 1, "beta", 0.0, -1))
+    now += 0.01
+    shell.deliver(keys.human_state, humans_to_msg(person, True, now))
+    scaler.tick(now)
+    last = shell.published(keys.scaler_status, ScalerStatus)[-1]
+    assert scaler.version == 2 and last.trajectory_version == 2 and last.stop_s is None

@@ -1,0 +1,131 @@
+"""The hrc command line and the in-process demo of the paper's experiment (`hrc demo --sim`)."""
+
+import re
+
+import pytest
+
+from evidence.scenarios import Q_GOAL, Q_START, paper_phases
+from evidence.sim import run_shuttle
+from shared.config import CellConfig
+from shared.robot.model import default_robot
+from shared.safety.parameters import SsmParameters
+from tests.util import run_hrc
+
+# The paper's formula (the measured human speed held): these tests hold the layers' logic on the paper's
+# numbers; the shipped human model's own figures are tests/safety/test_ssm.py's and the cell's.
+PAPER = CellConfig(ssm=SsmParameters().paper_formula())
+
+
+@pytest.mark.parametrize("args, text", [
+    (["demo", "--duration", "-1"], "positive"),
+    (["demo", "--duration", "nan"], "positive"),
+    (["demo", "--duration", "soon"], "expected a number"),
+    (["demo", "--config", "/nonexistent/cell.yaml"], "cannot read"),
+    (["demo", "--no-planner"], "needs --sim"),
+    (["fly"], "invalid choice"),
+])
+def test_bad_arguments_exit_nonzero_with_a_clear_message(args, text):
+    out = run_hrc(*args)
+    assert out.returncode == 2
+    assert text in out.stderr and "Traceback" not in out.stderr
+
+
+def test_help_teaches_the_commands():
+    out = run_hrc("--help")
+    assert out.returncode == 0 and "hrc demo" in out.stdout
+
+
+def test_the_paper_phases_in_simulation():
+    result = run_shuttle(default_robot(), PAPER, paper_phases(6.0), Q_START, Q_GOAL, 24.0)
+    assert result.violations == 0
+    by_phase = {}
+    for r in result.records:
+        by_phase.setdefault(r.phase[0], []).append(r.step)
+    assert min(s.alpha for s in by_phase["1"]) == pytest.approx(1.0)           # far away: full speed
+    assert min(s.alpha for s in by_phase["2"]) < 0.8                            # approaching: scaled down
+    assert by_phase["2"][-1].alpha == pytest.approx(1.0)                         # moving away: back up
+    assert any(s.beta for s in by_phase["3"] + by_phase["4"])                    # in the path: replan request
+    assert result.beta_requests >= 1 and result.shuttles >= 4
+
+
+def test_the_paper_phases_with_both_layers():
+    from shared.planning.collision import CollisionModel
+    from shared.planning.ompl_planner import JointPlanner, PlannerOptions
+    from shared.planning.replanner import Replanner, ReplanOptions
+    from shared.planning.scene import DEFAULT_SCENE, load_scene
+
+    robot, config = default_robot(), PAPER
+    collision = CollisionModel(robot, load_scene(DEFAULT_SCENE), config.ssm.min_separation)
+    def both_layers(options: ReplanOptions):
+        replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm, options=options)
+        return run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0, replanner=replanner)
+
+    scaling_only = run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0)
+    # as shipped: the arm in the path (from 12 s) is gone round by a path planned for time under the SSM,
+    # and the robot completes a shuttle more than with the scaling layer alone; every refusal says why
+    # with both predicted times; no command comes closer than d_min
+    result = both_layers(ReplanOptions())
+    assert result.violations == 0 and result.beta_requests > 0
+    done = [(round(e.t, 2), e.reason) for e in result.replans if e.ok]
+    assert any(t >= 12.0 and reason in ("horizon", "beta") for t, reason in done), done
+    assert result.shuttles >= scaling_only.shuttles + 1 and result.progress >= scaling_only.progress + 0.3
+    # (or, where the goal itself is out of reach while the person stays, that, with the link and distances)
+    for refused in (e for e in result.replans if not e.ok):
+        assert re.search(r"predicted \d+\.\d\d s, not .*faster than the old \d+\.\d\d s", refused.detail) \
+            or "Error" in refused.detail or "merge" in refused.detail \
+            or re.fullmatch(r"not searched: the goal is blocked while the person stays: there \w+ would be \d\.\d\d m "
+                            r"from human capsule \d+, inside the \d\.\d\d m .*", refused.detail), refused.detail
+    assert min(r.step.min_separation for r in result.records) >= 0.0
+    # the paper's story: phase 3, the arm stays in the path from 13.8 s and the robot goes round it
+    # and completes a shuttle; phase 4, the person steps closer (to 19.2 s) and reaches into the path: the
+    # robot is not held there. Since the time law follows the searched detours' corners at speed, the plans
+    # of phase 3 already keep it out of the person's slowdown in phase 4 (alpha never below alpha_min
+    # there); wherever the scaling layer does hold it below alpha_min for longer than a replan request's
+    # cooldown, a beta replan must take it on. Phase 4 with 3 s phases: below.
+    def legs_between(run, start, end):
+        return sum(1 for a, b in zip(run.records, run.records[1:]) if b.shuttles > a.shuttles and start <= b.t < end)
+    assert any(13.8 <= t < 18.0 for t, _ in done) and legs_between(result, 13.8, 18.0) >= 1, done
+    # the paper's replan request answered: a beta replan taken while the arm stays (it is, in every one of 15
+    # runs with the phase period 0.5 % longer or shorter and planning charged 0 to 90 ms; the 12 s phases
+    # below need none)
+    assert any(13.8 <= t < 18.0 and why == "beta" for t, why in done), done
+    assert legs_between(result, 19.2, 22.8) >= 1
+    def holds_answered(run, start, end):    # every hold below alpha_min from start to end: short, or a beta replan
+        taken = [e.t for e in run.replans if e.ok and e.reason == "beta"]
+        held_from, holds = None, []
+        for rec in (r for r in run.records if start <= r.t < end):
+            if rec.step.alpha < config.scaling.alpha_min and held_from is None:
+                held_from = rec.t
+            elif rec.step.alpha >= config.scaling.alpha_min and held_from is not None:
+                holds.append((held_from, rec.t))
+                held_from = None
+        if held_from is not None:            # still held when the phase ends
+            holds.append((held_from, end))
+        for a, b in holds:
+            assert b - a <= 0.5 or any(a <= t <= b for t in taken), (a, b, run.replans)
+
+    holds_answered(result, 18.0, 22.8)
+    # phase 4 at 12 s (3 s phases): the scaling layer alone stays held beside the person until the end;
+    # with both layers the robot reaches its goal while the person still reaches in. Where alpha falls below
+    # alpha_min and the scaling layer asks for a replan, a new plan takes the robot on (the replan's own
+    # leg is asserted); where the goal planned before already goes round the person, no hold goes
+    # unanswered. (Before the search drew its candidates by the goal alone, a replan was taken in this run;
+    # over 15 runs with the phase period 0.5 % longer or shorter and planning charged 0 to 90 ms, one was
+    # taken and led to the goal in 6 of them, the goal reached in phase 4 in 9; now no replan is needed in
+    # any, and the goal is reached in all 15.)
+    fast = run_shuttle(robot, config, paper_phases(3.0), Q_START, Q_GOAL, 12.0, replanner=Replanner(
+        collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm))
+    fast_alone = run_shuttle(robot, config, paper_phases(3.0), Q_START, Q_GOAL, 12.0)
+    assert legs_between(fast_alone, 9.0, 12.0) == 0 and fast.violations == 0
+    assert legs_between(fast, 9.0, 12.0) >= 1
+    taken = [e.t for e in fast.replans if e.ok and e.reason == "beta" and 9.0 <= e.t < 11.4]
+    assert not taken or legs_between(fast, taken[0], 12.0) >= 1, fast.replans
+    holds_answered(fast, 9.0, 11.4)
+    # without the replan requests (the paper's ablation) and with the scaling layer alone, the robot is held
+    # beside the arm until the person leaves
+    no_beta = run_shuttle(robot, config, paper_phases(6.0), Q_START, Q_GOAL, 24.0, beta_replans=False,
+                          replanner=Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm))
+    assert legs_between(no_beta, 13.8, 22.8) == 0 and legs_between(scaling_only, 13.8, 22.8) == 0
+    assert no_beta.violations == 0
+    # pure ski rental (no patience): never slower than the scaling layer alone
+    assert both_layers(ReplanOptions(patience=0.0)).progress >= scaling_only.progress - 1e-9

@@ -1,0 +1,41 @@
+"""Scheduling and naming of the cell's threads (shared.scheduling), and the per-thread CPU the CPU bench reads."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+from shared.scheduling import cpus_for, name_callback_thread, name_os_thread
+
+
+def os_name(native_id: int) -> str:
+    return Path(f"/proc/self/task/{native_id}/comm").read_text().strip()
+
+
+def test_a_thread_gets_its_name_in_the_os_and_the_main_thread_keeps_the_process_name():
+    main_name = os_name(threading.main_thread().native_id)
+    seen = {}
+
+    def worker():
+        name_os_thread()                              # its Python name
+        seen["plain"] = os_name(threading.get_native_id())
+        name_callback_thread("zenoh-callback")        # named at the first call ...
+        name_callback_thread("something-else")        # ... and left alone after it
+        seen["callback"] = os_name(threading.get_native_id())
+
+    thread = threading.Thread(target=worker, name="can-cycle-with-a-long-name")
+    thread.start()
+    thread.join()
+    assert seen == {"plain": "can-cycle-with-"[:15], "callback": "zenoh-callback"}
+    name_os_thread("renamed")                         # the main thread: ps and pgrep know the process by it
+    assert os_name(threading.main_thread().native_id) == main_name
+
+
+def test_the_driver_gets_the_last_cpu_and_the_rest_of_the_chain_the_others():
+    assert cpus_for("robot_driver", {0, 1}) == {1} and cpus_for("hwsim", {0, 1}) == {0}
+    assert cpus_for("scaler", {0, 1}) == {0} and cpus_for("tracker_ingest", {0, 1, 2, 3}) == {0, 1, 2}
+    assert cpus_for("planner", {0, 1}) is None and cpus_for("safety_monitor", {0, 1}) is None   # free for bursts
+    assert cpus_for("robot_driver", {2, 5, 7}) == {7}
+    assert cpus_for("scaler", {3}) is None                 # one CPU: nothing to place
+
+

@@ -1,0 +1,69 @@
+"""Key space and cell configuration."""
+
+
+import pytest
+
+from shared.config import CellConfig, load_config
+from shared.core.errors import ConfigError, KeyError_
+from shared.wire.keys import KeySpace
+from tests.util import ROOT
+from tools.programs import PROGRAMS, supervisord_conf
+
+
+def test_keys_are_built_from_the_prefix():
+    k = KeySpace("plant/cell7")
+    assert k.human_state == "plant/cell7/human/state"
+    assert k.command == "plant/cell7/scaler/command"
+    assert k.alive("scaler") == "plant/cell7/alive/scaler"
+    assert len({k.human_raw, k.human_state, k.goal, k.trajectory, k.command, k.scaler_status, k.joint_state,
+                k.safety_events}) == 8
+
+
+@pytest.mark.parametrize("prefix", ["", "a/*", "a//b", "/a", "a/b/", "a b", "a/**", "x/$y"])
+def test_bad_prefixes_are_refused(prefix):
+    with pytest.raises(KeyError_):
+        KeySpace(prefix)
+
+
+def test_unknown_service_is_refused():
+    with pytest.raises(KeyError_):
+        KeySpace().alive("nobody")
+
+
+def test_the_shipped_config_is_the_built_in_default():
+    assert load_config(ROOT / "deploy" / "cell.yaml") == CellConfig()
+
+
+@pytest.mark.parametrize("text, field", [
+    ("ssm: {reaction_time: -1}", "ssm.reaction_time"),
+    ("ssm: {stopping_time: .nan}", "ssm.stopping_time"),
+    ("scaling: {period: 0}", "scaling.period"),
+    ("scaling: {alpha_min: 0.5, alpha_release: 0.4}", "alpha_min"),
+    ("scaling: {solver: magic}", "scaling.solver"),
+    ("scaling: {await_plan: -0.1}", "scaling.await_plan"),
+    ("cell: {prefix: 'a/*'}", "prefix"),
+    ("mystery: {}", "unknown section"),
+    ("ssm: [1, 2]", "ssm: expected a mapping"),
+    ("- just a list", "expected a mapping"),
+    ("ssm: {reaction_time: [", "not valid YAML"),
+])
+def test_bad_config_files_name_the_field(tmp_path, text, field):
+    path = tmp_path / "cell.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=field.replace(".", r"\.").replace("*", r"\*")):
+        load_config(path)
+
+
+def test_missing_file_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_config(tmp_path / "nope.yaml")
+
+
+def test_the_shipped_supervisord_conf_is_the_program_table():
+    """deploy/supervisord.conf is tools.programs' output (hrc up writes the same into its run folder)."""
+    shipped = (ROOT / "deploy" / "supervisord.conf").read_text()
+    assert shipped == supervisord_conf(), "regenerate it: python -m tools.programs > deploy/supervisord.conf"
+    for program in PROGRAMS:
+        assert f"[program:{program.name}]" in shipped and f"-m {program.module} " in shipped
+
+
