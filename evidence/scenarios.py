@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from shared.core.humans import HumanCapsules
+from shared.robot.poses import PAPER_GOAL, PAPER_START
 
 TORSO_RADIUS, HEAD_RADIUS, UPPER_ARM_RADIUS, FOREARM_RADIUS = 0.17, 0.12, 0.06, 0.05
 UPPER_ARM, FOREARM = 0.30, 0.35
@@ -107,8 +108,7 @@ class ScriptedHuman:
 
 
 # The paper's experiment, seen from the robot: the shuttle sweeps the flange over the -x side of the base.
-Q_START = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
-Q_GOAL = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
+Q_START, Q_GOAL = PAPER_START, PAPER_GOAL
 IN_PATH = (-0.45, 0.0, 0.55)
 
 

@@ -33,8 +33,22 @@ import numpy as np
 from hwsim.drive import Drive, DriveLimits
 from shared.drives.bus import BusError, describe, open_bus
 from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
-from shared.drives.prbt import COUNTS_PER_RAD, EDS_PATH, EMCY_DRIVE_FAULT, NODE_IDS, PERIOD, error_register, to_counts
+from shared.drives.prbt import (
+    COUNTS_PER_RAD,
+    EDS_PATH,
+    EMCY_DRIVE_FAULT,
+    FAULT_INJECTION,
+    INJECT_DRIVE_FAULT,
+    INJECT_DROP,
+    INJECT_FREEZE,
+    INJECT_HEARTBEAT_OFF,
+    NODE_IDS,
+    PERIOD,
+    error_register,
+    to_counts,
+)
 from shared.robot.model import default_robot
+from shared.robot.poses import PAPER_START
 from shared.scheduling import name_callback_thread, realtime, sleep_until
 
 log = logging.getLogger("hwsim")
@@ -120,17 +134,17 @@ class EmulatedNode:
                 self.drive.limits.following_window = int(value) / COUNTS_PER_RAD
             elif index == 0x6066:
                 self.drive.limits.following_timeout = int(value) / 1000.0
-            elif index == 0x2F00:
+            elif index == FAULT_INJECTION:
                 self._inject(subindex, int(value))
             elif 0x1800 <= index <= 0x1802 and subindex == 2:
                 self.every[index - 0x1800 + 1] = int(value)
 
     def _inject(self, subindex: int, value: int) -> None:
-        if subindex == 1:
+        if subindex == INJECT_DROP:
             self.drop = min(max(value, 0), 1000) / 1000.0
-        elif subindex == 2:
+        elif subindex == INJECT_HEARTBEAT_OFF:
             self.node.nmt.stop_heartbeat() if value else self.node.nmt.start_heartbeat(self.node.sdo[0x1017].raw)
-        elif subindex == 3:
+        elif subindex == INJECT_FREEZE:
             self.frozen = bool(value)
             if value:
                 self.node.nmt.stop_heartbeat()
@@ -139,7 +153,7 @@ class EmulatedNode:
                 self.node.nmt.start_heartbeat(self.node.sdo[0x1017].raw)
                 codes, self._unannounced = self._unannounced, []
                 self._emcy(codes)                        # what it entered while hung, announced now
-        elif subindex == 4 and value:
+        elif subindex == INJECT_DRIVE_FAULT and value:
             self._emcy(self.drive.raise_fault(EMCY_DRIVE_FAULT))
         log.info("node %d: fault injection 0x2F00:%d = %d", self.id, subindex, value)
 
@@ -249,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--interface", default="udp_multicast", help="python-can interface (default udp_multicast)")
     parser.add_argument("--channel", default=None, help="channel (vcan0, can0, or a multicast group)")
-    parser.add_argument("--start", type=float, nargs=6, default=[1.57, -0.4, 1.17, 0.0, 1.57, 0.0],
+    parser.add_argument("--start", type=float, nargs=6, default=PAPER_START.tolist(),
                         metavar="Q", help="joint positions at power-up (rad)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the frame-dropping fault injection")
     parser.add_argument("--log-level", default="WARNING")

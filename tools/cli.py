@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from shared.core.errors import HrcError
+from shared.robot.poses import PAPER_GOAL, PAPER_START
 from shared.transport.pki import DEFAULT_HOSTS
 
 DESCRIPTION = """\
@@ -41,8 +42,7 @@ monitoring). Subcommands:
 The cell's commands reach it over Zenoh (--connect, default tcp/127.0.0.1:7447).
 Run 'hrc <command> --help' for the options of one command."""
 
-NAMED = {"q_s": [1.57, -0.4, 1.17, 0.0, 1.57, 0.0], "q_g": [-1.57, -0.4, 1.17, 0.0, 1.57, 0.0],
-         "home": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}
+NAMED = {"q_s": PAPER_START.tolist(), "q_g": PAPER_GOAL.tolist(), "home": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}
 
 
 def _positive_float(text: str) -> float:

@@ -37,7 +37,7 @@ from hwsim.drive import DriveLimits
 from hwsim.emulator import WATCHDOG_STEP
 from shared.config import CellConfig
 from shared.drives import driver_core
-from shared.drives.prbt import EMCY_SYNC_TIMEOUT, PERIOD
+from shared.drives.prbt import EMCY_SYNC_TIMEOUT, FAULT_INJECTION, INJECT_DROP, INJECT_HEARTBEAT_OFF, PERIOD
 from shared.robot.model import RobotModel
 from shared.safety.monitor import SafetyMonitor
 from shared.transport.zenoh_session import await_liveliness, open_session
@@ -165,7 +165,7 @@ class CanProbe:
 
         for attempt in range(tries):
             try:
-                self.nodes[node].sdo[0x2F00][subindex].raw = value
+                self.nodes[node].sdo[FAULT_INJECTION][subindex].raw = value
                 return
             except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
                 last = exc
@@ -333,11 +333,11 @@ class Campaign:
             os.kill(pid, signal.SIGSTOP)
             return lambda: os.kill(pid, signal.SIGCONT)
         if name == "can_drop":
-            self.can.inject(DROP_NODE, 1, 100)
-            return lambda: self.can.inject(DROP_NODE, 1, 0)
+            self.can.inject(DROP_NODE, INJECT_DROP, 100)
+            return lambda: self.can.inject(DROP_NODE, INJECT_DROP, 0)
         if name == "heartbeat_stop":
-            self.can.inject(HEARTBEAT_NODE, 2, 1)
-            return lambda: self.can.inject(HEARTBEAT_NODE, 2, 0)
+            self.can.inject(HEARTBEAT_NODE, INJECT_HEARTBEAT_OFF, 1)
+            return lambda: self.can.inject(HEARTBEAT_NODE, INJECT_HEARTBEAT_OFF, 0)
         faults = {"tracker_silent": FeedFault("silent"), "tracker_nan": FeedFault("nan"),
                   "human_jump": FeedFault("jump", (JUMP, 0.0, 0.0)),
                   "human_glitch": FeedFault("jump", (-1.5, 0.0, 0.0), every=12)}

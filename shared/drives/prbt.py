@@ -45,6 +45,11 @@ EMCY_LIMIT = 0x8612              # setpoint outside the software position limits
 EMCY_SYNC_TIMEOUT = 0x8100       # no SYNC (communication)
 EMCY_RPDO_TIMEOUT = 0x8250       # no new setpoint while interpolating
 EMCY_DRIVE_FAULT = 0x5000        # device hardware (an injected fault)
+# the emulator's fault-injection object (hwsim, over SDO): sub-index 1 drops that many per mille of the node's
+# frames, 2 turns its heartbeat off, 3 freezes the node (no PDO, no heartbeat; SDO still answers), 4 raises a
+# drive fault (each lifted by writing 0)
+FAULT_INJECTION = 0x2F00
+INJECT_DROP, INJECT_HEARTBEAT_OFF, INJECT_FREEZE, INJECT_DRIVE_FAULT = 1, 2, 3, 4
 ERROR_REGISTER_GENERIC = 0x01    # 0x1001 bit 0, set with every fault's EMCY
 ERROR_REGISTER_BITS = {EMCY_FOLLOWING: 0x01, EMCY_LIMIT: 0x01, EMCY_SYNC_TIMEOUT: 0x11,
                        EMCY_RPDO_TIMEOUT: 0x11, EMCY_DRIVE_FAULT: 0x01}   # 0x10: communication error

@@ -31,8 +31,8 @@ def hrc(*args, timeout=60):
 
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory):
-    require_namespace("the stop decisions are covered by tests/drives/test_driver_core.py, tests/scaling/test_scaling_layer.py "
-                      "and the judging below")
+    require_namespace("the stop decisions are covered by tests/drives/test_driver_core.py, "
+                      "tests/scaling/test_scaling_layer.py and the judging below")
     prefix = f"test/faults{os.getpid()}"
     out = hrc("up", "--prefix", prefix, "--port", str(min(free_port(), 60000)))
     assert out.returncode == 0, out.stderr

@@ -20,7 +20,7 @@ from shared.config import CellConfig
 from shared.drives.bus import open_bus
 from shared.drives.driver_core import DriverCore, Mode
 from shared.drives.master import CanMaster
-from shared.drives.prbt import DIAGNOSTIC_EVERY, NODE_IDS, PERIOD
+from shared.drives.prbt import DIAGNOSTIC_EVERY, FAULT_INJECTION, INJECT_DRIVE_FAULT, NODE_IDS, PERIOD
 from shared.robot.model import default_robot
 from shared.safety.latency import DriveLagMeter, LatencyMeter
 from shared.wire.messages import DriveLagReport, JointCommand, JointState, SafetyEvent
@@ -103,7 +103,7 @@ def test_the_driver_enables_the_drives_and_follows_commands(drives):
 def test_a_drive_fault_stops_the_driver_with_the_emcy(drives):
     master, nodes = drives
     shell, driver, answered = enabled_driver(master)
-    master.nodes[2].sdo[0x2F00][4].raw = 1   # the fault injection of node 5 (joint 3)
+    master.nodes[2].sdo[FAULT_INJECTION][INJECT_DRIVE_FAULT].raw = 1   # the fault injection of node 5 (joint 3)
     hold(shell, driver, answered, Q_START, 5)
     stops = [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
     assert stops and stops[0].event in ("emcy", "drive_fault") and "joint 3" in stops[0].text

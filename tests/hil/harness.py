@@ -30,7 +30,15 @@ sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import Q_GOAL, Q_START  # noqa: E402
 from shared.drives.bus import open_bus  # noqa: E402
-from shared.drives.prbt import EDS_PATH, NODE_IDS  # noqa: E402
+from shared.drives.prbt import (  # noqa: E402
+    EDS_PATH,
+    FAULT_INJECTION,
+    INJECT_DRIVE_FAULT,
+    INJECT_DROP,
+    INJECT_FREEZE,
+    INJECT_HEARTBEAT_OFF,
+    NODE_IDS,
+)
 from shared.transport.zenoh_session import await_liveliness, open_session  # noqa: E402
 from shared.wire.keys import KeySpace  # noqa: E402
 from shared.wire.messages import DriveLagReport, DriverRequest, JointCommand, JointState, SafetyEvent, decode, encode  # noqa: E402
@@ -286,13 +294,13 @@ def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...],
                     silent: bool = False) -> dict:
     ok_recover = recover(cell)
     t0 = time.monotonic()
-    cell.nodes[node_id].sdo[0x2F00][sub].raw = 1
+    cell.nodes[node_id].sdo[FAULT_INJECTION][sub].raw = 1
     detected = cell.hold_until(lambda s: not s.enabled, within + 0.5)
     time.sleep(0.3)       # the stop event travels apart from the joint state that showed the stop: wait for it
     events = [(t - t0, e.event) for t, e in cell.events_since(t0) if e.severity == "stop"]
     state = cell.latest()
     if sub != 4:
-        cell.nodes[node_id].sdo[0x2F00][sub].raw = 0
+        cell.nodes[node_id].sdo[FAULT_INJECTION][sub].raw = 0
     # every drive that still answers is out of operation enabled (a frozen one reports its last state;
     # it does not move either: it processes no SYNC)
     stopped_all = "operation_enabled" not in state.drive_state.split(":")[1].split("/") or (
@@ -306,15 +314,15 @@ def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...],
 
 
 def heartbeat_loss(cell: Cell) -> dict:
-    return _fault_scenario(cell, 5, 2, ("heartbeat_lost",), 0.3 + 0.1)
+    return _fault_scenario(cell, 5, INJECT_HEARTBEAT_OFF, ("heartbeat_lost",), 0.3 + 0.1)
 
 
 def drive_fault(cell: Cell) -> dict:
-    return _fault_scenario(cell, 7, 4, ("emcy", "drive_fault"), 0.05)
+    return _fault_scenario(cell, 7, INJECT_DRIVE_FAULT, ("emcy", "drive_fault"), 0.05)
 
 
 def frozen_node(cell: Cell) -> dict:
-    result = _fault_scenario(cell, 6, 3, ("heartbeat_lost",), 0.3 + 0.1, silent=True)
+    result = _fault_scenario(cell, 6, INJECT_FREEZE, ("heartbeat_lost",), 0.3 + 0.1, silent=True)
     result["ok"] = result["ok"] and recover(cell)                # unfrozen (0x2F00:3 = 0): back to work
     return result
 
@@ -323,14 +331,14 @@ def dropped_frames(cell: Cell) -> dict:
     """A fifth of node 4's frames lost both ways: the robot keeps following (the drive interpolates to the
     last setpoint it got; a lost TPDO is one cycle of stale feedback), and nothing faults."""
     ok_recover = recover(cell)
-    cell.nodes[4].sdo[0x2F00][1].raw = 200
+    cell.nodes[4].sdo[FAULT_INJECTION][INJECT_DROP].raw = 200
     start, t0, errors = cell.latest().q.copy(), time.monotonic(), []
     while (elapsed := time.monotonic() - t0) < 1.5:
         target = start + np.array([0.0, 0.15, 0, 0, 0, 0]) * math.sin(math.pi * elapsed / 1.5)
         cell.command(target)
         errors.append(float(np.abs(cell.latest().q - target).max()))
         time.sleep(PERIOD)
-    cell.nodes[4].sdo[0x2F00][1].raw = 0
+    cell.nodes[4].sdo[FAULT_INJECTION][INJECT_DROP].raw = 0
     stops = [e.event for _, e in cell.events_since(t0) if e.severity == "stop"]
     with cell.lock:
         emcy = sorted({f"node {n}: 0x{c:04X}" for t, n, c in cell.emcy if t >= t0 and c})
