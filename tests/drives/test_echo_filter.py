@@ -1,36 +1,13 @@
 """The udp_multicast bus's own-frame filter: echoes of this process's identifiers are dropped in the kernel
-(shared.drives.echo_filter, a socket filter), every other frame arrives, and what the kernel lets pass
-(a layout it does not know) is still dropped in Python (OwnFrameFilter)."""
+(shared.drives.echo_filter, a socket filter; shown in a namespace by tests/cell/test_echo_filter.py), and what
+the kernel lets pass (a layout it does not know) is still dropped in Python (OwnFrameFilter)."""
 
 from __future__ import annotations
-
-import textwrap
 
 import can
 
 from shared.drives.bus import OwnFrameFilter
 from shared.drives.echo_filter import MAX_IDS, echo_program
-
-# Two buses on one group: a sends identifiers of each msgpack width (fixint, one byte, two bytes); b
-# sends its own frames, and one with an identifier a also sends. What reaches each raw socket is printed.
-PROBE = textwrap.dedent("""
-    import time, can
-    from shared.drives.bus import open_bus
-    a, b = open_bus("udp_multicast"), open_bus("udp_multicast")
-    for i in (0x00, 0x7F, 0x80, 0x181, 0x7FF):
-        a.send(can.Message(arbitration_id=i, data=b"a", is_extended_id=False))
-    b.send(can.Message(arbitration_id=0x582, data=b"b", is_extended_id=False))
-    b.send(can.Message(arbitration_id=0x181, data=b"b", is_extended_id=False))
-    def drain(bus):
-        got = []
-        while (m := bus._bus.recv(0.2)) is not None:       # the raw socket, under the Python filter
-            got.append(f"{m.arbitration_id:x}:{bytes(m.data).decode()}")
-        return got
-    print(a.in_kernel, b.in_kernel)
-    print(" ".join(drain(a)))
-    print(" ".join(drain(b)))
-    a.shutdown(); b.shutdown()
-""")
 
 
 def test_what_the_kernel_lets_pass_is_still_dropped_in_python():
