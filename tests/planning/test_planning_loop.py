@@ -241,7 +241,7 @@ def test_the_learnt_finishing_time_rises_at_once_and_falls_slowly(monkeypatch):
     """A refused replan's rest is a millisecond, a taken one's the time laws of its trajectory (20-45 ms):
     an average of both let the next taken plan's searches run into its time (hrc demo: replans 107-118 ms
     against a 100 ms budget). The learnt time goes up at once to a longer rest, down a tenth of the gap."""
-    import shared.planning.replanner as module
+    import shared.planning.budget as module
     clock = [100.0]
     monkeypatch.setattr(module, "time", type("Clock", (), {"perf_counter": staticmethod(lambda: clock[0])}))
     replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), PAPER_SSM,
@@ -264,7 +264,7 @@ def test_a_merge_tries_further_junctions_only_within_the_action_budget(monkeypat
     """Every junction a merge tries times a whole law; in the cell a merge that failed at two junctions took
     685 ms. With an action budget, a try after the budget is spent is not made: the replan is refused
     saying what was tried. Without one (the simulation) every junction and stop-and-go are tried."""
-    import shared.planning.replanner as replanner_module
+    import shared.planning.candidates as candidates_module
     from shared.planning.timing import TimingError
 
     tried = []
@@ -273,7 +273,7 @@ def test_a_merge_tries_further_junctions_only_within_the_action_budget(monkeypat
         tried.append(len(waypoints))
         raise TimingError("the smoothed path leaves the joint position limits")
 
-    monkeypatch.setattr(replanner_module, "parameterize", failing)
+    monkeypatch.setattr(candidates_module, "parameterize", failing)
 
     def merge_with(budget):
         tried.clear()

@@ -1,0 +1,54 @@
+"""The replanner's options (``shared.planning.replanner``, ``shared.planning.candidates``): one record, so the parts
+of the planning layer that build and judge candidates read the same numbers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from shared.planning.path_search import SearchOptions
+from shared.planning.time_cost import TimeCostOptions
+from shared.scaling.stopping import REST_SPEED
+
+
+@dataclass(frozen=True)
+class ReplanOptions:
+    """lookback: nominal seconds of old path kept ahead of the branch point as room to slow down (and
+    tried further back when a turn is too sharp); lead: nominal seconds ahead of the current s that the
+    junction must stay (the follower moves on while we plan); min_gain: the fraction of predicted time a
+    beta replan must save (a blocked horizon needs only to be faster), or min_saving (s) where that is
+    less (``required_gain``); rest_speed (rad/s): below it the
+    robot counts as at rest for a replan; crawl: below this fraction of its nominal speed a moving robot
+    gets a plan from rest a little ahead, where the scaler stops it (``Candidates.stop_plan``), instead of a merge;
+    stop_lead (s): the time that stop allows the plan to be delivered in (the robot crawls on meanwhile:
+    in hrc demo a plan from rest came 90-180 ms after its request, the worker's 20 ms turn included;
+    against 0.15 s, with the crawl predicted by the time cost, 0.2 s kept the paper's 24 s progress, see
+    ``Candidates.stop_plan``);
+    patience (s): how long people in the way are expected to stay
+    before the robot has waited at all; a prediction assumes they stay patience + the time already held
+    (0 is pure ski rental: never worse than twice the better choice, however long the person stays; a
+    cell where people are known to stay at a station may set more); rrt_budget (s): RRT-Connect's time
+    when it has to seed the search; worth_searching (s): a new goal's direct line is taken without a
+    search unless the people are predicted to slow it by more than this (the search itself takes up to
+    its budget while the robot waits for its plan); slow_excess (s): the planning layer asks itself for a
+    replan (``on_slow``) where the rest of the path followed at speed is predicted to lose more than this
+    to the SSM; action_budget (s): wall clock for a whole planning
+    action, searches and the rest (None: none; the simulation bounds by counts), see ``shared.planning.budget``; seed: the
+    search's seed (each goal gets its own stream, derived from the seed and the goal, so the same query
+    gives the same path in any order, see ``Replanner._rng``); search, cost:
+    the search's bounds and the time cost's sampling."""
+
+    lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
+    lead: float = 0.1
+    min_gain: float = 0.10
+    min_saving: float = 0.25
+    rest_speed: float = REST_SPEED
+    crawl: float = 0.25
+    stop_lead: float = 0.2
+    patience: float = 1.5
+    rrt_budget: float = 0.2
+    worth_searching: float = 0.25
+    slow_excess: float = 1.0
+    action_budget: float | None = None
+    seed: int = 0
+    search: SearchOptions = SearchOptions()
+    cost: TimeCostOptions = TimeCostOptions()
