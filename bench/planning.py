@@ -178,10 +178,10 @@ def both_bounds(counted: Replanner, budgeted: Replanner, humans: HumanCapsules, 
     budget (budgeted, within one planning action): (SearchResult, SearchResult, counted wall ms)."""
     seeds = (np.vstack([Q_START, Q_GOAL]),)
     t0 = time.perf_counter()
-    full = counted.search.search(Q_START, Q_GOAL, humans, counted._rng(Q_START, Q_GOAL), stay, seeds)
+    full = counted.search.search(Q_START, Q_GOAL, humans, counted.paths.rng(Q_START, Q_GOAL), stay, seeds)
     wall = (time.perf_counter() - t0) * 1e3
     budgeted.begin()
-    cut = budgeted.search.search(Q_START, Q_GOAL, humans, budgeted._rng(Q_START, Q_GOAL), stay, seeds)
+    cut = budgeted.search.search(Q_START, Q_GOAL, humans, budgeted.paths.rng(Q_START, Q_GOAL), stay, seeds)
     budgeted.end()
     return full, cut, wall
 

@@ -48,18 +48,9 @@ class Candidates:
                                             self.limits.acceleration, version=version)
         try:
             return parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
-                                inflation=self.capped(0.0, waypoints[[0, -1]], humans), version=version)
+                                inflation=self.collision.capped_inflation(0.0, waypoints[[0, -1]], humans), version=version)
         except TimingError:          # the smoothed path cuts a corner into a person: stop at the corners
             return polyline_trajectory(waypoints, self.limits.velocity, self.limits.acceleration, version=version)
-
-    def capped(self, inflation: float, configs: np.ndarray, humans: HumanCapsules | None) -> float:
-        """The inflation, lowered to the clearance that the configurations a plan must start or end in
-        already have (so it may turn negative: a robot a person has walked up to is not refused a way
-        out). The smoothed trajectory is then checked never to come closer to a human than that."""
-        if humans is None or humans.count == 0:
-            return max(0.0, inflation)
-        have = float(self.collision.clearances(configs, humans, inflation=0.0).min()) - 2 * self.collision.margins.tolerance
-        return min(inflation, have)
 
     def branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
                 humans: HumanCapsules | None, version: int, waited: float) -> tuple[Trajectory, float]:
@@ -74,7 +65,7 @@ class Candidates:
         q_branch = old.sample(float(s_branch))[0]
         tail = self.path(q_branch, q_goal, humans, waited, from_rest=False)
         # the lead-in is the old, already accepted path: the smoothed whole is verified at what it has
-        check = min(0.0, self.capped(0.0, old.sample(np.linspace(s_first, s_branch, 8))[0], humans))
+        check = min(0.0, self.collision.capped_inflation(0.0, old.sample(np.linspace(s_first, s_branch, 8))[0], humans))
         errors = []
 
         def lead_in(s_j: float) -> np.ndarray:
@@ -84,9 +75,10 @@ class Candidates:
             if errors and self.budget.out_of_time():
                 raise ReplanFailed("no merge within the action's time: " + "; ".join(errors))
             try:
+                inflation = min(check, self.collision.capped_inflation(check, lead_in(s_j), humans))
                 part = parameterize(np.vstack([lead_in(s_j), tail[1:]]), self.limits,
                                     start_velocity=old.sample(float(s_j))[1], collision=self.collision,
-                                    humans=humans, inflation=min(check, self.capped(check, lead_in(s_j), humans)))
+                                    humans=humans, inflation=inflation)
                 return merge(old, s_j, part, version), s_j
             except TimingError as exc:
                 errors.append(f"through at s={s_j:.2f}: {exc}")
@@ -96,7 +88,7 @@ class Candidates:
         try:
             stop = parameterize(lead_in(s_j), self.limits, start_velocity=old.sample(float(s_j))[1],
                                 collision=self.collision, humans=humans,
-                                inflation=min(check, self.capped(check, lead_in(s_j), humans)))
+                                inflation=min(check, self.collision.capped_inflation(check, lead_in(s_j), humans)))
             go = self.from_rest(tail, humans, version)
         except TimingError as exc:
             raise ReplanFailed("no junction allows a continuous merge: "

@@ -341,6 +341,16 @@ class CollisionModel:
         self.checks += qs.shape[0]
         return _clearances(qs, *self._fixed, *self._human_args(humans, inflation))
 
+    def capped_inflation(self, inflation: float, configs: np.ndarray, humans: HumanCapsules | None) -> float:
+        """The inflation (m), lowered to the clearance that the configurations a plan must start or end in
+        (configs, (K, 6)) already have from the people (so it may turn negative: a robot a person has walked up
+        to is not refused a way out). A plan's smoothed trajectory is then checked never to come closer to a
+        human than that."""
+        if humans is None or humans.count == 0:
+            return max(0.0, inflation)
+        have = float(self.clearances(configs, humans, inflation=0.0).min()) - 2 * self.margins.tolerance
+        return min(inflation, have)
+
     def motion_free(self, q0: np.ndarray, q1: np.ndarray, humans: HumanCapsules | None = None,
                     inflation: float = 0.0) -> tuple[bool, float]:
         """(free, t): whether the straight joint-space motion q0 -> q1 keeps clearance > 0 throughout

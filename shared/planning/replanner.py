@@ -46,11 +46,11 @@ from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach,
 from shared.planning.ompl_planner import JointPlanner, PlanningError
 from shared.planning.options import ReplanOptions
 from shared.planning.path_search import PathSearch
+from shared.planning.paths import SearchedPaths
 from shared.planning.time_cost import SsmTimeCost
 from shared.planning.timing import TimingError
 from shared.safety.parameters import SsmParameters
 
-REMEMBERED = 4          # searched paths to the current goal kept as seeds of the next searches
 # rad: how near a prepared plan's start (the goal the robot was on its way to) the robot must be to take it: its
 # commands end exactly there; the scaler takes a plan from rest within 0.02 rad (services.scaler)
 PREPARED_START = 0.005
@@ -70,11 +70,12 @@ class PreparedPlan:
 
 class Replanner:
     """Builds merged trajectories that are fastest under the SSM; pure apart from the clock (the search's
-    optional wall-clock budget) and OMPL's sampling where RRT-Connect seeds it. Its parts: the searched path
-    (``path``, with the paths it remembers to the goal), the action's wall clock (``budget``,
-    ``shared.planning.budget``), the candidate trajectories (``candidates``, ``shared.planning.candidates``); what
-    is left here is a new goal's plan and the triggers (horizon, slow, beta), which share one pattern
-    (``_decide``)."""
+    optional wall-clock budget) and OMPL's sampling where RRT-Connect seeds it. Its parts: the searched paths
+    (``paths``, ``shared.planning.paths``), the action's wall clock (``budget``, ``shared.planning.budget``), the
+    candidate trajectories (``candidates``, ``shared.planning.candidates``); what is left here is the one
+    prediction, a new goal's plan and the triggers (horizon, slow, beta), which share one pattern (``_decide``).
+    About 230 lines, most of them the docstrings of the triggers, which say when each replans and why: the
+    public face of the planning layer, kept in one place."""
 
     def __init__(self, collision: CollisionModel, planner: JointPlanner, ssm: SsmParameters,
                  horizon: HorizonOptions = HorizonOptions(), options: ReplanOptions = ReplanOptions(),
@@ -89,11 +90,10 @@ class Replanner:
         self.limits = collision.robot.limits
         self.cost = SsmTimeCost(collision.robot, ssm, options.cost, forecaster)
         self.search = PathSearch(collision, self.cost, options.search)
-        self.searches = 0          # path searches run (the simulation charges planning time by them)
+        self.paths = SearchedPaths(collision, planner, self.search, options)
         self.budget = ActionBudget(self.search, options.action_budget)
         self.candidates = Candidates(collision, options, self.cost, self.budget, self.path, self.predicted_time,
                                      self.stay)
-        self.remembered: list[np.ndarray] = []     # the latest searches' winners to the current goal (K, 6)
         self.took_prepared = False     # the last plan_goal took the prepared trajectory it was given
 
     def begin(self) -> None:
@@ -115,23 +115,21 @@ class Replanner:
 
     def forget(self) -> None:
         """Drop the remembered paths (a new goal, or a new run: the same inputs give the same plans)."""
-        self.remembered = []
+        self.paths.forget()
 
-    def _recalled(self, q_from: np.ndarray, q_goal: np.ndarray) -> list[np.ndarray]:
-        """Seeds from the remembered paths to this goal: from q_from on to each of their later waypoints,
-        then along them. A search has a small budget; one that starts from what the last ones found keeps
-        improving while the situation stays, instead of drawing its luck anew at every replan."""
-        out = []
-        for w in self.remembered:
-            if np.allclose(w[-1], q_goal, atol=1e-9):
-                out += [np.vstack([q_from, w[i:]]) for i in range(1, len(w) - 1)]
-        return out
+    @property
+    def searches(self) -> int:
+        """Path searches run (the simulation charges planning time by them)."""
+        return self.paths.searches
 
-    def _remember(self, waypoints: np.ndarray) -> None:
-        """Keep a search's winner (the newest REMEMBERED to its goal, each once)."""
-        kept = [w for w in self.remembered if np.allclose(w[-1], waypoints[-1], atol=1e-9)
-                and not (w.shape == waypoints.shape and np.array_equal(w, waypoints))]
-        self.remembered = kept[-(REMEMBERED - 1):] + [waypoints]
+    @property
+    def remembered(self) -> list[np.ndarray]:
+        """The latest searches' winners to the current goal (each (K, 6)), the seeds of the next searches."""
+        return self.paths.remembered
+
+    @remembered.setter
+    def remembered(self, paths: list[np.ndarray]) -> None:
+        self.paths.remembered = paths
 
     # ------------------------------------------------------------------------------------ predictions
     def stay(self, waited: float) -> float:
@@ -144,44 +142,11 @@ class Replanner:
         staying patience + waited seconds: the one prediction both sides of every decision get."""
         return self.cost.trajectory_time(trajectory, s_from, humans, self.stay(waited))
 
-    def _rng(self, q_from: np.ndarray, q_goal: np.ndarray) -> np.random.Generator:
-        """The search's random stream for a query: from the seed and the goal (to 1 mrad) only, so that
-        nearby queries to the same goal get the same candidates, bent the same way from their own start.
-        Seeded by both ends (before), a start a milliradian away drew a different set, and a different
-        winner: whether the paper's phase 3 was gone round depended on when, to the millisecond, a leg
-        ended (9 of 15 runs with the phase period 0.5 % longer or shorter and planning charged 0, 60,
-        70, 80 or 90 ms; 15 of 15 now, the 24 s runs' progress 8.18 +- 0.37 shuttles -> 8.57 +- 0.15).
-        The same query still gives the same path in any order."""
-        goal = np.round(np.asarray(q_goal) * 1000.0).astype(np.int64) + 100_000
-        return np.random.default_rng([self.options.seed, *goal.tolist()])
-
-    # ----------------------------------------------------------------------------------------- paths
     def path(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, waited: float = 0.0,
              from_rest: bool = True) -> np.ndarray:
-        """Waypoints (K, 6) of the path the search finds fastest under the SSM, every segment free of the
-        scene and the people (never closer to them than the ends already are); RRT-Connect seeds a second
-        search where no simple detour is free (raises PlanningError when nothing is found)."""
-        q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
-        direct = np.vstack([q_from, q_goal])
-        inflation = self.candidates.capped(0.0, direct, humans)      # < 0 where a person has come closer already
-        self.planner.check_ends(q_from, q_goal, humans, inflation)
-        rng = self._rng(q_from, q_goal)
-        stay = self.stay(waited)
-        self.searches += 1
-        found = self.search.search(q_from, q_goal, humans, rng, stay, (direct, *self._recalled(q_from, q_goal)),
-                                   from_rest, inflation)
-        if found is None:
-            budget = self.options.rrt_budget
-            if self.search.deadline is not None:           # within the action's budget, but never nothing
-                budget = min(budget, max(0.02, self.search.deadline - time.perf_counter()))
-            rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=budget)
-            self.searches += 1
-            found = self.search.search(q_from, q_goal, humans, rng, stay, (rrt,), from_rest, inflation)
-            if found is None:                               # out of time before reaching it: it is free
-                return rrt
-        if len(found.waypoints) > 2:
-            self._remember(found.waypoints)
-        return found.waypoints
+        """Waypoints (K, 6) of the path the search finds fastest under the SSM, the people staying
+        patience + waited (``SearchedPaths.path``; raises PlanningError when nothing is found)."""
+        return self.paths.path(q_from, q_goal, humans, self.stay(waited), from_rest)
 
     def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
                    waited: float = 0.0) -> Trajectory:
@@ -230,7 +195,7 @@ class Replanner:
         if np.abs(plan.positions[0] - q_start).max() > PREPARED_START \
                 or not np.allclose(plan.positions[-1], q_goal, atol=1e-9):
             return None
-        clearance = self.candidates.capped(0.0, plan.positions[[0, -1]], humans)
+        clearance = self.collision.capped_inflation(0.0, plan.positions[[0, -1]], humans)
         if not self.collision.path_free(plan.positions, humans, clearance):
             return None
         if self.predicted_time(plan, 0.0, humans, waited) >= beat:

@@ -349,7 +349,8 @@ def test_nearby_starts_to_one_goal_are_planned_alike():
             paths.append(replanner.path(Q_START + offset, Q_GOAL, humans))
         for path in paths[1:]:
             assert path.shape == paths[0].shape and np.abs(path[1:-1] - paths[0][1:-1]).max() < 0.1, (path, paths[0])
-    assert not np.array_equal(replanner._rng(Q_START, Q_GOAL).random(4), replanner._rng(Q_START, Q_START).random(4))
+    rng = replanner.paths.rng
+    assert not np.array_equal(rng(Q_START, Q_GOAL).random(4), rng(Q_START, Q_START).random(4))
 
 
 def test_the_hold_clock_counts_only_while_the_scaler_keeps_asking():
@@ -417,7 +418,7 @@ def test_a_search_starts_from_the_paths_the_last_ones_found_to_the_same_goal():
     assert bare.remembered == []
     bare.path(Q_START, Q_GOAL, ARM_ACROSS)
     assert bare.searches == 3                                 # nothing free among its seeds: RRT-Connect seeded it
-    elsewhere = bare._recalled(Q_START, Q_START)              # paths to another goal are no seeds
+    elsewhere = bare.paths.recalled(Q_START, Q_START)            # paths to another goal are no seeds
     assert elsewhere == []
 
 
