@@ -28,11 +28,13 @@ researcher's predictor, ``shared.planning.forecast.load_forecaster``); the JSON 
 scale_only and full under the paper's formula (the measured human speed held: ``deploy/cell-paper.yaml``),
 judged like every run by the shipped model's monitor: "scale_only/scale_only_paper" and "full/full_paper" are
 what the shipped model of a person who may speed up costs, and the *_paper violations what the formula lets
-through.
+through. --fixed-path adds the strongest simple baseline (``evidence.fixed_path``): the scaling layer on one fixed
+path, the shuttle with the elbow folded over the middle of the sweep, no planning; "full/fixed_path" says whether
+the planning layer earns its place, "won_back_fixed_path" how much of the room that path alone uses.
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
                             [--kinds two_humans,random_walk] [--seed 0] [--foresight] [--oracle]
-                            [--forecaster mypackage.predict:MyForecaster]
+                            [--forecaster mypackage.predict:MyForecaster] [--fixed-path]
 
 (--kinds: only these kinds, in turn, seeds counted from --seed: `--scenarios 200 --kinds two_humans` runs
 200 two-person scenarios.)
@@ -55,7 +57,7 @@ sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import SCENARIO_KINDS  # noqa: E402
 from evidence.stats import paired_ratio  # noqa: E402
-from evidence.strategies import BOUNDS, PAPER, STRATEGIES, Strategies  # noqa: E402
+from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES, Strategies  # noqa: E402
 
 _WORKER: Strategies | None = None
 
@@ -103,12 +105,12 @@ def aggregate(rows: list[dict], horizon: float) -> dict:
 
 PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"), ("full", "foresight"),
          ("oracle", "scale_only"), ("full", "oracle"), ("scale_only", "scale_only_paper"), ("full", "full_paper"),
-         ("full_paper", "zones"))
+         ("full_paper", "zones"), ("fixed_path", "scale_only"), ("full", "fixed_path"))
 
 
 def columns(rows: list[dict]) -> tuple[str, ...]:
     """The strategies (and bounds) these rows were run with, in the table's order."""
-    return tuple(s for s in STRATEGIES + BOUNDS + PAPER if rows and s in rows[0])
+    return tuple(s for s in STRATEGIES + BASELINES + BOUNDS + PAPER if rows and s in rows[0])
 
 
 def won_back(per_strategy: dict, empty: float, strategy: str = "full") -> float | None:
@@ -206,6 +208,9 @@ def main() -> int:
     parser.add_argument("--paper", action="store_true",
                         help="also run scale_only and full under the paper's formula (the measured human speed "
                              "held), judged by the shipped model's monitor: the shipped model's cost, side by side")
+    parser.add_argument("--fixed-path", action="store_true",
+                        help="also run the scaling layer on one fixed folded path, no planning "
+                             "(evidence.fixed_path): the strongest simple baseline the planning layer must beat")
     parser.add_argument("--oracle", action="store_true",
                         help="also run the oracle (foresight, 8x the search, planning free of time): the bound on "
                              "the planning layer itself (several times full's run time)")
@@ -222,7 +227,8 @@ def main() -> int:
             load_forecaster(args.forecaster)
         except ValueError as exc:
             parser.error(f"--forecaster: {exc}")
-    run = STRATEGIES + tuple(b for b in BOUNDS if getattr(args, b)) + (PAPER if args.paper else ())
+    run = (STRATEGIES + (BASELINES if args.fixed_path else ()) + tuple(b for b in BOUNDS if getattr(args, b))
+           + (PAPER if args.paper else ()))
     tasks = [(kinds[k % len(kinds)], args.seed + k, args.duration, run) for k in range(args.scenarios)]
     started = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=_init, initargs=(args.forecaster,)) as pool:
@@ -247,7 +253,7 @@ def main() -> int:
     for kind in kinds:
         of_kind = [r for r in rows if r["kind"] == kind]
         per = per_kind[kind] = aggregate(of_kind, horizon)
-        shares = {s: won_back(per, empty, s) for s in run if s == "full" or s in BOUNDS}
+        shares = {s: won_back(per, empty, s) for s in run if s == "full" or s in BOUNDS + BASELINES}
         print(f"{kind:<12} " + "  ".join(f"{s}: {per[s]['shuttles_per_min']:6.2f}/min stopped "
                                           f"{per[s]['stopped_fraction']:.2f} viol {per[s]['violations']}"
                                           for s in run)
@@ -269,7 +275,7 @@ def main() -> int:
                "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in run} for k in kinds},
                "empty_cell": empty,
                "won_back": {k: won_back(per_kind[k], empty) for k in kinds} | {"overall": won_back(strategies, empty)}}
-    for bound in (b for b in run[len(STRATEGIES):] if b in BOUNDS):
+    for bound in (b for b in run[len(STRATEGIES):] if b in BOUNDS + BASELINES):
         summary[f"won_back_{bound}"] = ({k: won_back(per_kind[k], empty, bound) for k in kinds}
                                         | {"overall": won_back(strategies, empty, bound)})
     summary["ratios"] = {name: {pair: None if isinstance(r, str) else r.as_list() for pair, r in pairs.items()}

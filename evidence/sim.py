@@ -147,7 +147,8 @@ class CommandJudge:
 def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a: np.ndarray, q_b: np.ndarray,
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
                 beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
-                charge_planning: bool | float = False, monitor: SafetyMonitor | None = None) -> SimResult:
+                charge_planning: bool | float = False, monitor: SafetyMonitor | None = None,
+                leg_path=None) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
     replanner: the planning layer (None: scaling only, straight shuttles), run by the planner service's
@@ -157,7 +158,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     layer: the speed policy (default: a new ScalingLayer). charge_planning: planning takes time on the
     simulated clock: True its measured wall time, a number that many seconds per path search (repeatable
     whatever the machine's load). monitor: the judge's monitor (default: a SafetyMonitor of this robot;
-    pass one to reuse it across runs)."""
+    pass one to reuse it across runs). leg_path(start, goal, version) -> Trajectory: the fixed path of each leg where
+    no planning layer plans it (default: the straight line, rest to rest)."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
     if replanner is None or not beta_replans:
         layer.params = replace(layer.params, await_plan=0.0)   # nobody answers a replan request: never await one
@@ -169,7 +171,10 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     ends = [np.asarray(q_a, dtype=float), np.asarray(q_b, dtype=float)]
     result = SimResult()
     leg = 0
-    first = straight_line_trajectory(ends[0], ends[1], lim.velocity, lim.acceleration)
+    if leg_path is None:
+        def leg_path(start, goal, version):
+            return straight_line_trajectory(start, goal, lim.velocity, lim.acceleration, version=version)
+    first = leg_path(ends[0], ends[1], 0)
     layer.set_trajectory(first)
     handed = {first.version: first}   # the trajectories handed to the scaling layer, by version (the service's too)
     in_flight = False                 # one was handed since the last step: not reported on yet
@@ -242,9 +247,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             leg += 1
             start, goal = ends[leg % 2], ends[(leg + 1) % 2]
             if loop is None:
-                shuttle = straight_line_trajectory(start, goal, lim.velocity, lim.acceleration,
-                                                   version=step.trajectory_version + 1)
-                layer.set_trajectory(shuttle)
+                layer.set_trajectory(leg_path(start, goal, step.trajectory_version + 1))
             else:
                 pending_leg = True          # a new goal: the planner takes a turn on it at once (when free)
                 if t >= busy_until:

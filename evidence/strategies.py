@@ -11,6 +11,9 @@
 * oracle (a bound too; ``bench/compare.py --oracle``): foresight with a search eight times as large,
   planning free of time and every predicted gain taken (``evidence.foresight.oracle_options``): the most
   this planning layer could add at all, so that what it leaves is the people in the way, under the SSM.
+* fixed_path (``bench/compare.py --fixed-path``): the scaling layer on one fixed path chosen once, the shuttle with
+  the elbow folded over the middle of the sweep (``evidence.fixed_path``), no planning: the strongest simple
+  baseline the planning layer must beat;
 * scale_only_paper, full_paper (``bench/compare.py --paper``): the same under the paper's formula (the measured
   human speed held), judged, as every run, by the shipped model's monitor.
 Every run is judged by the independent monitor's rule (evidence.sim). ``Strategies`` builds the robot, the
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from evidence.fixed_path import FixedPath
 from evidence.foresight import Foresight, foresight_options, oracle_options
 from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
 from evidence.sim import SimResult, run_shuttle
@@ -43,6 +47,7 @@ BOUNDS = ("foresight", "oracle")
 # the same two layers under the paper's formula (the measured human speed held; ``bench/compare.py --paper``),
 # judged by the shipped model's monitor: what the shipped model costs, and what the formula lets through
 PAPER = ("scale_only_paper", "full_paper")
+BASELINES = ("fixed_path",)
 
 
 class Strategies:
@@ -68,6 +73,7 @@ class Strategies:
         q, dq, _ = shuttle.sample(s)
         self.robot_speed = max(fastest_point_speed(self.robot, q[k], dq[k]) for k in range(s.size))
         self.zones = SpeedZones.sized(self.config.ssm, self.robot_speed)
+        self.fixed_path = FixedPath(self.collision)
 
     def run(self, strategy: str, kind: str, seed: int, duration: float) -> SimResult:
         """One strategy on one seeded scenario."""
@@ -87,6 +93,10 @@ class Strategies:
         if strategy == "scale_only":
             layer = ScalingLayer(self.robot, cfg.ssm, cfg.scaling)
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor)
+        if strategy == "fixed_path":
+            layer = ScalingLayer(self.robot, cfg.ssm, cfg.scaling)
+            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor,
+                               leg_path=self.fixed_path.leg)
         if strategy == "full":
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
                                charge_planning=CELL_BUDGET, monitor=self.monitor)
@@ -103,4 +113,4 @@ class Strategies:
             replanner = self.paper_replanner if strategy == "full_paper" else None
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, replanner=replanner,
                                charge_planning=CELL_BUDGET if replanner is not None else False, monitor=self.monitor)
-        raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES + BOUNDS + PAPER}")
+        raise ValueError(f"unknown strategy {strategy!r}; known: {STRATEGIES + BOUNDS + PAPER + BASELINES}")
