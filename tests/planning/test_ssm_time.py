@@ -86,24 +86,49 @@ def test_a_straight_path_costs_its_trapezoid_and_bends_cost_time():
     assert polyline_trajectory(bent, LIM.velocity, LIM.acceleration).duration >= COST.path_time(bent, None) - 1e-9
 
 
-def test_path_samples_walk_each_segment_from_its_start_and_count_rests_and_corners():
+def test_path_samples_walk_each_segment_from_its_start_with_the_rests_and_corners_on_the_timeline():
+    """The time a time law adds (the start from rest, a corner, the stop) is a sample at rest where it happens,
+    not a lump at the end: every later sample is predicted when the robot gets there."""
     a = np.zeros(6)
     b = a + np.array([0.12, 0.0, 0.0, 0.0, 0.0, 0.0])                # 0.12 rad: 3 samples at 0.05 rad spacing
     c = b + np.array([0.0, 0.3, 0.0, 0.0, 0.0, 0.0])                 # a corner, then 6 samples
     samples = COST.path_samples(np.vstack([a, b, b, c]))           # the repeated waypoint is no segment
-    assert samples.q.shape == (9, 6) and np.allclose(samples.q[[0, 3]], [a, b])
-    assert np.allclose(samples.q[:3, 0], [0.0, 0.04, 0.08])          # from the start, evenly
+    # at rest at a, 3 moving, the corner at b, 6 moving, the stop at c
+    assert samples.q.shape == (12, 6) and np.allclose(samples.q[[0, 1, 4, 5, 11]], [a, a, b, b, c])
+    assert not samples.dq[[0, 4, 11]].any() and samples.overhead == 0.0
+    assert np.allclose(samples.q[1:4, 0], [0.0, 0.04, 0.08])         # from the start, evenly
     v0, v1 = 0.12 / COST.segment_time(a, b), 0.3 / COST.segment_time(b, c)
-    assert np.allclose(samples.dq[:3, 0], v0) and np.allclose(samples.dq[3:, 1], v1)
-    assert samples.dt.sum() == pytest.approx(COST.segment_time(a, b) + COST.segment_time(b, c))
+    assert np.allclose(samples.dq[1:4, 0], v0) and np.allclose(samples.dq[5:11, 1], v1)
     acc = LIM.acceleration
-    rest_to_rest = v0 / (2 * acc[0]) + max(v0 / (2 * acc[0]), v1 / (2 * acc[1])) + v1 / (2 * acc[1])
-    assert samples.overhead == pytest.approx(rest_to_rest)
+    start, corner, stop = v0 / (2 * acc[0]), max(v0 / (2 * acc[0]), v1 / (2 * acc[1])), v1 / (2 * acc[1])
+    assert samples.dt[[0, 4, 11]] == pytest.approx([start, corner, stop])
+    assert samples.nominal == pytest.approx(COST.segment_time(a, b) + COST.segment_time(b, c) + start + corner + stop)
     # moving already at the start: no start-up; nothing to walk: nothing
     moving = COST.path_samples(np.vstack([a, b, c]), from_rest=False)
-    assert moving.overhead == pytest.approx(rest_to_rest - v0 / (2 * acc[0]))
+    assert moving.q.shape == (11, 6) and moving.dq[0].any()
+    assert moving.nominal == pytest.approx(samples.nominal - start)
     empty = COST.path_samples(np.vstack([a, a]))
     assert empty.q.shape == (0, 6) and empty.nominal == 0.0
+
+
+def test_the_predicted_timeline_of_a_straight_leg_is_the_time_law_s_once_it_is_at_speed():
+    """A straight leg from rest, nobody near enough to slow it: the time the cost predicts the robot at each
+    sample after its start-up ramp is when the trapezoid gets there, within one control period (the ramp itself
+    is one sample at rest: within it the prediction is at most v / 2a early or late)."""
+    far = person(-6.0, 0.0, 0.0, (-5.6, 0.0, 0.8))
+    samples = COST.path_samples(np.vstack([Q_START, Q_GOAL]))
+    ends = COST._walk(samples, far, np.inf, True)
+    start_of = np.concatenate([[0.0], ends[:-1]])                  # when each sample is predicted to begin
+    law = OLD
+    t = np.linspace(0.0, law.duration, 20001)
+    along = np.abs(law.sample(t)[0][:, 0] - Q_START[0])            # joint 1 leads the synchronised motion
+    ramp = float(np.max(LIM.velocity[0] / LIM.acceleration[0]))   # s: the start-up ramp of the leading joint
+    for k in range(1, samples.q.shape[0] - 1):
+        reached = float(t[np.searchsorted(along, abs(samples.q[k, 0] - Q_START[0]) - 1e-9)])
+        if reached >= ramp and reached <= law.duration - ramp:
+            assert start_of[k] == pytest.approx(reached, abs=0.01), k
+    assert ends[-1] == pytest.approx(law.duration, abs=0.01)
+
 
 def test_people_stay_for_the_stay_and_move_on_along_their_velocities():
     # a person who leaves at once costs nothing; the longer they stay, the longer the way past them
