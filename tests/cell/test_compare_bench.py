@@ -64,3 +64,16 @@ def test_the_paper_formula_runs_beside_the_shipped_model_on_the_same_scenarios(t
     assert {"scale_only/scale_only_paper", "full/full_paper", "full_paper/zones"} <= set(result["ratios"]["overall"])
     assert "won_back_scale_only_paper" not in result and "won_back_full_paper" not in result
     assert result["strategies"]["full_paper"]["violations"] >= 0
+
+
+def test_the_fixed_path_baseline_runs_beside_the_strategies_with_its_ratios(tmp_path):
+    """--fixed-path: the scaling layer on one fixed folded path, its column, full/fixed_path and its won-back
+    share, on the same scenarios."""
+    done = run("--scenarios", "2", "--kinds", "two_humans", "--duration", "2.0", "--workers", "1", "--fixed-path",
+               tmp_path=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert set(result["kinds"]["two_humans"]) == {"zones", "scale_only", "full", "fixed_path"}
+    assert {"fixed_path/scale_only", "full/fixed_path"} <= set(result["ratios"]["overall"])
+    assert set(result["won_back_fixed_path"]) == {"two_humans", "overall"}
+    assert result["strategies"]["fixed_path"]["violations"] == 0

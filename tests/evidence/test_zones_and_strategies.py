@@ -156,3 +156,22 @@ def test_the_oracle_bound_runs_safe_and_repeatably(strategies):
         run.pop("compute_us")
         run["replans"] = [{k: v for k, v in e.items() if k != "compute_ms"} for e in run["replans"]]
     assert summary == second and summary["violations"] == 0 and summary["command_exceedances"] == 0
+
+
+def test_the_fixed_path_folds_the_elbow_over_the_middle_of_the_sweep_and_costs_a_little_in_an_empty_cell():
+    """The baseline the planning layer must beat (evidence.fixed_path): one fixed folded shuttle, the same
+    trajectory every leg (renumbered), free of the static scene, slower than the straight line with nobody
+    there, and followed by the plain scaling layer without a violation."""
+    from evidence.scenarios import EmptyCell
+    from shared.planning.scene import DEFAULT_SCENE, load_scene
+
+    strategies = Strategies(scene=load_scene(DEFAULT_SCENE))
+    path = strategies.fixed_path
+    leg = path.leg(Q_START, Q_GOAL, 3)
+    assert leg.version == 3 and path.leg(Q_START, Q_GOAL, 4).positions is leg.positions      # made once
+    middle = leg.sample(leg.duration / 2)[0]
+    assert middle[2] == pytest.approx(Q_START[2] + path.fold, abs=0.1)     # the elbow folded (a smoothed spline)
+    assert np.allclose(leg.positions[[0, -1]], [Q_START, Q_GOAL])
+    assert strategies.collision.path_free(leg.sample(np.linspace(0.0, leg.duration, 200))[0])
+    folded, straight = strategies._run("fixed_path", EmptyCell(), 12.0), strategies.empty_cell(12.0)
+    assert 0.9 * straight.progress < folded.progress < straight.progress and folded.violations == 0
