@@ -1,0 +1,104 @@
+"""How well the planning layer's time cost predicts what the scaling layer then does (issue 38, item 2; not a
+test: it prints figures). For seeded scenarios, at a few moments each, the legs a planner would choose between
+(the straight line, the fixed folded path of ``evidence.fixed_path``, and the path search's winner, each timed as
+the planner times it) are predicted by the cost (``SsmTimeCost.trajectory_time``, the people tracked at that
+moment, forecast as the planner forecasts them, staying ``patience``) and then executed by the product's own
+``ScalingLayer`` against the scripted people as they really move, until the leg's end. Per kind: the prediction's
+error (predicted / executed - 1: its median, the median and p95 of its size), and how often the candidate
+predicted fastest is the one executed fastest (a cost that misranks shows there), with what choosing by the
+cost loses against choosing by the execution.
+
+    python bench/calibration.py [--seeds 20] [--kinds two_humans,random_walk] [--seed 0] [--moments 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from evidence.fixed_path import FixedPath  # noqa: E402
+from evidence.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario  # noqa: E402
+from shared.config import CellConfig  # noqa: E402
+from shared.core.trajectory import Trajectory, straight_line_trajectory  # noqa: E402
+from shared.planning.collision import CollisionModel  # noqa: E402
+from shared.planning.ompl_planner import JointPlanner, PlannerOptions  # noqa: E402
+from shared.planning.replanner import Replanner  # noqa: E402
+from shared.planning.scene import DEFAULT_SCENE, load_scene  # noqa: E402
+from shared.robot.model import default_robot  # noqa: E402
+from shared.scaling.layer import ScalingInputs, ScalingLayer, StepStatus  # noqa: E402
+
+LONGEST = 15.0         # s: a leg not done by then is counted as taking this long (a person who never leaves)
+
+
+def executed(robot, config: CellConfig, trajectory: Trajectory, human, t0: float) -> float:
+    """Seconds the product's scaling layer takes along `trajectory` from rest, with the scripted people from t0."""
+    layer = ScalingLayer(robot, config.ssm, config.scaling)
+    layer.set_trajectory(trajectory)
+    period = config.scaling.period
+    for k in range(int(LONGEST / period)):
+        if layer.step(ScalingInputs(humans=human.at(t0 + k * period))).status is StepStatus.FINISHED:
+            return k * period
+    return LONGEST
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=int, default=20, help="scenarios per kind")
+    parser.add_argument("--seed", type=int, default=0, help="first scenario seed")
+    parser.add_argument("--kinds", default="crossing,random_walk,standing,two_humans")
+    parser.add_argument("--moments", type=int, default=3, help="moments per scenario a leg starts at")
+    args = parser.parse_args()
+    kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
+    unknown = [k for k in kinds if k not in SCENARIO_KINDS]
+    if unknown or not kinds or args.seeds < 1 or args.moments < 1:
+        parser.error(f"--kinds: unknown {unknown}; known: {', '.join(sorted(SCENARIO_KINDS))}; "
+                     "--seeds and --moments >= 1")
+    robot, config = default_robot(), CellConfig()
+    collision = CollisionModel(robot, load_scene(DEFAULT_SCENE), config.ssm.min_separation)
+    replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm)
+    fixed = FixedPath(collision)
+    lim = robot.limits
+    summary = {}
+    for kind in kinds:
+        errors, ranked, loss = [], [], []
+        for seed in range(args.seed, args.seed + args.seeds):
+            human = make_scenario(kind, seed, 12.0 + LONGEST)
+            for t0 in np.linspace(0.0, 10.0, args.moments):
+                for a, b in ((Q_START, Q_GOAL), (Q_GOAL, Q_START)):
+                    people = human.at(float(t0))
+                    legs = {"straight": straight_line_trajectory(a, b, lim.velocity, lim.acceleration),
+                            "fixed_path": fixed.leg(a, b, 0)}
+                    try:
+                        replanner.forget()
+                        legs["searched"] = replanner.plan_fresh(a, b, people, 0)
+                    except Exception as exc:          # noqa: BLE001 (a search may find nothing: said, not fatal)
+                        print(f"{kind} {seed} t={t0:.1f}: no search ({type(exc).__name__})", file=sys.stderr)
+                    predicted = {n: replanner.predicted_time(t, 0.0, people) for n, t in legs.items()}
+                    done = {n: executed(robot, config, t, human, float(t0)) for n, t in legs.items()}
+                    errors += [predicted[n] / done[n] - 1.0 for n in legs if done[n] < LONGEST]
+                    chosen, best = min(predicted, key=predicted.get), min(done, key=done.get)
+                    ranked.append(chosen == best)
+                    loss.append(done[chosen] - done[best])
+        e = np.asarray(errors) if errors else np.zeros(1)
+        summary[kind] = {"legs": len(ranked), "error_median": round(float(np.median(e)), 3),
+                         "abs_error_median": round(float(np.median(np.abs(e))), 3),
+                         "abs_error_p95": round(float(np.percentile(np.abs(e), 95)), 3),
+                         "ranked_right": round(float(np.mean(ranked)), 3),
+                         "loss_by_the_cost_s": round(float(np.mean(loss)), 3)}
+        s = summary[kind]
+        print(f"{kind:<12} {s['legs']} choices: error median {s['error_median']:+.3f}, |error| median "
+              f"{s['abs_error_median']:.3f} p95 {s['abs_error_p95']:.3f}; the cost's choice the executed fastest in "
+              f"{100 * s['ranked_right']:.0f} %, {s['loss_by_the_cost_s']:.3f} s lost a leg on average", flush=True)
+    print(json.dumps({"bench": "calibration", "seeds": args.seeds, "moments": args.moments, "kinds": summary}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
