@@ -17,9 +17,8 @@ import numpy as np
 
 from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
+from shared.planning.postures import ELBOW, FOLD, FOLD_SPAN, folded_waypoints
 from shared.planning.timing import parameterize
-
-ELBOW = 2                 # joint 3 (0-based index): the PRBT's elbow
 
 
 @dataclass
@@ -29,19 +28,14 @@ class FixedPath:
     joint: the joint folded."""
 
     collision: CollisionModel
-    fold: float = 0.8
-    span: tuple[float, float] = (0.35, 0.65)
+    fold: float = FOLD
+    span: tuple[float, float] = FOLD_SPAN
     joint: int = ELBOW
     _legs: dict = field(default_factory=dict)
 
     def waypoints(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """start, the two folded points of the span, goal (4, 6), within the joint limits."""
-        start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
-        offset = np.zeros(start.size)
-        offset[self.joint] = self.fold
-        lim = self.collision.robot.limits
-        via = [np.clip(start + f * (goal - start) + offset, lim.lower, lim.upper) for f in self.span]
-        return np.vstack([start, *via, goal])
+        """start, the two folded points of the span, goal (4, 6) (``shared.planning.postures``)."""
+        return folded_waypoints(start, goal, self.collision.robot.limits, self.fold, self.span, self.joint)
 
     def leg(self, start: np.ndarray, goal: np.ndarray, version: int) -> Trajectory:
         key = (np.asarray(start, dtype=float).tobytes(), np.asarray(goal, dtype=float).tobytes())

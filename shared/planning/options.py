@@ -35,7 +35,9 @@ class ReplanOptions:
     action, searches and the rest (None: none; the simulation bounds by counts), see ``shared.planning.budget``; seed: the
     search's seed (each goal gets its own stream, derived from the seed and the goal, so the same query
     gives the same path in any order, see ``Replanner._rng``); search, cost:
-    the search's bounds and the time cost's sampling."""
+    the search's bounds and the time cost's sampling; posture_gap (m): while someone is nearer than this to the
+    robot's reach, a new goal's default leg is the folded one (``shared.planning.postures``, which suggests
+    POSTURE_GAP; None, the default: never. Not on by default yet: it changes the paper's story, issue 38)."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
     lead: float = 0.1
@@ -49,6 +51,7 @@ class ReplanOptions:
     worth_searching: float = 0.25
     slow_excess: float = 1.0
     action_budget: float | None = None
+    posture_gap: float | None = None
     seed: int = 0
     search: SearchOptions = SearchOptions()
     cost: TimeCostOptions = TimeCostOptions()

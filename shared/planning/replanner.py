@@ -42,13 +42,14 @@ from shared.planning.candidates import Candidates
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanResult, keep_or_replace, required_gain
 from shared.planning.forecast import Forecaster
-from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach, people_passing
+from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach, people_passing, reach_gap
 from shared.planning.ompl_planner import JointPlanner, PlanningError
 from shared.planning.options import ReplanOptions
 from shared.planning.path_search import PathSearch
 from shared.planning.paths import SearchedPaths
+from shared.planning.postures import folded_waypoints
 from shared.planning.time_cost import SsmTimeCost
-from shared.planning.timing import TimingError
+from shared.planning.timing import TimingError, parameterize
 from shared.safety.parameters import SsmParameters
 
 # rad: how near a prepared plan's start (the goal the robot was on its way to) the robot must be to take it: its
@@ -57,6 +58,7 @@ PREPARED_START = 0.005
 # m: how far any end of the people's capsules may have moved since a plan was prepared for them for it still to be
 # taken: further, and a search of the people as they are now decides
 PREPARED_DRIFT = 0.1
+POSTURES_KEPT = 16        # timed folded legs kept (a shuttle needs two)
 
 
 @dataclass(frozen=True)
@@ -95,6 +97,7 @@ class Replanner:
         self.candidates = Candidates(collision, options, self.cost, self.budget, self.path, self.predicted_time,
                                      self.stay)
         self.took_prepared = False     # the last plan_goal took the prepared trajectory it was given
+        self._postures: dict[tuple[bytes, bytes], Trajectory | None] = {}    # timed folded legs, by their ends
 
     def begin(self) -> None:
         """One planning action starts (``ActionBudget.begin``)."""
@@ -160,7 +163,8 @@ class Replanner:
         predicted faster; else the searched path (raises PlanningError or TimingError). prepared: this leg's
         plan made a moment before, while the robot was still on its way here (``PlanningLoop`` prepares the
         next leg): it takes the search's place where it is still good (``_still_good``), and the robot
-        leaves without waiting for a search."""
+        leaves without waiting for a search. While someone is within ``posture_gap`` of the robot's reach, the
+        folded leg (``shared.planning.postures``) takes the direct line's place, where it is free."""
         q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
         self.took_prepared = False
         if not self.collision.motion_free(q_start, q_goal)[0]:
@@ -170,6 +174,9 @@ class Replanner:
                                           version=version)
         if humans is None or humans.count == 0:
             return direct
+        posture = self._posture(q_start, q_goal, humans, version)
+        if posture is not None:              # someone near: the folded leg is the one to beat
+            direct = posture
         direct_time = self.predicted_time(direct, 0.0, humans, waited)
         if direct_time <= direct.duration + self.options.worth_searching:
             return direct                   # the people hardly slow it: a search would cost more than it saves
@@ -181,6 +188,31 @@ class Replanner:
         except (PlanningError, TimingError):
             return direct
         return searched if self.predicted_time(searched, 0.0, humans, waited) < direct_time else direct
+
+    def _posture(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules,
+                 version: int) -> Trajectory | None:
+        """The folded leg from q_start to q_goal, numbered `version`, where someone is within options.posture_gap
+        (m) of the robot's reach and it is free of them (never closer to them than its ends are); else None.
+        Timed once per pair of ends (TOPP-RA, free of the static scene) and kept."""
+        gap = self.options.posture_gap
+        if gap is None or reach_gap(self.collision, humans) >= gap:
+            return None
+        key = (q_start.tobytes(), q_goal.tobytes())
+        if key not in self._postures:
+            try:
+                self._postures[key] = parameterize(folded_waypoints(q_start, q_goal, self.limits), self.limits,
+                                                   collision=self.collision)
+            except TimingError:
+                self._postures[key] = None
+            if len(self._postures) > POSTURES_KEPT:
+                self._postures.pop(next(iter(self._postures)))
+        leg = self._postures[key]
+        if leg is None:
+            return None
+        clearance = self.collision.capped_inflation(0.0, leg.positions[[0, -1]], humans)
+        if not self.collision.path_free(leg.positions, humans, clearance):
+            return None
+        return replace(leg, version=version)
 
     def _still_good(self, prepared: PreparedPlan | None, q_start: np.ndarray, q_goal: np.ndarray,
                     humans: HumanCapsules | None, waited: float, beat: float, version: int) -> Trajectory | None:

@@ -475,3 +475,21 @@ def test_a_path_predicted_slow_ahead_of_a_robot_at_speed_is_replanned_by_the_pla
     # a robot the SSM has already slowed is the scaling layer's to ask for (beta); nobody near: nothing
     assert replanner.on_slow(plan, 0.9, Q_START, standing, 0.3 * speed(0.9), 0.8) is None
     assert replanner.on_slow(plan, 0.9, Q_START, ASIDE, speed(0.9), 0.8) is None
+
+
+def test_a_new_goal_takes_the_folded_leg_by_default_while_someone_is_near_when_asked_to():
+    """ReplanOptions.posture_gap (off by default): a new goal's default leg is the folded one
+    (shared.planning.postures) while someone is that near the robot's reach and it is free of them; nobody
+    near, or the option off, the straight line as before."""
+    from shared.planning.horizon import reach_gap
+    from shared.planning.postures import ELBOW, POSTURE_GAP
+
+    near = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(posture_gap=POSTURE_GAP))
+    assert reach_gap(CM, STANDING) < POSTURE_GAP
+    leg = near._posture(Q_START, Q_GOAL, STANDING, 5)
+    assert leg is not None and leg.version == 5 and np.allclose(leg.positions[[0, -1]], [Q_START, Q_GOAL])
+    assert leg.positions[:, ELBOW].max() > Q_START[ELBOW] + 0.5                   # folded on the way
+    assert CM.path_free(leg.positions, STANDING, CM.capped_inflation(0.0, leg.positions[[0, -1]], STANDING))
+    far = HumanCapsules.from_arrays([[[-4.0, 0.0, 0.0], [-4.0, 0.0, 1.7]]], [0.2], np.zeros((1, 2, 3)), [True])
+    assert near._posture(Q_START, Q_GOAL, far, 5) is None                          # nobody near: no posture
+    assert Replanner(CM, PLANNER, PAPER_SSM)._posture(Q_START, Q_GOAL, STANDING, 5) is None     # off by default

@@ -1,0 +1,31 @@
+"""Postures the planning layer takes on purpose while people are near: the straight leg with the elbow folded over
+the middle of the sweep, in parallel with the base's turn. A folded arm keeps every link nearer the base, so people
+at the table's edge are farther from every link and every link is slower, and the SSM lets the robot go faster;
+with nobody near it costs a little (a longer path). People walking near the cell cannot be forecast seconds ahead
+(``bench/calibration.py``: the cost's choice among candidates is the executed fastest in about half the choices
+where people walk), and the fold pays wherever they turn out to be. With ``ReplanOptions.posture_gap`` set
+(``POSTURE_GAP`` suggested; off by default) it is a new goal's default leg while someone is that near the
+robot's reach (``Replanner.plan_goal``); the search may still find a faster one."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from shared.robot.model import JointLimits
+
+ELBOW = 2                   # joint 3 (0-based index): the PRBT's elbow
+FOLD = 0.8                  # rad: the elbow's fold over the middle of the sweep
+FOLD_SPAN = (0.35, 0.65)    # the fractions of the straight line between which the fold is held
+POSTURE_GAP = 1.0           # m beyond the robot's reach (``shared.planning.horizon.reach_gap``): a person nearer
+                            # takes the folded leg by default (at 2 m/s they are within reach in half a second)
+
+
+def folded_waypoints(start: np.ndarray, goal: np.ndarray, limits: JointLimits, fold: float = FOLD,
+                     span: tuple[float, float] = FOLD_SPAN, joint: int = ELBOW) -> np.ndarray:
+    """start, the two folded points of the span, goal (4, 6): the straight line with `joint` offset by `fold` (rad)
+    between the fractions `span`, ramping in from the start and out to the goal; within the joint limits."""
+    start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+    offset = np.zeros(start.size)
+    offset[joint] = fold
+    via = [np.clip(start + f * (goal - start) + offset, limits.lower, limits.upper) for f in span]
+    return np.vstack([start, *via, goal])
