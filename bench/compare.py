@@ -79,14 +79,16 @@ def _run(task: tuple[str, int, float, tuple[str, ...]]) -> dict:
         s = res.summary()
         out[strategy] = {"shuttles": s["shuttle_progress"], "completed": s["shuttles_completed"],
                          "duration_s": s["duration_s"],
-                         "stopped_fraction": s["stopped_fraction"], "min_margin_m_s": s["min_margin_m_s"],
+                         "stopped_fraction": s["stopped_fraction"], "slowed_fraction": s["slowed_fraction"],
+                         "min_margin_m_s": s["min_margin_m_s"],
                          "violations": s["violations"], "command_exceedances": s["command_exceedances"],
                          "wall_s": time.perf_counter() - started}
     return out
 
 
 def aggregate(rows: list[dict], horizon: float) -> dict:
-    """Per strategy (those the rows have): shuttles per minute, time stopped, the smallest margin (m),
+    """Per strategy (those the rows have): shuttles per minute, time stopped (a share, and seconds per scenario),
+    time slowed (seconds per scenario below full speed while moving), the smallest margin (m),
     violations and command exceedances, wall time per scenario."""
     result = {}
     for strategy in columns(rows):
@@ -96,6 +98,9 @@ def aggregate(rows: list[dict], horizon: float) -> dict:
         result[strategy] = {
             "shuttles_per_min": round(sum(r["shuttles"] for r in runs) / minutes, 3) if minutes else 0.0,
             "stopped_fraction": round(float(np.mean([r["stopped_fraction"] for r in runs])), 4),
+            # seconds per scenario stopped and slowed (below full speed, moving): where the time went
+            "stopped_s": round(float(np.mean([r["stopped_fraction"] * r["duration_s"] for r in runs])), 3),
+            "slowed_s": round(float(np.mean([r.get("slowed_fraction", 0.0) * r["duration_s"] for r in runs])), 3),
             "min_margin_m": round(min(margins) * horizon, 4) if margins else None,
             "violations": int(sum(r["violations"] for r in runs)),
             "command_exceedances": int(sum(r["command_exceedances"] for r in runs)),
@@ -255,7 +260,8 @@ def main() -> int:
         per = per_kind[kind] = aggregate(of_kind, horizon)
         shares = {s: won_back(per, empty, s) for s in run if s == "full" or s in BOUNDS + BASELINES}
         print(f"{kind:<12} " + "  ".join(f"{s}: {per[s]['shuttles_per_min']:6.2f}/min stopped "
-                                          f"{per[s]['stopped_fraction']:.2f} viol {per[s]['violations']}"
+                                          f"{per[s]['stopped_fraction']:.2f} ({per[s]['stopped_s']:.1f} s, slowed "
+                                          f"{per[s]['slowed_s']:.1f} s) viol {per[s]['violations']}"
                                           for s in run)
               + "".join(f"  {s} won back {100 * share:.0f} %" for s, share in shares.items() if share is not None))
         intervals[kind] = ratios(of_kind)

@@ -91,6 +91,8 @@ class SimResult:
             "shuttle_progress": round(self.progress, 4),
             "mean_alpha": round(float(alpha.mean()), 4),
             "stopped_fraction": round(float(np.mean(alpha < 1e-6)), 4),
+            # the share of cycles the robot moved below full speed (the SSM, a ramp or braking), not stopped
+            "slowed_fraction": round(float(np.mean((alpha >= 1e-6) & (alpha < 1.0 - 1e-6))), 4),
             "beta_requests": self.beta_requests,
             "replans": [{"t": round(e.t, 2), "reason": e.reason, "compute_ms": round(e.compute_ms, 1),
                          "detail": e.detail} for e in done],
