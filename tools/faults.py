@@ -47,7 +47,7 @@ from tools.actors import FeedFault, HumanFeed, Recorder, Shuttle
 from tools.cell import service_info
 from tools.faultcheck import FaultVerdict, moving_at, nearer_seen, standstill_after, stop_timeline, truth_violations
 from tools.launch import free_port
-from tools.report import Recording
+from tools.report import Recording, write_trace
 
 HOLD = 1.5                      # s a fault stays active (kills: until the supervisor restarts the service)
 # s: the joint state wait_moving goes by must be this recent. The latest one kept could be older: the stream
@@ -442,4 +442,10 @@ def run_campaign(prefix: str, endpoint: str, interface: str, channel: str | None
         out.mkdir(parents=True, exist_ok=True)
         (out / "faults.json").write_text(json.dumps([v.as_dict() for v in verdicts], indent=1))
         (out / "faults.md").write_text(table + "\n")
+        if not all(v.ok for v in verdicts):        # where a failed verdict's stop went: the whole campaign's messages
+            trace = out / "trace"
+            trace.mkdir(exist_ok=True)
+            with campaign.recorder.lock:
+                write_trace(trace, campaign.rec)
+            say(f"hrc faults: a verdict failed; the campaign's trace is in {trace}")
     return verdicts

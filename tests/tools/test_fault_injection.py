@@ -76,3 +76,42 @@ def test_a_person_shown_nearer_is_seen_in_the_first_status_that_has_them_nearer(
     assert nearer_seen(1.0, walking + [(0.04, 0.72)], 0.3) == 0.04
     assert nearer_seen(None, [(0.004, 0.81), (0.014, 0.80)], 0.3) == 0.004
     assert nearer_seen(None, [], 0.3) is None
+
+
+def test_a_campaign_with_a_failed_verdict_keeps_its_trace(monkeypatch, tmp_path):
+    """run_campaign writes faults.json and faults.md; where a verdict failed, the whole campaign's messages too
+    (trace/), so where its stop went can be judged afterwards; all verdicts good, no trace."""
+    import threading
+
+    import numpy as np
+
+    import tools.faults as faults
+    from shared.robot.model import default_robot
+    from shared.wire.messages import JointState
+    from tools.faultcheck import FaultVerdict
+    from tools.report import Recording
+
+    class FakeCampaign:
+        def __init__(self, *args):
+            self.rec = Recording(t0=0.0)
+            self.rec.joint_states.append(JointState(q=np.zeros(6), qd=np.zeros(6), drive_state="running:x",
+                                                    enabled=True, fault=False, seq=1, stamp=0.01))
+            self.recorder = type("Recorder", (), {"lock": threading.Lock()})()
+
+        def run(self, name):
+            verdict = FaultVerdict(name, "any", None, "test")
+            verdict.moving_at_injection, verdict.back, verdict.resumed_s = True, True, 1.0
+            verdict.truth_violations = 3 if name == "can_drop" else 0        # the failed one
+            return verdict
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(faults, "Campaign", FakeCampaign)
+    said = []
+    faults.run_campaign("t/x", "tcp/127.0.0.1:9", "virtual", None, None, default_robot(), ["kill_planner"],
+                        tmp_path / "good", say=said.append)
+    assert (tmp_path / "good" / "faults.json").exists() and not (tmp_path / "good" / "trace").exists()
+    faults.run_campaign("t/x", "tcp/127.0.0.1:9", "virtual", None, None, default_robot(), ["can_drop"],
+                        tmp_path / "bad", say=said.append)
+    assert (tmp_path / "bad" / "trace" / "trace.csv").exists() and "trace is in" in said[-1]
