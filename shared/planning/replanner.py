@@ -76,8 +76,8 @@ class Replanner:
     (``paths``, ``shared.planning.paths``), the action's wall clock (``budget``, ``shared.planning.budget``), the
     candidate trajectories (``candidates``, ``shared.planning.candidates``); what is left here is the one
     prediction, a new goal's plan and the triggers (horizon, slow, beta), which share one pattern (``_decide``).
-    About 260 lines, most of them the docstrings of the triggers and of a goal's plan, which say when each replans and why: the
-    public face of the planning layer, kept in one place."""
+    About 260 lines, most of them the docstrings of the triggers and of a goal's plan, which say when each
+    replans and why: the public face of the planning layer, kept in one place."""
 
     def __init__(self, collision: CollisionModel, planner: JointPlanner, ssm: SsmParameters,
                  horizon: HorizonOptions = HorizonOptions(), options: ReplanOptions = ReplanOptions(),
