@@ -6,40 +6,14 @@ a little in an empty cell (a longer path); what it wins with people is what a pl
 match to earn its place (issue 38).
 
 ``FixedPath.leg(start, goal, version)`` is the timed leg (TOPP-RA through the fold's waypoints, checked free of
-the static scene), made once per pair of ends and renumbered per leg; ``run_shuttle(leg=...)`` follows it.
+the static scene), made once per pair of ends and renumbered per leg; ``run_shuttle(leg_path=...)`` follows it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-
-import numpy as np
-
-from shared.core.trajectory import Trajectory
-from shared.planning.collision import CollisionModel
-from shared.planning.postures import ELBOW, FOLD, FOLD_SPAN, folded_waypoints
-from shared.planning.timing import parameterize
+from shared.planning.postures import FoldedLegs
 
 
-@dataclass
-class FixedPath:
-    """fold (rad): the elbow's offset over the middle of the sweep; span: the fractions of the straight line
-    between which the offset is held (it ramps in from the start and out to the goal, with the base's turn);
-    joint: the joint folded."""
-
-    collision: CollisionModel
-    fold: float = FOLD
-    span: tuple[float, float] = FOLD_SPAN
-    joint: int = ELBOW
-    _legs: dict = field(default_factory=dict)
-
-    def waypoints(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """start, the two folded points of the span, goal (4, 6) (``shared.planning.postures``)."""
-        return folded_waypoints(start, goal, self.collision.robot.limits, self.fold, self.span, self.joint)
-
-    def leg(self, start: np.ndarray, goal: np.ndarray, version: int) -> Trajectory:
-        key = (np.asarray(start, dtype=float).tobytes(), np.asarray(goal, dtype=float).tobytes())
-        if key not in self._legs:
-            self._legs[key] = parameterize(self.waypoints(start, goal), self.collision.robot.limits,
-                                           collision=self.collision)
-        return replace(self._legs[key], version=version)
+class FixedPath(FoldedLegs):
+    """The folded legs of ``shared.planning.postures`` as a fixed path: ``leg(start, goal, version)`` for
+    ``run_shuttle(leg_path=...)`` (raises TimingError where a leg cannot be timed)."""

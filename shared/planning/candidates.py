@@ -74,9 +74,10 @@ class Candidates:
         for s_j in junctions:                       # continuous through the branch point
             if errors and self.budget.out_of_time():
                 raise ReplanFailed("no merge within the action's time: " + "; ".join(errors))
+            lead = lead_in(s_j)
             try:
-                inflation = min(check, self.collision.capped_inflation(check, lead_in(s_j), humans))
-                part = parameterize(np.vstack([lead_in(s_j), tail[1:]]), self.limits,
+                inflation = min(check, self.collision.capped_inflation(check, lead, humans))
+                part = parameterize(np.vstack([lead, tail[1:]]), self.limits,
                                     start_velocity=old.sample(float(s_j))[1], collision=self.collision,
                                     humans=humans, inflation=inflation)
                 return merge(old, s_j, part, version), s_j
@@ -85,10 +86,11 @@ class Candidates:
         s_j = junctions[-1]                          # stop-and-go, with the most room to stop
         if self.budget.out_of_time():
             raise ReplanFailed("no merge within the action's time: " + "; ".join(errors))
+        lead = lead_in(s_j)
         try:
-            stop = parameterize(lead_in(s_j), self.limits, start_velocity=old.sample(float(s_j))[1],
+            stop = parameterize(lead, self.limits, start_velocity=old.sample(float(s_j))[1],
                                 collision=self.collision, humans=humans,
-                                inflation=min(check, self.collision.capped_inflation(check, lead_in(s_j), humans)))
+                                inflation=min(check, self.collision.capped_inflation(check, lead, humans)))
             go = self.from_rest(tail, humans, version)
         except TimingError as exc:
             raise ReplanFailed("no junction allows a continuous merge: "

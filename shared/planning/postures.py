@@ -9,13 +9,19 @@ robot's reach (``Replanner.plan_goal``); the search may still find a faster one.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from shared.core.trajectory import Trajectory
+from shared.planning.collision import CollisionModel
+from shared.planning.timing import TimingError, parameterize
 from shared.robot.model import JointLimits
 
 ELBOW = 2                   # joint 3 (0-based index): the PRBT's elbow
 FOLD = 0.8                  # rad: the elbow's fold over the middle of the sweep
 FOLD_SPAN = (0.35, 0.65)    # the fractions of the straight line between which the fold is held
+LEGS_KEPT = 16              # timed folded legs kept (a shuttle needs two)
 POSTURE_GAP = 1.0           # m beyond the robot's reach (``shared.planning.horizon.reach_gap``): a person nearer
                             # takes the folded leg by default (at 2 m/s they are within reach in half a second)
 
@@ -29,3 +35,33 @@ def folded_waypoints(start: np.ndarray, goal: np.ndarray, limits: JointLimits, f
     offset[joint] = fold
     via = [np.clip(start + f * (goal - start) + offset, limits.lower, limits.upper) for f in span]
     return np.vstack([start, *via, goal])
+
+
+class FoldedLegs:
+    """The folded leg between two ends, timed once (TOPP-RA, free of the static scene) and kept (the newest
+    LEGS_KEPT pairs of ends): the planning layer's posture (``Replanner._posture``) and the fixed-path baseline
+    (``evidence.fixed_path``) follow the same trajectory. fold, span, joint: as ``folded_waypoints``."""
+
+    def __init__(self, collision: CollisionModel, fold: float = FOLD, span: tuple[float, float] = FOLD_SPAN,
+                 joint: int = ELBOW) -> None:
+        self.collision, self.fold, self.span, self.joint = collision, fold, span, joint
+        self._legs: dict[tuple[bytes, bytes], Trajectory | TimingError] = {}
+
+    def waypoints(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        return folded_waypoints(start, goal, self.collision.robot.limits, self.fold, self.span, self.joint)
+
+    def leg(self, start: np.ndarray, goal: np.ndarray, version: int) -> Trajectory:
+        """The folded leg from start to goal, numbered `version` (TimingError where it cannot be timed)."""
+        key = (np.asarray(start, dtype=float).tobytes(), np.asarray(goal, dtype=float).tobytes())
+        if key not in self._legs:
+            try:
+                self._legs[key] = parameterize(self.waypoints(start, goal), self.collision.robot.limits,
+                                               collision=self.collision)
+            except TimingError as exc:
+                self._legs[key] = exc
+            if len(self._legs) > LEGS_KEPT:
+                self._legs.pop(next(iter(self._legs)))
+        made = self._legs[key]
+        if isinstance(made, TimingError):
+            raise made
+        return replace(made, version=version)

@@ -47,9 +47,9 @@ from shared.planning.ompl_planner import JointPlanner, PlanningError
 from shared.planning.options import ReplanOptions
 from shared.planning.path_search import PathSearch
 from shared.planning.paths import SearchedPaths
-from shared.planning.postures import folded_waypoints
+from shared.planning.postures import FoldedLegs
 from shared.planning.time_cost import SsmTimeCost
-from shared.planning.timing import TimingError, parameterize
+from shared.planning.timing import TimingError
 from shared.safety.parameters import SsmParameters
 
 # rad: how near a prepared plan's start (the goal the robot was on its way to) the robot must be to take it: its
@@ -58,7 +58,6 @@ PREPARED_START = 0.005
 # m: how far any end of the people's capsules may have moved since a plan was prepared for them for it still to be
 # taken: further, and a search of the people as they are now decides
 PREPARED_DRIFT = 0.1
-POSTURES_KEPT = 16        # timed folded legs kept (a shuttle needs two)
 
 
 @dataclass(frozen=True)
@@ -97,7 +96,7 @@ class Replanner:
         self.candidates = Candidates(collision, options, self.cost, self.budget, self.path, self.predicted_time,
                                      self.stay)
         self.took_prepared = False     # the last plan_goal took the prepared trajectory it was given
-        self._postures: dict[tuple[bytes, bytes], Trajectory | None] = {}    # timed folded legs, by their ends
+        self.postures = FoldedLegs(collision)     # the folded legs a new goal may take (``_posture``)
 
     def begin(self) -> None:
         """One planning action starts (``ActionBudget.begin``)."""
@@ -193,26 +192,16 @@ class Replanner:
                  version: int) -> Trajectory | None:
         """The folded leg from q_start to q_goal, numbered `version`, where someone is within options.posture_gap
         (m) of the robot's reach and it is free of them (never closer to them than its ends are); else None.
-        Timed once per pair of ends (TOPP-RA, free of the static scene) and kept."""
+        Timed once per pair of ends (``FoldedLegs``)."""
         gap = self.options.posture_gap
         if gap is None or reach_gap(self.collision, humans) >= gap:
             return None
-        key = (q_start.tobytes(), q_goal.tobytes())
-        if key not in self._postures:
-            try:
-                self._postures[key] = parameterize(folded_waypoints(q_start, q_goal, self.limits), self.limits,
-                                                   collision=self.collision)
-            except TimingError:
-                self._postures[key] = None
-            if len(self._postures) > POSTURES_KEPT:
-                self._postures.pop(next(iter(self._postures)))
-        leg = self._postures[key]
-        if leg is None:
+        try:
+            leg = self.postures.leg(q_start, q_goal, version)
+        except TimingError:
             return None
         clearance = self.collision.capped_inflation(0.0, leg.positions[[0, -1]], humans)
-        if not self.collision.path_free(leg.positions, humans, clearance):
-            return None
-        return replace(leg, version=version)
+        return leg if self.collision.path_free(leg.positions, humans, clearance) else None
 
     def _still_good(self, prepared: PreparedPlan | None, q_start: np.ndarray, q_goal: np.ndarray,
                     humans: HumanCapsules | None, waited: float, beat: float, version: int) -> Trajectory | None:
