@@ -20,6 +20,7 @@ import numpy as np
 
 from evidence.scenarios import Q_GOAL, Q_START
 from shared.core.errors import MessageError
+from shared.core.humans import HumanCapsules
 from shared.wire.keys import KeySpace
 from shared.wire.messages import (
     DriveLagReport,
@@ -100,16 +101,21 @@ class HumanFeed(threading.Thread):
     does: at the source's own rate (a recorded motion's ``rate``, its frames each sent once; HUMAN_RATE for a
     script; or `rate`), each sample stamped with the moment it shows (its capture time, not when it was
     sent), and a feed that fell behind skips to the newest sample due, as a camera drops frames, rather than
-    sending the ones it missed in a burst. ``fault`` may be changed at any time (FeedFault)."""
+    sending the ones it missed in a burst. ``fault`` may be changed at any time (FeedFault).
+
+    tracked=True stands in for the tracker instead (a cell without tracker_ingest): each sample goes out as a
+    valid HumanState with the capsules' own velocities, on the key the scaler reads."""
 
     def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo",
-                 rate: float | None = None) -> None:
+                 rate: float | None = None, tracked: bool = False) -> None:
         super().__init__(daemon=True, name="human-feed")
-        self.pub = session.declare_publisher(keys.human_raw)
+        self.tracked = tracked
+        self.pub = session.declare_publisher(keys.human_state if tracked else keys.human_raw)
         self.human, self.t0, self.source, self.running = human, t0, source, True
         self.rate = float(rate or getattr(human, "rate", None) or HUMAN_RATE)
         self.fault = FeedFault()
         self.skipped = 0                  # samples not sent because the feed was late for them
+        self.last_sent = 0.0              # monotonic time (s) of the last sample put
 
     def run(self) -> None:
         k = 0
@@ -128,9 +134,26 @@ class HumanFeed(threading.Thread):
                 continue
             shifted = fault.kind == "jump" and (fault.every <= 0 or k % fault.every == 0)
             segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
-            payload = encode(HumanRaw(source=self.source, sample_time=due, segments=segments, radii=caps.radii,
-                                      seq=k, stamp=time.monotonic()))
+            if self.tracked:
+                payload = encode(HumanState(segments=segments, radii=caps.radii, velocities=caps.velocities,
+                                            velocity_known=caps.velocity_known, valid=True, sample_stamp=due,
+                                            sample_interval=1.0 / self.rate, seq=k, stamp=time.monotonic()))
+            else:
+                payload = encode(HumanRaw(source=self.source, sample_time=due, segments=segments, radii=caps.radii,
+                                          seq=k, stamp=time.monotonic()))
             self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)
+            self.last_sent = time.monotonic()
+
+
+class HeldHuman:
+    """A person who is wherever they were last put (``capsules``; None: nobody in view), for a feed whose
+    scenario moves them by hand."""
+
+    def __init__(self, capsules: HumanCapsules | None = None) -> None:
+        self.capsules = HumanCapsules.empty() if capsules is None else capsules
+
+    def at(self, t: float) -> HumanCapsules | None:
+        return self.capsules
 
 
 def with_nan_segments(payload: bytes) -> bytes:

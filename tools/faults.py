@@ -143,6 +143,7 @@ class CanProbe:
         self.nodes = {nid: self.network.add_node(nid, str(EDS_PATH)) for nid in NODE_IDS}
         self.lock = threading.Lock()
         self.emcy: list[tuple[float, int, int]] = []           # (monotonic time, node, code)
+        self.registers: list[tuple[int, int | None]] = []      # (code, error register or None) of each EMCY
         for nid in NODE_IDS:
             self.network.subscribe(0x80 + nid, lambda can_id, data, ts, nid=nid: self._on_emcy(nid, data, ts))
 
@@ -155,8 +156,10 @@ class CanProbe:
         if len(data) >= 2:
             delay = time.time() - received if received else 0.0
             now = time.monotonic() - (delay if 0.0 <= delay < 5.0 else 0.0)
+            code = int.from_bytes(data[:2], "little")
             with self.lock:
-                self.emcy.append((now, nid, int.from_bytes(data[:2], "little")))
+                self.emcy.append((now, nid, code))
+                self.registers.append((code, data[2] if len(data) > 2 else None))
 
     def inject(self, node: int, subindex: int, value: int, tries: int = 3) -> None:
         """SDO write 0x2F00:subindex = value, tried `tries` times (a busy emulator can miss one request);
