@@ -54,10 +54,10 @@ def test_an_emcy_is_timed_when_it_reached_the_socket_not_when_a_busy_campaign_re
     import time
 
     probe = CanProbe.__new__(CanProbe)
-    probe.lock, probe.emcy = threading.Lock(), []
+    probe.lock, probe.emcy, probe.registers = threading.Lock(), [], []
     code = (0x8250).to_bytes(2, "little")
     before = time.monotonic()
-    probe._on_emcy(3, code, time.time() - 0.4)               # read 0.4 s after it arrived
+    probe._on_emcy(3, code + b"\x81", time.time() - 0.4)     # read 0.4 s after it arrived
     probe._on_emcy(4, code, 0.0)                             # a bus without receive times
     probe._on_emcy(5, code, time.time() + 60.0)              # a clock that makes no sense
     after = time.monotonic()
@@ -65,6 +65,7 @@ def test_an_emcy_is_timed_when_it_reached_the_socket_not_when_a_busy_campaign_re
     assert (n3, c3) == (3, 0x8250)
     assert before - 0.45 < t3 < after - 0.35
     assert before <= t4 <= after and before <= t5 <= after
+    assert probe.registers[:2] == [(0x8250, 0x81), (0x8250, None)]      # CiA 301's error register, if sent
 
 
 def test_a_person_shown_nearer_is_seen_in_the_first_status_that_has_them_nearer():
