@@ -48,7 +48,7 @@ SAFETY_CHAIN = ("robot_driver", "scaler", "tracker_ingest", "safety_monitor")
 
 def reference_loop_ms(repeats: int = 5) -> float:
     """How fast this machine runs Python right now: the median time (ms) of a fixed pure-Python loop. A VM's
-    cores change speed (the same cell measured 50 % and 61 % of a core within 20 minutes), so shares of a
+    cores change speed within minutes (docs/measurements.md), so shares of a
     core from two runs compare only next to this figure."""
     times = []
     for _ in range(repeats):

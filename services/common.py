@@ -124,8 +124,7 @@ class ServiceShell:
 
 class _Inbox:
     """A subscriber whose samples Zenoh keeps until a reader with a cadence of its own takes them: no
-    Python runs per message (a callback costs its thread a wake-up, the GIL and a decode, 100-160 us a
-    message here)."""
+    Python runs per message (a callback costs its thread a wake-up, the GIL and a decode)."""
 
     def __init__(self, shell: ServiceShell, subscriber, kind: type[Message]) -> None:
         self.shell, self.subscriber, self.kind = shell, subscriber, kind

@@ -55,9 +55,8 @@ def realtime(name: str) -> str:
     Call it after the service's warm-up, never before: a SCHED_FIFO process that compiles its kernels into
     numba's empty cache runs CPU-bound for tens of seconds, and two of them (scaler, tracker_ingest) use up
     the real-time budget of a 2-core machine (sched_rt_runtime_us, 950 ms a second); the kernel then
-    throttles every SCHED_FIFO thread for the rest of each second, the driver's SYNC cycle included.
-    Measured on a cold cache beside a CPU-bound process: SYNC gaps of 59.8 ms one second, over 60 ms the
-    next, and every drive faulted on its SYNC time-out (0x8100) before the cell was up.
+    throttles every SCHED_FIFO thread for the rest of each second, the driver's SYNC cycle included, and the
+    drives fault on their SYNC time-out before the cell is up (seen: docs/measurements.md).
 
     Where the OS refuses (no CAP_SYS_NICE, a container's limits) the threads stay in the normal class and
     the cell relies on niceness alone (planner +10, monitor +5 in supervisord and hrc demo): said, not

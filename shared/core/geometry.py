@@ -3,10 +3,9 @@
 A capsule is a segment [a, b] and a radius. The distance of two capsules is the distance of their
 segments minus both radii (negative when they overlap). The closest points of two segments follow
 Ericson, *Real-Time Collision Detection* (2005), section 5.1.9, including its degenerate branches
-(point-like segments, parallel segments). The loop over pairs is compiled with numba: in numpy the
-~40 whole-array operations cost ~70 us for 70 pairs, almost all of it per-call overhead; compiled, the
-same arithmetic takes a few microseconds. ``coal`` computes the same numbers pair by pair and
-``tests/core/test_geometry.py`` cross-checks the two.
+(point-like segments, parallel segments). The loop over pairs is compiled with numba: in numpy some 40
+whole-array operations on a few dozen pairs are almost all per-call overhead. ``coal`` computes the same
+numbers pair by pair and ``tests/core/test_geometry.py`` cross-checks the two.
 """
 
 from __future__ import annotations

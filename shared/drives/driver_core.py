@@ -86,8 +86,8 @@ def follow_step(command: np.ndarray, command_velocity: np.ndarray, setpoint: np.
     (``limits.monitor_acceleration``) and to what still stops before a position limit. A command that is
     itself followable is reproduced exactly: setpoint == command. `clamped`: the setpoint is further than
     CLAMP_TOLERANCE from the command (or the command is beyond a position limit). Pure; compiled
-    (``_follow_kernel``, joint by joint: the driver runs it twice a period, and as two dozen numpy calls on
-    six numbers it cost 45 us each); a NaN anywhere propagates to that joint's setpoint as in numpy, and a
+    (``_follow_kernel``, joint by joint: the driver runs it twice a period, and two dozen numpy calls on six
+    numbers are mostly per-call overhead); a NaN anywhere propagates to that joint's setpoint as in numpy, and a
     NaN or infinite command velocity counts as 0 or the velocity limit (numpy's nan_to_num, then the clip).
     """
     new_s, new_v, clamped = _follow_kernel(np.asarray(command, dtype=np.float64),

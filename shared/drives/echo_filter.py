@@ -2,8 +2,8 @@
 
 python-can's udp_multicast bus hands every frame sent on the group back to every socket on it, the
 sender's own too. ``OwnFrameFilter`` drops those echoes, but only after the receiving thread has woken,
-read the datagram, unpacked its msgpack and built a ``can.Message``: in the emulator that was 1,200 frames
-a second, the larger share of its CAN receive thread's CPU. This module builds a classic BPF program
+read the datagram, unpacked its msgpack and built a ``can.Message``: in the emulator, every frame it sends,
+the larger share of its CAN receive thread's CPU. This module builds a classic BPF program
 (``SO_ATTACH_FILTER``, no privilege needed) that reads the identifier where python-can's packing puts it
 and drops the datagram in the kernel when it is one of this process's own identifiers.
 

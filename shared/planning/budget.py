@@ -40,12 +40,9 @@ class ActionBudget:
     def end(self) -> None:
         """The action is done: learn how long its work besides the searches took, over the actions that
         searched: up at once to a longer one, down by a tenth of the gap after a shorter one. The rest of
-        a refused replan is a millisecond, of a taken one the time laws of the new trajectory with their
-        collision checks (4-6 ms on this machine, a merge's some 20; 20-45 ms while toppra timed them); an
-        average of both (a third of the gap each time) let the searches of the next taken plan run into its
-        time: in the paper's 24 s, wall-clock, every taken replan ended 4-17 ms past the 100 ms budget and
-        the first 17 ms, and in `hrc demo` the median of the replans was 107-118 ms. At most FINISHING_MOST
-        of the budget."""
+        a refused replan is short, of a taken one the new trajectory's time laws and collision checks; an
+        average of both would let the searches of the next taken plan run into that time and past the
+        budget (docs/measurements.md). At most FINISHING_MOST of the budget."""
         if self._began is not None and self.search.spent > 0.0:
             rest = min(max(0.0, time.perf_counter() - self._began - self.search.spent),
                        FINISHING_MOST * self.budget)

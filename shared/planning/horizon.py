@@ -54,8 +54,8 @@ def reach_gap(collision: CollisionModel, humans: HumanCapsules | None) -> float:
 
 def out_of_reach(collision: CollisionModel, humans: HumanCapsules | None) -> bool:
     """Every human capsule is beyond ``reach_gap``'s distance: no configuration of any path is blocked by
-    them now, so the horizon is clear without checking it (the planner's idle cadence: a check costs about
-    350 us on this machine at 50 Hz; this bound, a few microseconds)."""
+    them now, so the horizon is clear without checking it (a few microseconds where a check costs hundreds:
+    the planner's idle cadence; figures in docs/measurements.md)."""
     return reach_gap(collision, humans) > 0.0
 
 

@@ -35,8 +35,8 @@ from shared.planning.topp import fastest_law
 from shared.robot.model import JointLimits
 
 # TOPP-RA enforces the limits at its grid points only; between them, where the path bends, the joint
-# acceleration of its piecewise-constant-acceleration law can exceed the limit (measured on the paper's
-# detours with a 200-point grid: 2 to 6 %, not monotone in the grid size). 10 % of the acceleration limit
+# acceleration of its piecewise-constant-acceleration law can exceed the limit by a few percent (not monotone
+# in the grid size; docs/measurements.md). 10 % of the acceleration limit
 # is kept in hand, so the nominal trajectory stays within the limit to a few percent (the tests allow 10 %;
 # the PRBT's controller tolerates 6.0 rad/s^2 against the 3.49 planned). Velocity is exact: a merged
 # trajectory may have to start at the full 1.57 rad/s.

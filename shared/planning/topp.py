@@ -3,11 +3,11 @@
 IEEE T-RO 2018), compiled for exactly the constraints this project has.
 
 Why not toppra's own: toppra solves the same problem with a Python loop over its grid points, a linear
-program per point and pass, 15-16 ms a law at 200 points on this machine; a planning action that takes a
-plan times up to nine laws (three smoothings, each up to three acceleration headrooms), and those laws were
-most of what a replan did besides its searches (25-62 ms). This kernel is the same algorithm over the same
-discretisation (toppra's "interpolation" scheme, its forward-pass tolerances), a fraction of a millisecond a
-law; tests hold it against toppra on random paths and start speeds. The path itself (a cubic spline) is
+program per point and pass; a planning action that takes a plan times up to nine laws (three smoothings,
+each up to three acceleration headrooms), and those laws were most of what a replan did besides its searches
+(docs/measurements.md). This kernel is the same algorithm over the same discretisation (toppra's
+"interpolation" scheme, its forward-pass tolerances), compiled; tests hold it against toppra on random paths
+and start speeds. The path itself (a cubic spline) is
 still toppra's SplineInterpolator.
 
 The problem, per grid point s_i (i = 0..N), in the squared path speed x = s'^2 and the path acceleration

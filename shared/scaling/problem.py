@@ -121,7 +121,7 @@ def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, accelerat
                 v_near, v_far, a_h, margin):
     """``build_rows`` in one compiled call: the joint speeds at alpha = 1, every pair's SSM row (kinematics and
     ``_pair_ssm_kernel``; empty without people), the hard rows' bound, the acceleration rows and whether they
-    all hold at that bound (a cycle paid about 6 us of Python between the five calls this replaces)."""
+    all hold at that bound (one call: each compiled call costs its arguments' unboxing)."""
     n_links = radii.shape[0]
     tangent = dq * sdot_nominal                                        # joint velocity at alpha = 1
     joint_speed = np.abs(tangent)
