@@ -97,7 +97,7 @@ class DampedVelocity:
     """Each capsule slows down as it goes: displacement v tau (1 - e^(-t / tau)), velocity v e^(-t / tau)
     (tau = time_constant, s), in `frames` steps over the horizon; parts slower than drift_speed (m/s) or of
     unknown velocity stay. Not the planning layer's default: it is off less than ``ConstantVelocity`` 2 s
-    ahead in every scenario kind of the simulation, and plans worse (docs/architecture.md, "How far the
+    ahead in every scenario kind of the simulation, and plans worse (docs/measurements.md, "How far the
     forecast is off"). A second reference for ``bench/forecast.py`` and ``bench/compare.py --forecaster``."""
 
     time_constant: float = 1.0

@@ -52,7 +52,7 @@ class SsmParameters:
       distance is 0.76 m within 0.5 m (0.80 m untracked), 0.61 m beyond (0.64 m). 0 is the paper's formula
       (the measured speed held over the horizon: ``paper_formula``, ``hrc demo --paper-formula``), which
       lets a link pass a standing person at its stopping distance and does not cover their starting to move
-      (docs/architecture.md: its cost and the violations it lets through, side by side).
+      (docs/measurements.md: its cost and the violations it lets through, side by side).
     tracking_margin (derived, m/s) = drive_lag x link_acceleration = 0.053 m/s: while the joints run
       drive_lag behind, the measured speed differs from the commanded one by at most this much. The
       scaling layer keeps the commanded approach speed this far below the limit, so the *measured* robot

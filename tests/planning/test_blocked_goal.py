@@ -106,7 +106,7 @@ def test_the_paper_phases_leave_both_ends_of_the_shuttle_reachable():
     """The paper's experiment needs a person who blocks the path, not its ends: in phases 3 and 4 (the arm in
     the path, then very close) q_s and q_g stay outside the separation at which the SSM allows no approach,
     so a way round exists and the planning layer can pay (an earlier version leaned in so far that q_s
-    itself was out of reach: see docs/architecture.md). The direct line between them does pass inside it."""
+    itself was out of reach: see docs/measurements.md). The direct line between them does pass inside it."""
     phases = paper_phases(6.0)
     no_approach = SSM.fixed_distance + SSM.tracking_margin * SSM.horizon
     line = [Q_START + r * (Q_GOAL - Q_START) for r in np.linspace(0.0, 1.0, 41)]
