@@ -47,7 +47,6 @@ import json
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -56,91 +55,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import SCENARIO_KINDS  # noqa: E402
-from evidence.stats import paired_ratio  # noqa: E402
-from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES, Strategies  # noqa: E402
-
-_WORKER: Strategies | None = None
-
-
-def _init(forecaster: str | None = None) -> None:
-    global _WORKER
-    from shared.planning.forecast import load_forecaster
-    from shared.planning.scene import DEFAULT_SCENE, load_scene
-    _WORKER = Strategies(scene=load_scene(DEFAULT_SCENE),
-                         forecaster=None if forecaster is None else load_forecaster(forecaster))
-
-
-def _run(task: tuple[str, int, float, tuple[str, ...]]) -> dict:
-    kind, seed, duration, strategies = task
-    out = {"kind": kind, "seed": seed}
-    for strategy in strategies:
-        started = time.perf_counter()
-        res = _WORKER.run(strategy, kind, seed, duration)
-        s = res.summary()
-        out[strategy] = {"shuttles": s["shuttle_progress"], "completed": s["shuttles_completed"],
-                         "duration_s": s["duration_s"],
-                         "stopped_fraction": s["stopped_fraction"], "slowed_fraction": s["slowed_fraction"],
-                         "min_margin_m_s": s["min_margin_m_s"],
-                         "violations": s["violations"], "command_exceedances": s["command_exceedances"],
-                         "wall_s": time.perf_counter() - started}
-    return out
-
-
-def aggregate(rows: list[dict], horizon: float) -> dict:
-    """Per strategy (those the rows have): shuttles per minute, time stopped (a share, and seconds per scenario),
-    time slowed (seconds per scenario below full speed while moving), the smallest margin (m),
-    violations and command exceedances, wall time per scenario."""
-    result = {}
-    for strategy in columns(rows):
-        runs = [r[strategy] for r in rows]
-        minutes = sum(r["duration_s"] for r in runs) / 60.0
-        margins = [r["min_margin_m_s"] for r in runs if r["min_margin_m_s"] is not None]
-        result[strategy] = {
-            "shuttles_per_min": round(sum(r["shuttles"] for r in runs) / minutes, 3) if minutes else 0.0,
-            "stopped_fraction": round(float(np.mean([r["stopped_fraction"] for r in runs])), 4),
-            # seconds per scenario stopped and slowed (below full speed, moving): where the time went
-            "stopped_s": round(float(np.mean([r["stopped_fraction"] * r["duration_s"] for r in runs])), 3),
-            "slowed_s": round(float(np.mean([r.get("slowed_fraction", 0.0) * r["duration_s"] for r in runs])), 3),
-            "min_margin_m": round(min(margins) * horizon, 4) if margins else None,
-            "violations": int(sum(r["violations"] for r in runs)),
-            "command_exceedances": int(sum(r["command_exceedances"] for r in runs)),
-            "wall_s_per_scenario": round(float(np.mean([r["wall_s"] for r in runs])), 3)}
-    return result
-
-
-PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"), ("full", "foresight"),
-         ("oracle", "scale_only"), ("full", "oracle"), ("scale_only", "scale_only_paper"), ("full", "full_paper"),
-         ("full_paper", "zones"), ("fixed_path", "scale_only"), ("full", "fixed_path"))
-
-
-def columns(rows: list[dict]) -> tuple[str, ...]:
-    """The strategies (and bounds) these rows were run with, in the table's order."""
-    return tuple(s for s in STRATEGIES + BASELINES + BOUNDS + PAPER if rows and s in rows[0])
-
-
-def won_back(per_strategy: dict, empty: float, strategy: str = "full") -> float | None:
-    """(full - scale_only) / (empty - scale_only) in shuttles per minute: the share of the throughput the
-    people cost the scaling layer alone that the full architecture (or `strategy`) wins back (None where
-    they cost it nothing)."""
-    full, scale = per_strategy[strategy]["shuttles_per_min"], per_strategy["scale_only"]["shuttles_per_min"]
-    lost = empty - scale
-    return round((full - scale) / lost, 3) if lost > 1e-9 else None
-
-
-def ratios(rows: list[dict]) -> dict:
-    """Each pair of PAIRS: the ratio of shuttles and its paired bootstrap interval (evidence.stats) over
-    these scenarios (every strategy runs each scenario equally long, so it is the shuttles-per-minute ratio),
-    or, where there is none (the second strategy did nothing at all), the reason."""
-    out = {}
-    for a, b in PAIRS:
-        if a not in columns(rows) or b not in columns(rows):
-            continue
-        try:
-            out[f"{a}/{b}"] = paired_ratio([r[a]["shuttles"] for r in rows], [r[b]["shuttles"] for r in rows],
-                                           np.random.default_rng(0))
-        except ValueError as exc:
-            out[f"{a}/{b}"] = f"no ratio: {exc}"
-    return out
+from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES  # noqa: E402
+from evidence.summary import aggregate, columns, ratios, wide_rows, won_back  # noqa: E402
+from evidence.sweep import ScenarioSpec, strategies_for  # noqa: E402
+from tools.sweep import SweepMismatch, code_version, read_records, run_sweep  # noqa: E402
 
 
 def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
@@ -200,7 +118,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenarios", type=int, default=1000)
     parser.add_argument("--duration", type=float, default=12.0, help="simulated seconds per scenario")
-    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                        help="processes on this machine (the local pool, or --dask's LocalCluster)")
+    parser.add_argument("--dask", nargs="?", const="local", default=None, metavar="tcp://SCHEDULER:8786",
+                        help="run on dask.distributed: this scheduler, or without an address a LocalCluster of "
+                             "--workers processes (the same records as the local pool)")
     parser.add_argument("--out", type=Path, default=ROOT / "reports" / "compare")
     parser.add_argument("--seed", type=int, default=0, help="first scenario seed")
     parser.add_argument("--kinds", default=",".join(sorted(SCENARIO_KINDS)),
@@ -234,21 +156,24 @@ def main() -> int:
             parser.error(f"--forecaster: {exc}")
     run = (STRATEGIES + (BASELINES if args.fixed_path else ()) + tuple(b for b in BOUNDS if getattr(args, b))
            + (PAPER if args.paper else ()))
-    tasks = [(kinds[k % len(kinds)], args.seed + k, args.duration, run) for k in range(args.scenarios)]
+    specs = [ScenarioSpec(kinds[k % len(kinds)], args.seed + k, args.duration, strategy, forecaster=args.forecaster)
+             for k in range(args.scenarios) for strategy in run]
     started = time.perf_counter()
-    with ProcessPoolExecutor(args.workers, initializer=_init, initargs=(args.forecaster,)) as pool:
-        rows = []
-        for k, row in enumerate(pool.map(_run, tasks, chunksize=4)):
-            rows.append(row)
-            if (k + 1) % max(1, min(100, len(tasks) // 10)) == 0 or k + 1 == len(tasks):
-                spent = time.perf_counter() - started
-                print(f"{k + 1}/{len(tasks)} scenarios, {spent:.0f} s, about "
-                      f"{spent / (k + 1) * (len(tasks) - k - 1):.0f} s left", flush=True)
+    try:
+        done = run_sweep(specs, args.out, executor="dask" if args.dask else "local", workers=args.workers,
+                         address=None if args.dask in (None, "local") else args.dask,
+                         meta={"bench": "compare", "code": code_version(ROOT)})
+    except SweepMismatch as exc:
+        parser.error(str(exc))
+    if done.failed:
+        print(f"chunks {done.failed} failed: the figures below leave their scenarios out; rerun the same command "
+              f"to fill them in", file=sys.stderr)
+    print(f"{done.skipped} of {done.chunks} chunks were already in {args.out / 'records'}; ran {done.ran}", flush=True)
+    rows = [r for r in wide_rows(read_records(args.out)) if all(s in r for s in run)]
     from shared.safety.parameters import SsmParameters
     horizon = SsmParameters().horizon
     strategies = aggregate(rows, horizon)
-    _init()
-    nobody = _WORKER.empty_cell(args.duration).summary()          # per minute as aggregate() counts it
+    nobody = strategies_for((), None).empty_cell(args.duration).summary()          # per minute as aggregate() counts it
     empty = round(nobody["shuttle_progress"] * 60.0 / nobody["duration_s"], 3)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "scenarios.json").write_text(json.dumps(rows))

@@ -1,0 +1,91 @@
+"""The side-by-side figures of a set of simulated scenarios (pure): per strategy shuttles per minute, time
+stopped and slowed, margins and violations; the ratios of pairs of strategies with their paired bootstrap
+intervals (evidence.stats); the share of what the people cost that a strategy wins back. Computed from
+records (evidence.sweep), so a summary is the same whether the records came from memory or from a sweep's
+Parquet files.
+
+``rows``: one per scenario, ``{"kind", "seed", strategy: {"shuttles", "completed", "duration_s",
+"stopped_fraction", "slowed_fraction", "min_margin_m_s", "violations", "command_exceedances", "wall_s"}}``
+(``wide_rows`` builds them from records).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from evidence.stats import paired_ratio
+from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES
+
+
+def wide_rows(records: list[dict]) -> list[dict]:
+    """Records (one per scenario and strategy, of one configuration) as rows (one per scenario, every strategy
+    in it), in the order the scenarios first appear."""
+    rows: dict[tuple, dict] = {}
+    for r in records:
+        row = rows.setdefault((r["kind"], r["seed"]), {"kind": r["kind"], "seed": r["seed"]})
+        margin = r["min_margin_m_s"]
+        row[r["strategy"]] = {"shuttles": r["shuttles"], "completed": r["completed"], "duration_s": r["sim_s"],
+                              "stopped_fraction": r["stopped_fraction"], "slowed_fraction": r["slowed_fraction"],
+                              "min_margin_m_s": None if margin is None or math.isnan(margin) else margin,
+                              "violations": r["violations"], "command_exceedances": r["command_exceedances"],
+                              "wall_s": r["wall_s"]}
+    return list(rows.values())
+
+
+def aggregate(rows: list[dict], horizon: float) -> dict:
+    """Per strategy (those the rows have): shuttles per minute, time stopped (a share, and seconds per scenario),
+    time slowed (seconds per scenario below full speed while moving), the smallest margin (m),
+    violations and command exceedances, wall time per scenario."""
+    result = {}
+    for strategy in columns(rows):
+        runs = [r[strategy] for r in rows]
+        minutes = sum(r["duration_s"] for r in runs) / 60.0
+        margins = [r["min_margin_m_s"] for r in runs if r["min_margin_m_s"] is not None]
+        result[strategy] = {
+            "shuttles_per_min": round(sum(r["shuttles"] for r in runs) / minutes, 3) if minutes else 0.0,
+            "stopped_fraction": round(float(np.mean([r["stopped_fraction"] for r in runs])), 4),
+            # seconds per scenario stopped and slowed (below full speed, moving): where the time went
+            "stopped_s": round(float(np.mean([r["stopped_fraction"] * r["duration_s"] for r in runs])), 3),
+            "slowed_s": round(float(np.mean([r.get("slowed_fraction", 0.0) * r["duration_s"] for r in runs])), 3),
+            "min_margin_m": round(min(margins) * horizon, 4) if margins else None,
+            "violations": int(sum(r["violations"] for r in runs)),
+            "command_exceedances": int(sum(r["command_exceedances"] for r in runs)),
+            "wall_s_per_scenario": round(float(np.mean([r["wall_s"] for r in runs])), 3)}
+    return result
+
+
+PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"), ("full", "foresight"),
+         ("oracle", "scale_only"), ("full", "oracle"), ("scale_only", "scale_only_paper"), ("full", "full_paper"),
+         ("full_paper", "zones"), ("fixed_path", "scale_only"), ("full", "fixed_path"))
+
+
+def columns(rows: list[dict]) -> tuple[str, ...]:
+    """The strategies (and bounds) these rows were run with, in the table's order."""
+    return tuple(s for s in STRATEGIES + BASELINES + BOUNDS + PAPER if rows and s in rows[0])
+
+
+def won_back(per_strategy: dict, empty: float, strategy: str = "full") -> float | None:
+    """(full - scale_only) / (empty - scale_only) in shuttles per minute: the share of the throughput the
+    people cost the scaling layer alone that the full architecture (or `strategy`) wins back (None where
+    they cost it nothing)."""
+    full, scale = per_strategy[strategy]["shuttles_per_min"], per_strategy["scale_only"]["shuttles_per_min"]
+    lost = empty - scale
+    return round((full - scale) / lost, 3) if lost > 1e-9 else None
+
+
+def ratios(rows: list[dict]) -> dict:
+    """Each pair of PAIRS: the ratio of shuttles and its paired bootstrap interval (evidence.stats) over
+    these scenarios (every strategy runs each scenario equally long, so it is the shuttles-per-minute ratio),
+    or, where there is none (the second strategy did nothing at all), the reason."""
+    out = {}
+    for a, b in PAIRS:
+        if a not in columns(rows) or b not in columns(rows):
+            continue
+        try:
+            out[f"{a}/{b}"] = paired_ratio([r[a]["shuttles"] for r in rows], [r[b]["shuttles"] for r in rows],
+                                           np.random.default_rng(0))
+        except ValueError as exc:
+            out[f"{a}/{b}"] = f"no ratio: {exc}"
+    return out
