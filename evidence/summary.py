@@ -11,6 +11,7 @@ Parquet files.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -88,4 +89,20 @@ def ratios(rows: list[dict]) -> dict:
                                            np.random.default_rng(0))
         except ValueError as exc:
             out[f"{a}/{b}"] = f"no ratio: {exc}"
+    return out
+
+
+def per_point(records: list[dict], horizon: float) -> list[dict]:
+    """A sweep's records grouped by configuration (their ``overrides``), in the order the points first appear:
+    for each, the point's values, every strategy's aggregate and the pairs' ratios with their intervals, over
+    the scenarios every strategy of the point has run."""
+    points: dict[str, list[dict]] = {}
+    for r in records:
+        points.setdefault(r["overrides"], []).append(r)
+    out = []
+    for key, of_point in points.items():
+        strategies = sorted({r["strategy"] for r in of_point})
+        rows = [row for row in wide_rows(of_point) if all(s in row for s in strategies)]
+        out.append({"point": json.loads(key), "scenarios": len(rows), "strategies": aggregate(rows, horizon),
+                    "ratios": ratios(rows)})
     return out

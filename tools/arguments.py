@@ -229,6 +229,37 @@ def _add_faults(sub) -> None:
     cell_options(faults)
 
 
+def _add_sweep(sub) -> None:
+    """hrc sweep: a grid of configuration values over seeded scenarios, on a local pool or Dask."""
+    sweep = sub.add_parser("sweep", help="throughput against configuration values, over many seeded scenarios",
+                           description="Simulate every combination of the configuration values given (--set, or a "
+                                       "grid file) with every strategy on the same seeded scenarios, on a local "
+                                       "process pool or dask.distributed (--dask). Each chunk of scenarios is a "
+                                       "Parquet file under --out/records as it finishes; running the same sweep "
+                                       "again skips the chunks already there (resume after a crash or a lost "
+                                       "worker). Prints progress, one line per grid point, and writes "
+                                       "summary.json, sweep.csv and one plot per key (docs/sweeps.md).")
+    sweep.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...", dest="values",
+                       help="a configuration key and its values, e.g. ssm.reaction_time=0.1,0.15,0.2 (repeat for "
+                            "a grid of several keys)")
+    sweep.add_argument("--grid", type=Path, default=None, metavar="FILE",
+                       help="a YAML grid: set: {KEY: [values]}, and optionally strategies, kinds, scenarios, "
+                            "duration, seed (the options below override it)")
+    sweep.add_argument("--strategies", default=None, help="comma-separated (default scale_only,full)")
+    sweep.add_argument("--kinds", default=None, help="comma-separated scenario kinds, in turn (default: all)")
+    sweep.add_argument("--scenarios", type=int, default=None, help="seeded scenarios per grid point (default 20)")
+    sweep.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
+                       help="simulated seconds per scenario (default 12)")
+    sweep.add_argument("--seed", type=int, default=None, help="first scenario seed (default 0)")
+    sweep.add_argument("--out", type=Path, default=Path("hrc-sweep"), metavar="DIR",
+                       help="output folder (default ./hrc-sweep); the same folder resumes the same sweep")
+    sweep.add_argument("--workers", type=int, default=2, help="local processes (default 2)")
+    sweep.add_argument("--chunk", type=int, default=8, help="runs per chunk, a Parquet file each (default 8)")
+    sweep.add_argument("--dask", nargs="?", const="local", default=None, metavar="tcp://SCHEDULER:8786",
+                       help="run on dask.distributed: this scheduler, or without an address a LocalCluster of "
+                            "--workers processes")
+
+
 def _add_status(sub) -> None:
     """hrc status: what the running cell is doing."""
     status = sub.add_parser("status", help="what the running cell is doing",
@@ -250,5 +281,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view(sub)
     _add_certs(sub)
     _add_faults(sub)
+    _add_sweep(sub)
     _add_status(sub)
     return parser

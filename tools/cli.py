@@ -490,6 +490,53 @@ def cmd_certs(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """A grid of configuration values (tools.sweep), each point's figures from the Parquet records."""
+    from evidence.scenarios import SCENARIO_KINDS
+    from evidence.summary import per_point
+    from shared.safety.parameters import SsmParameters
+    from tools import sweep
+
+    doc = sweep.load_grid(args.grid) if args.grid is not None else {}
+    values = dict(doc.get("set") or {})
+    for text in args.values:
+        key, numbers = sweep.parse_values(text)
+        values[key] = numbers
+    if not values:
+        raise UsageError("nothing to sweep: give --set KEY=V1,V2,... or --grid FILE")
+    split = lambda text: [x.strip() for x in str(text).split(",") if x.strip()]
+    listed = lambda given, key, default: split(given) if given is not None else list(doc.get(key) or default)
+    grid = sweep.Grid(values=values, strategies=listed(args.strategies, "strategies", ["scale_only", "full"]),
+                      kinds=listed(args.kinds, "kinds", sorted(SCENARIO_KINDS)),
+                      scenarios=args.scenarios if args.scenarios is not None else int(doc.get("scenarios", 20)),
+                      duration=args.duration if args.duration is not None else float(doc.get("duration", 12.0)),
+                      seed=args.seed if args.seed is not None else int(doc.get("seed", 0)))
+    sweep.check_grid(grid)
+    if args.workers < 1 or args.chunk < 1:
+        raise UsageError("--workers and --chunk must be >= 1")
+    specs = grid.specs()
+    print(f"hrc sweep: {len(grid.points())} points x {grid.scenarios} scenarios x {len(grid.strategies)} strategies "
+          f"= {len(specs)} runs into {args.out}", flush=True)
+    done = sweep.run_sweep(specs, args.out, executor="dask" if args.dask else "local", workers=args.workers,
+                           address=None if args.dask in (None, "local") else args.dask, chunk=args.chunk,
+                           meta={"bench": "sweep", "code": sweep.code_version(Path(__file__).resolve().parents[1])})
+    points = per_point(sweep.read_records(args.out), SsmParameters().horizon)
+    for p in points:
+        where = ", ".join(f"{k}={v:g}" for k, v in sorted(p["point"].items()))
+        figures = "  ".join(f"{s} {p['strategies'][s]['shuttles_per_min']:.2f}/min (viol {p['strategies'][s]['violations']})"
+                            for s in grid.strategies if s in p["strategies"])
+        pairs = "  ".join(f"{pair} {r.describe().split(' (')[0]}" for pair, r in p["ratios"].items()
+                          if not isinstance(r, str))
+        print(f"{where}: {figures}  {pairs}")
+    sweep.write_summary(points, grid, args.out)
+    print(f"{done.ran} chunks run, {done.skipped} already there, {len(done.failed)} failed, in {done.wall_s:.0f} s; "
+          f"summary.json, sweep.csv and plots in {args.out}")
+    if done.failed:
+        print(f"hrc sweep: chunks {done.failed} failed: rerun the same command to fill them in", file=sys.stderr)
+        return 1
+    return 0
+
+
 class CertsArgumentError(HrcError):
     """hrc certs cannot write where it was asked to."""
 
@@ -549,7 +596,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
                 "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults,
-                "certs": cmd_certs, "view": cmd_view}[args.command](args)
+                "certs": cmd_certs, "view": cmd_view, "sweep": cmd_sweep}[args.command](args)
     except Unreachable as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 1

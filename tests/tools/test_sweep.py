@@ -1,0 +1,113 @@
+"""Sweeps without processes: one scenario as a pure function, records through Parquet, the grid, the plan
+that keeps a folder to one sweep, progress lines, a chunk retried and then reported (tools.sweep with an
+in-process stand-in for the pool is in tests/cell/test_sweep.py, with the real pool and Dask)."""
+
+import io
+import math
+
+import pytest
+
+from evidence.summary import per_point, wide_rows
+from evidence.sweep import RECORD_FIELDS, ScenarioSpec, config_of, run_scenario
+from shared.core.errors import ConfigError
+from tools import sweep
+
+
+def same(a: list[dict], b: list[dict]) -> bool:
+    """Records equal field by field, but for the compute they cost (NaN equal to NaN)."""
+    def key(r):
+        return [(k, "nan" if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items() if k != "wall_s"]
+    return [key(r) for r in a] == [key(r) for r in b]
+
+
+def test_a_scenario_is_a_pure_function_of_its_spec():
+    spec = ScenarioSpec("standing", 3, 1.0, "scale_only", overrides=(("ssm.reaction_time", 0.15),))
+    first, again = run_scenario(spec), run_scenario(spec)
+    assert set(first) == set(RECORD_FIELDS) and same([first], [again])
+    assert first["overrides"] == '{"ssm.reaction_time": 0.15}' and first["sim_s"] == pytest.approx(1.0, abs=0.02)
+    other = run_scenario(ScenarioSpec("standing", 3, 1.0, "scale_only", overrides=(("ssm.reaction_time", 0.3),)))
+    assert other["shuttles"] < first["shuttles"]        # a longer reaction time: larger distances, slower robot
+
+
+def test_overrides_are_checked_as_a_configuration_file_is():
+    assert config_of((("ssm.reaction_time", 0.2),)).ssm.reaction_time == 0.2
+    with pytest.raises(ConfigError, match="nope"):
+        config_of((("ssm.nope", 1.0),))
+    with pytest.raises(ConfigError, match="section.key"):
+        config_of((("reaction_time", 1.0),))
+
+
+def records(n: int, strategies=("scale_only", "full")) -> list[dict]:
+    base = {f: 0 for f in RECORD_FIELDS}
+    return [base | {"kind": "standing", "seed": k, "duration": 2.0, "strategy": s, "overrides": "{}",
+                    "forecaster": "", "shuttles": 1.0 + k + (s == "full"), "sim_s": 2.0, "stopped_fraction": 0.1,
+                    "slowed_fraction": 0.2, "stopped_s": 0.2, "slowed_s": 0.4, "min_margin_m_s": float("nan"),
+                    "wall_s": 0.5} for k in range(n) for s in strategies]
+
+
+def test_records_survive_parquet_and_sum_up_as_the_comparison_does(tmp_path):
+    rs = records(3)
+    sweep.write_chunk(tmp_path, 1, rs[3:])
+    sweep.write_chunk(tmp_path, 0, rs[:3])
+    back = sweep.read_records(tmp_path)
+    assert same(back, rs)                                              # chunk order, every field, NaN kept
+    assert not list((tmp_path / "records").glob("*.tmp"))
+    rows = wide_rows(back)
+    assert len(rows) == 3 and rows[0]["full"]["min_margin_m_s"] is None
+    (point,) = per_point(back, 0.4)
+    assert point["scenarios"] == 3 and point["strategies"]["full"]["shuttles_per_min"] == pytest.approx(60 * 9 / 6)
+    assert point["ratios"]["full/scale_only"].ratio == pytest.approx(9 / 6)
+
+
+def test_the_grid_is_every_combination_and_bad_grids_are_refused():
+    grid = sweep.Grid({"ssm.reaction_time": [0.1, 0.2], "scaling.alpha_min": [0.1, 0.15, 0.2]}, ["scale_only"],
+                      ["standing", "crossing"], 3, 2.0)
+    assert len(grid.points()) == 6 and len(grid.specs()) == 18
+    assert [s.kind for s in grid.specs()[:3]] == ["standing", "crossing", "standing"]
+    sweep.check_grid(grid)
+    for bad, what in ((dict(strategies=["fastest"]), "strategies"), (dict(kinds=["moon"]), "kinds"),
+                      (dict(values={"ssm.reaction_time": [-1.0]}), "reaction_time"), (dict(scenarios=0), "scenarios")):
+        with pytest.raises(sweep.GridError, match=what):
+            sweep.check_grid(sweep.Grid(**{**grid.__dict__, **bad}))
+    assert sweep.parse_values("ssm.reaction_time=0.1,0.15") == ("ssm.reaction_time", [0.1, 0.15])
+    for text in ("ssm.reaction_time", "=1", "ssm.reaction_time=fast"):
+        with pytest.raises(sweep.GridError):
+            sweep.parse_values(text)
+
+
+def test_a_grid_file_is_read_and_a_broken_one_refused(tmp_path):
+    good = tmp_path / "g.yaml"
+    good.write_text("set:\n  ssm.reaction_time: [0.1, 0.2]\nscenarios: 4\n")
+    assert sweep.load_grid(good)["set"] == {"ssm.reaction_time": [0.1, 0.2]}
+    for text in ("set: 3\n", "sett: {}\n", "set: {ssm.reaction_time: []}\n", "\x00\xff[", "- 1\n"):
+        bad = tmp_path / "b.yaml"
+        bad.write_bytes(text.encode("latin-1"))
+        with pytest.raises(sweep.GridError):
+            sweep.load_grid(bad)
+
+
+def test_a_folder_holds_one_sweep(tmp_path):
+    specs = [ScenarioSpec("standing", k, 1.0, "scale_only") for k in range(3)]
+    sweep.write_plan(tmp_path, specs, 2, {"code": "abc"})
+    sweep.write_plan(tmp_path, specs, 2, {"code": "abc"})                # the same sweep: resumed
+    for other in ((specs[:2], 2, {"code": "abc"}), (specs, 3, {"code": "abc"}), (specs, 2, {"code": "def"})):
+        with pytest.raises(sweep.SweepMismatch, match="another sweep"):
+            sweep.write_plan(tmp_path, *other)
+
+
+def test_progress_prints_done_total_rate_and_time_left_as_plain_lines_off_a_terminal():
+    out = io.StringIO()
+    progress = sweep.Progress(10, stream=out, every=0.0)
+    progress.advance(4)
+    progress.advance(6)
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 2 and lines[0].startswith("4/10 scenarios, ") and "s left" in lines[0]
+    assert lines[1].startswith("10/10 scenarios") and "\r" not in out.getvalue()
+
+
+def test_a_failing_chunk_is_tried_again_then_reported_never_dropped_silently():
+    tries, pending, result = {5: 0}, [], sweep.SweepResult(chunks=6)
+    sweep._retry(5, tries, 1, pending, result, "boom")
+    assert pending == [5] and not result.failed
+    sweep._retry(5, tries, 1, pending, result, "boom")
+    assert result.failed == [5]
