@@ -5,7 +5,7 @@ the path, two people, random walks near the robot. Per strategy: shuttles per mi
 time stopped (shuttles count fractionally: the part of the current shuttle's path done at the end), the
 smallest margin to the limit (conservative end-point bound, m), and violations counted
 by the independent monitor's rule. The full architecture pays its planning time on the simulated clock.
-Prints progress with an estimate of the time left. Writes a plot (compare.png) into --out. The last line
+Prints progress (done/total, rate, time left). Writes a plot (compare.png) into --out. The last line
 is one JSON object (overall and per kind: "kinds": {kind: {strategy: shuttles per minute}}; "ratios":
 {kind or "overall": {"full/scale_only": [ratio, low, high], "full/zones": [...]}}, the paired bootstrap
 95 % interval of evidence.stats: how far the ratio would move with another draw of scenarios. The paper's
@@ -32,7 +32,12 @@ through. --fixed-path adds the strongest simple baseline (``evidence.fixed_path`
 path, the shuttle with the elbow folded over the middle of the sweep, no planning; "full/fixed_path" says whether
 the planning layer earns its place, "won_back_fixed_path" how much of the room that path alone uses.
 
-    python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare]
+Each (scenario, strategy) is one ``evidence.sweep.run_scenario``; they run in chunks on a local process pool,
+or on dask.distributed with --dask [tcp://SCHEDULER:8786] (tools.sweep, docs/sweeps.md), each chunk's records
+a Parquet file under --out/records as it finishes: the same command again resumes a run that was stopped, and
+every figure is computed from those files.
+
+    python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare] [--dask]
                             [--kinds two_humans,random_walk] [--seed 0] [--foresight] [--oracle]
                             [--forecaster mypackage.predict:MyForecaster] [--fixed-path]
 

@@ -43,6 +43,7 @@ class SweepResult:
     ran: int = 0
     failed: list[int] = field(default_factory=list)
     wall_s: float = 0.0
+    startup_s: float = 0.0          # of wall_s: starting the executor (a LocalCluster's scheduler and workers)
 
 
 def code_version(root: Path) -> str:
@@ -204,13 +205,14 @@ def _run_dask(pieces, todo, out, workers, address, retries, task, progress, resu
     whose worker died is rescheduled by the scheduler; one that raised is submitted again up to `retries`."""
     from distributed import Client, LocalCluster, as_completed
 
-    cluster = None
+    cluster, started = None, time.perf_counter()
     if address is None:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                                host="127.0.0.1", scheduler_port=0, silence_logs=40)
         address = cluster.scheduler_address
     try:
         with Client(address) as client:
+            result.startup_s = time.perf_counter() - started
             tries = {k: 0 for k in todo}
             futures = {client.submit(task, pieces[k], key=f"chunk-{k}-{os.getpid()}-0", pure=False): k
                        for k in todo}
