@@ -205,8 +205,14 @@ def _run_dask(pieces, todo, out, workers, address, retries, task, progress, resu
     whose worker died is rescheduled by the scheduler; one that raised is submitted again up to `retries`."""
     from distributed import Client, LocalCluster, as_completed
 
+    import dask
+
     cluster, started = None, time.perf_counter()
     if address is None:
+        # a worker samples its task thread's stack every 10 ms by default (its profiler) and may watch the GIL:
+        # for a pure-Python simulation that is time taken from the task, so a cluster started here does neither
+        dask.config.set({"distributed.worker.profile.enabled": False,
+                         "distributed.admin.system-monitor.gil.enabled": False})
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                                host="127.0.0.1", scheduler_port=0, silence_logs=40)
         address = cluster.scheduler_address
