@@ -57,12 +57,18 @@ def config_of(overrides: tuple[tuple[str, float], ...]) -> CellConfig:
 
 
 _STRATEGIES: dict[tuple, object] = {}
+KEPT = 4            # configurations whose Strategies a process keeps (a sweep's chunks come point by point)
 
 
 def strategies_for(overrides: tuple[tuple[str, float], ...], forecaster: str | None):
-    """This process's ``Strategies`` for a configuration, built on first use (the shipped scene)."""
+    """This process's ``Strategies`` for a configuration, built on first use (the shipped scene); the KEPT
+    most recently used are kept, so a worker of a long sweep does not grow with its grid."""
     key = (overrides, forecaster)
-    if key not in _STRATEGIES:
+    if key in _STRATEGIES:
+        _STRATEGIES[key] = _STRATEGIES.pop(key)          # most recently used last
+    else:
+        while len(_STRATEGIES) >= KEPT:
+            _STRATEGIES.pop(next(iter(_STRATEGIES)))
         from evidence.strategies import Strategies
         from shared.planning.forecast import load_forecaster
         from shared.planning.scene import DEFAULT_SCENE, load_scene
