@@ -203,9 +203,8 @@ def _retry(k: int, tries: dict, retries: int, pending: list, result: SweepResult
 def _run_dask(pieces, todo, out, workers, address, retries, task, progress, result) -> None:
     """dask.distributed: the given scheduler, or a LocalCluster of `workers` single-threaded processes. A task
     whose worker died is rescheduled by the scheduler; one that raised is submitted again up to `retries`."""
-    from distributed import Client, LocalCluster, as_completed
-
     import dask
+    from distributed import Client, LocalCluster, as_completed
 
     cluster, started = None, time.perf_counter()
     if address is None:
