@@ -506,11 +506,17 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError("nothing to sweep: give --set KEY=V1,V2,... or --grid FILE")
     split = lambda text: [x.strip() for x in str(text).split(",") if x.strip()]
     listed = lambda given, key, default: split(given) if given is not None else list(doc.get(key) or default)
+    def number(given, key: str, default, kind):
+        try:
+            return given if given is not None else kind(doc.get(key, default))
+        except (TypeError, ValueError):
+            raise sweep.GridError(f"{args.grid}: {key}: expected a number, got {doc.get(key)!r}") from None
+
     grid = sweep.Grid(values=values, strategies=listed(args.strategies, "strategies", ["scale_only", "full"]),
                       kinds=listed(args.kinds, "kinds", sorted(SCENARIO_KINDS)),
-                      scenarios=args.scenarios if args.scenarios is not None else int(doc.get("scenarios", 20)),
-                      duration=args.duration if args.duration is not None else float(doc.get("duration", 12.0)),
-                      seed=args.seed if args.seed is not None else int(doc.get("seed", 0)))
+                      scenarios=number(args.scenarios, "scenarios", 20, int),
+                      duration=number(args.duration, "duration", 12.0, float),
+                      seed=number(args.seed, "seed", 0, int))
     sweep.check_grid(grid)
     if args.workers < 1 or args.chunk < 1:
         raise UsageError("--workers and --chunk must be >= 1")

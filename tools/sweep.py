@@ -154,7 +154,8 @@ def run_sweep(specs: Sequence[ScenarioSpec], out: Path, executor: str = "local",
     todo = [k for k in range(len(pieces)) if not chunk_path(out, k).exists()]
     result = SweepResult(chunks=len(pieces), skipped=len(pieces) - len(todo))
     progress = progress or Progress(len(specs))
-    progress.done = progress.already = sum(len(pieces[k]) for k in range(len(pieces)) if k not in set(todo))
+    waiting = set(todo)
+    progress.done = progress.already = sum(len(piece) for k, piece in enumerate(pieces) if k not in waiting)
     started = time.perf_counter()
     if todo:
         run = _run_dask if executor == "dask" else _run_local

@@ -111,3 +111,19 @@ def test_a_failing_chunk_is_tried_again_then_reported_never_dropped_silently():
     assert pending == [5] and not result.failed
     sweep._retry(5, tries, 1, pending, result, "boom")
     assert result.failed == [5]
+
+
+def test_hrc_sweep_refuses_bad_grids_with_a_message_and_exit_2(tmp_path):
+    from tests.util import run_hrc
+
+    grid = tmp_path / "g.yaml"
+    cases = [((), "nothing to sweep"), (("--set", "ssm.nope=1"), "nope"), (("--set", "ssm.reaction_time"), "KEY=V1"),
+             (("--set", "ssm.reaction_time=0.1", "--strategies", "fastest"), "strategies"),
+             (("--set", "ssm.reaction_time=0.1", "--kinds", "moon"), "kinds"),
+             (("--set", "ssm.reaction_time=0.1", "--workers", "0"), "--workers"),
+             (("--grid", str(grid)), "scenarios: expected a number")]
+    grid.write_text("set:\n  ssm.reaction_time: [0.1]\nscenarios: many\n")
+    for args, says in cases:
+        done = run_hrc("sweep", "--out", str(tmp_path / "out"), *args)
+        assert done.returncode == 2 and says in done.stderr, (args, done.stderr)
+    assert not (tmp_path / "out" / "records").exists()                     # nothing ran
