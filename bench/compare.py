@@ -34,7 +34,8 @@ the planning layer earns its place, "won_back_fixed_path" how much of the room t
 
 Each (scenario, strategy) is one ``evidence.sweep.run_scenario``; they run in chunks on a local process pool,
 or on dask.distributed with --dask [tcp://SCHEDULER:8786] (tools.sweep, docs/sweeps.md), each chunk's records
-a Parquet file under --out/records as it finishes: the same command again resumes a run that was stopped, and
+a Parquet file under --out/run-<its plan's hash>/records as it finishes: the same command again resumes a run
+that was stopped, another one runs beside it, and
 every figure is computed from those files.
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare] [--dask]
@@ -63,7 +64,7 @@ from evidence.scenarios import SCENARIO_KINDS  # noqa: E402
 from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES  # noqa: E402
 from evidence.summary import aggregate, columns, ratios, wide_rows, won_back  # noqa: E402
 from evidence.sweep import ScenarioSpec, strategies_for  # noqa: E402
-from tools.sweep import SweepMismatch, code_version, read_records, run_sweep  # noqa: E402
+from tools.sweep import SweepMismatch, code_version, plan_id, read_records, run_sweep  # noqa: E402
 
 
 def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
@@ -164,17 +165,18 @@ def main() -> int:
     specs = [ScenarioSpec(kinds[k % len(kinds)], args.seed + k, args.duration, strategy, forecaster=args.forecaster)
              for k in range(args.scenarios) for strategy in run]
     started = time.perf_counter()
+    meta = {"bench": "compare", "code": code_version(ROOT)}
+    folder = args.out / f"run-{plan_id(specs, meta=meta)}"      # the same command resumes its own run here
     try:
-        done = run_sweep(specs, args.out, executor="dask" if args.dask else "local", workers=args.workers,
-                         address=None if args.dask in (None, "local") else args.dask,
-                         meta={"bench": "compare", "code": code_version(ROOT)})
+        done = run_sweep(specs, folder, executor="dask" if args.dask else "local", workers=args.workers,
+                         address=None if args.dask in (None, "local") else args.dask, meta=meta)
     except SweepMismatch as exc:
         parser.error(str(exc))
     if done.failed:
         print(f"chunks {done.failed} failed: the figures below leave their scenarios out; rerun the same command "
               f"to fill them in", file=sys.stderr)
-    print(f"{done.skipped} of {done.chunks} chunks were already in {args.out / 'records'}; ran {done.ran}", flush=True)
-    rows = [r for r in wide_rows(read_records(args.out)) if all(s in r for s in run)]
+    print(f"{done.skipped} of {done.chunks} chunks were already in {folder / 'records'}; ran {done.ran}", flush=True)
+    rows = [r for r in wide_rows(read_records(folder)) if all(s in r for s in run)]
     from shared.safety.parameters import SsmParameters
     horizon = SsmParameters().horizon
     strategies = aggregate(rows, horizon)

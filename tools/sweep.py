@@ -90,11 +90,24 @@ def read_records(out: Path) -> list[dict]:
     return records
 
 
+def plan_of(specs: Sequence[ScenarioSpec], chunk: int, meta: dict) -> dict:
+    return {"chunk": chunk, "specs": [[s.kind, s.seed, s.duration, s.strategy, list(map(list, s.overrides)),
+                                       s.forecaster] for s in specs], **meta}
+
+
+def plan_id(specs: Sequence[ScenarioSpec], chunk: int = CHUNK, meta: dict | None = None) -> str:
+    """A short name for a sweep's plan (its hash): a folder per plan lets a tool with a fixed output folder
+    resume the same run and keep apart different ones."""
+    import hashlib
+
+    text = json.dumps(plan_of(specs, chunk, meta or {}), sort_keys=True)
+    return hashlib.sha1(text.encode()).hexdigest()[:12]
+
+
 def write_plan(out: Path, specs: Sequence[ScenarioSpec], chunk: int, meta: dict) -> None:
     """The sweep's plan beside its records: a rerun into the same folder must be the same sweep (else its
     chunks would mean other specs), so a different plan is refused (SweepMismatch)."""
-    plan = {"chunk": chunk, "specs": [[s.kind, s.seed, s.duration, s.strategy, list(map(list, s.overrides)),
-                                       s.forecaster] for s in specs], **meta}
+    plan = plan_of(specs, chunk, meta)
     path = out / "plan.json"
     if path.exists():
         old = json.loads(path.read_text())
