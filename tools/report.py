@@ -433,6 +433,19 @@ def write_figures(out: Path, rec: Recording, series: dict, config: CellConfig) -
     return names
 
 
+def write_bag(out: Path, robot: RobotModel, config: CellConfig, rec: Recording) -> str:
+    """recording.mcap and metadata.yaml (tools.mcap_record), the run placed on the wall clock as ending now."""
+    import time
+
+    from tools.mcap_record import write_mcap
+    from tools.sweep import code_version
+
+    stamps = [m.stamp for m in rec.joint_states + rec.statuses + rec.human_states] or [rec.t0]
+    write_mcap(out, robot, config, rec, epoch_t0=time.time() - (max(stamps) - rec.t0),
+               code=code_version(Path(__file__).resolve().parents[1]))
+    return "recording.mcap"
+
+
 def write_report(out: Path, robot: RobotModel, config: CellConfig, rec: Recording, extra: dict | None = None) -> dict:
     """Write the whole report folder; returns the summary (also in summary.json)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -443,5 +456,6 @@ def write_report(out: Path, robot: RobotModel, config: CellConfig, rec: Recordin
     write_recording(out / "recording.rrd", robot, config.ssm, rec.joint_states + rec.commands + rec.human_states
                     + rec.statuses + rec.trajectories, rec.t0)
     summary["recording"] = "recording.rrd"
+    summary["ros2_bag"] = write_bag(out, robot, config, rec)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary

@@ -174,6 +174,12 @@ class RobotModel:
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return pin.SE3(self.data.oMf[self.flange_frame])
 
+    def link_poses(self, q: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        """Every link's pose (4x4) in the world frame at configuration q, by link name (the URDF's bodies)."""
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        return [(f.name, self.data.oMf[k].homogeneous.copy()) for k, f in enumerate(self.model.frames)
+                if f.type == pin.FrameType.BODY and f.name != "world"]
+
     def frame_position(self, q: np.ndarray, frame: str) -> np.ndarray:
         """Position (3,) of any named frame of the model at configuration q."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))

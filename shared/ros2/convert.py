@@ -1,0 +1,186 @@
+"""The cell's state as ROS 2 messages, and what ROS 2 may send the cell, checked (pure).
+
+Out: the measured joints (sensor_msgs/JointState), every link's pose (tf2_msgs/TFMessage, from the base
+frame), capsules as visualization_msgs/MarkerArray (a cylinder and two spheres each), the scaling factor and
+the replan request (std_msgs/Float64, std_msgs/Bool), the safety events (diagnostic_msgs/DiagnosticArray).
+In: a goal as a sensor_msgs/JointState (positions by joint name), people as a MarkerArray of CYLINDER
+markers (one capsule each: its pose's z axis is the capsule's axis, scale.z its length between the centres
+of the end spheres, scale.x its diameter; the marker's ns names the person). Bad input raises MessageError
+naming what is wrong. Times are ns since the epoch."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from shared.core.errors import MessageError
+from shared.core.humans import HumanCapsules
+from shared.ros2.types import msg_class
+
+JOINT_STATE, TF, MARKERS = "sensor_msgs/msg/JointState", "tf2_msgs/msg/TFMessage", "visualization_msgs/msg/MarkerArray"
+FLOAT64, BOOL, STRING = "std_msgs/msg/Float64", "std_msgs/msg/Bool", "std_msgs/msg/String"
+DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
+CYLINDER, SPHERE = 3, 2                      # visualization_msgs/Marker types
+ADD, DELETEALL = 0, 3
+LEVELS = {"info": 0, "warning": 1, "stop": 2}     # diagnostic_msgs/DiagnosticStatus OK, WARN, ERROR
+MAX_CAPSULES = 64
+
+
+def stamp(t_ns: int):
+    return msg_class("builtin_interfaces/msg/Time")(sec=int(t_ns // 1_000_000_000), nanosec=int(t_ns % 1_000_000_000))
+
+
+def header(t_ns: int, frame: str):
+    return msg_class("std_msgs/msg/Header")(stamp=stamp(t_ns), frame_id=frame)
+
+
+def joint_state(names: list[str], q: np.ndarray, qd: np.ndarray, t_ns: int):
+    return msg_class(JOINT_STATE)(header=header(t_ns, ""), name=list(names), position=np.asarray(q, np.float64),
+                                  velocity=np.asarray(qd, np.float64), effort=np.zeros(0, np.float64))
+
+
+def _quaternion(rotation: np.ndarray) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of a rotation matrix (Shepperd's method, the largest of four pivots)."""
+    r = rotation
+    trace = r[0, 0] + r[1, 1] + r[2, 2]
+    if trace > 0:
+        s = 2.0 * math.sqrt(1.0 + trace)
+        return (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s
+    i = int(np.argmax([r[0, 0], r[1, 1], r[2, 2]]))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = 2.0 * math.sqrt(max(1.0 + r[i, i] - r[j, j] - r[k, k], 1e-300))
+    out = [0.0, 0.0, 0.0, (r[k, j] - r[j, k]) / s]
+    out[i], out[j], out[k] = 0.25 * s, (r[j, i] + r[i, j]) / s, (r[k, i] + r[i, k]) / s
+    return tuple(out)
+
+
+def _transform(translation: np.ndarray, rotation: np.ndarray):
+    x, y, z, w = _quaternion(rotation)
+    return msg_class("geometry_msgs/msg/Transform")(
+        translation=msg_class("geometry_msgs/msg/Vector3")(x=float(translation[0]), y=float(translation[1]),
+                                                           z=float(translation[2])),
+        rotation=msg_class("geometry_msgs/msg/Quaternion")(x=x, y=y, z=z, w=w))
+
+
+def link_transforms(frames: list[tuple[str, np.ndarray]], base: str, t_ns: int):
+    """A TFMessage of (child frame, 4x4 pose in the base frame) pairs, each as base -> child."""
+    stamped = msg_class("geometry_msgs/msg/TransformStamped")
+    return msg_class(TF)(transforms=[stamped(header=header(t_ns, base), child_frame_id=name,
+                                             transform=_transform(pose[:3, 3], pose[:3, :3]))
+                                     for name, pose in frames])
+
+
+def _axis_rotation(axis: np.ndarray) -> np.ndarray:
+    """A rotation whose z axis is `axis` (unit), for a cylinder marker."""
+    z = axis
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def capsule_markers(segments: np.ndarray, radii: np.ndarray, ns: str, frame: str, t_ns: int,
+                    rgba: tuple[float, float, float, float]):
+    """Each capsule as a CYLINDER between its end centres and two SPHEREs at them (ids 3k, 3k+1, 3k+2); a
+    DELETEALL first, so capsules that went away leave the view."""
+    Marker, Pose = msg_class("visualization_msgs/msg/Marker"), msg_class("geometry_msgs/msg/Pose")
+    Point, Quat = msg_class("geometry_msgs/msg/Point"), msg_class("geometry_msgs/msg/Quaternion")
+    Vec, Color = msg_class("geometry_msgs/msg/Vector3"), msg_class("std_msgs/msg/ColorRGBA")
+    Duration = msg_class("builtin_interfaces/msg/Duration")
+    color = Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+
+    def marker(k: int, kind: int, centre: np.ndarray, rotation: np.ndarray, scale: tuple[float, float, float],
+               action: int = ADD):
+        x, y, z, w = _quaternion(rotation)
+        return Marker(header=header(t_ns, frame), ns=ns, id=k, type=kind, action=action,
+                      pose=Pose(position=Point(x=float(centre[0]), y=float(centre[1]), z=float(centre[2])),
+                                orientation=Quat(x=x, y=y, z=z, w=w)),
+                      scale=Vec(x=scale[0], y=scale[1], z=scale[2]), color=color,
+                      lifetime=Duration(sec=0, nanosec=0), frame_locked=False, points=[], colors=[],
+                      texture_resource="", texture=msg_class("sensor_msgs/msg/CompressedImage")(
+                          header=header(0, ""), format="", data=np.zeros(0, np.uint8)),
+                      uv_coordinates=[], text="", mesh_resource="",
+                      mesh_file=msg_class("visualization_msgs/msg/MeshFile")(filename="", data=np.zeros(0, np.uint8)),
+                      mesh_use_embedded_materials=False)
+
+    markers = [marker(0, CYLINDER, np.zeros(3), np.eye(3), (0.0, 0.0, 0.0), DELETEALL)]
+    for k, ((a, b), r) in enumerate(zip(np.asarray(segments, float), np.asarray(radii, float))):
+        d = 2.0 * float(r)
+        length = float(np.linalg.norm(b - a))
+        rotation = _axis_rotation((b - a) / length) if length > 1e-9 else np.eye(3)
+        markers.append(marker(3 * k, CYLINDER, (a + b) / 2.0, rotation, (d, d, length)))
+        markers.append(marker(3 * k + 1, SPHERE, a, np.eye(3), (d, d, d)))
+        markers.append(marker(3 * k + 2, SPHERE, b, np.eye(3), (d, d, d)))
+    return msg_class(MARKERS)(markers=markers)
+
+
+def float64(value: float):
+    return msg_class(FLOAT64)(data=float(value))
+
+
+def boolean(value: bool):
+    return msg_class(BOOL)(data=bool(value))
+
+
+def string(text: str):
+    return msg_class(STRING)(data=text)
+
+
+def diagnostics(events: list, t_ns: int):
+    """Safety events (source, event, severity, text, value) as one DiagnosticArray, a status each."""
+    Status, KeyValue = msg_class("diagnostic_msgs/msg/DiagnosticStatus"), msg_class("diagnostic_msgs/msg/KeyValue")
+    return msg_class(DIAGNOSTICS)(header=header(t_ns, ""), status=[
+        Status(level=LEVELS.get(e.severity, 1), name=f"hrc/{e.source}", message=f"{e.event}: {e.text}"[:1000],
+               hardware_id="prbt", values=[KeyValue(key="event", value=e.event),
+                                           KeyValue(key="value", value="" if e.value is None else repr(e.value))])
+        for e in events])
+
+
+# ------------------------------------------------------------------------------------------------ inbound
+def goal_positions(msg, joint_names: list[str]) -> np.ndarray:
+    """A goal's six joint positions (rad) in the robot's joint order, from a JointState naming every joint
+    once (or, without names, giving them in order); MessageError otherwise."""
+    positions = np.asarray(msg.position, dtype=float)
+    names = list(msg.name)
+    if names:
+        if sorted(names) != sorted(joint_names) or len(names) != len(positions):
+            raise MessageError(f"goal: expected a position for each of {joint_names} by name, got names {names} "
+                               f"and {len(positions)} positions")
+        positions = positions[[names.index(n) for n in joint_names]]
+    elif len(positions) != len(joint_names):
+        raise MessageError(f"goal: expected {len(joint_names)} positions, got {len(positions)}")
+    if not np.all(np.isfinite(positions)):
+        raise MessageError("goal: a position is not a finite number")
+    return positions
+
+
+def people_from_markers(msg) -> HumanCapsules:
+    """The capsules of a MarkerArray of CYLINDER markers (other types and DELETE actions are skipped; no
+    velocity is known, so the SSM takes the ISO 13855 speeds). MessageError for a non-finite or degenerate
+    capsule, or too many."""
+    segments, radii = [], []
+    for m in msg.markers:
+        if m.type != CYLINDER or m.action != ADD:
+            continue
+        p, o = m.pose.position, m.pose.orientation
+        values = np.array([p.x, p.y, p.z, o.x, o.y, o.z, o.w, m.scale.x, m.scale.z], dtype=float)
+        if not np.all(np.isfinite(values)):
+            raise MessageError(f"people: marker {m.ns}/{m.id} has a value that is not a finite number")
+        quat = values[3:7]
+        norm = np.linalg.norm(quat)
+        if not 0.5 < norm < 1.5 or not 0.0 < m.scale.x <= 2.0 or not 0.0 <= m.scale.z <= 3.0:
+            raise MessageError(f"people: marker {m.ns}/{m.id}: orientation not a rotation or scale out of range "
+                               f"(diameter {m.scale.x} m, length {m.scale.z} m)")
+        x, y, z, w = quat / norm
+        axis = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+        centre = values[:3]
+        half = axis * m.scale.z / 2.0
+        segments.append([centre - half, centre + half])
+        radii.append(m.scale.x / 2.0)
+    if len(radii) > MAX_CAPSULES:
+        raise MessageError(f"people: {len(radii)} capsules, more than {MAX_CAPSULES}")
+    if not radii:
+        return HumanCapsules.empty()
+    seg = np.array(segments)
+    return HumanCapsules.from_arrays(seg, np.array(radii), np.zeros_like(seg), np.zeros(len(radii), bool))

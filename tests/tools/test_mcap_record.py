@@ -1,0 +1,84 @@
+"""Every report's ROS 2 bag: recording.mcap read back with mcap-ros2-support gives the recording's values,
+and rosbags opens the folder as a rosbag2 (metadata.yaml), with the types and counts of each topic."""
+
+import numpy as np
+import pytest
+
+from evidence.scenarios import Q_GOAL, Q_START
+from shared.config import CellConfig
+from shared.core.trajectory import straight_line_trajectory
+from shared.robot.model import default_robot
+from shared.wire.messages import HumanState, JointState, SafetyEvent, ScalerStatus
+from tools.mcap_record import write_mcap
+from tools.report import Recording
+
+ROBOT = default_robot()
+EPOCH = 1_764_650_000.0
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    traj = straight_line_trajectory(Q_START, Q_GOAL, ROBOT.limits.velocity, ROBOT.limits.acceleration)
+    rec = Recording(t0=100.0)
+    for k in range(30):
+        t = 100.0 + 0.01 * k
+        q, qd, _ = traj.sample(0.01 * k)
+        rec.joint_states.append(JointState(q=q, qd=qd, drive_state="enabled", enabled=True, fault=False, stamp=t))
+        rec.statuses.append(ScalerStatus(s=0.01 * k, alpha=0.5 + 0.01 * k, safe_alpha=1.0, beta=k > 20,
+                                         q_command=q, trajectory_version=1, status="running", method="piqp",
+                                         min_separation=None if k == 0 else 0.4, min_margin=0.2, compute_us=50.0,
+                                         stamp=t))
+    rec.human_states += [HumanState(segments=np.array([[[-1.0, 0, 0.9], [-1.0, 0, 1.5]]]), radii=np.array([0.17]),
+                                    velocities=np.zeros((1, 2, 3)), velocity_known=np.ones(1, bool), valid=True,
+                                    sample_stamp=0.0, stamp=100.05),
+                         HumanState(segments=np.zeros((0, 2, 3)), radii=np.zeros(0), velocities=np.zeros((0, 2, 3)),
+                                    velocity_known=np.zeros(0, bool), valid=False, sample_stamp=0.0, stamp=100.2)]
+    rec.events.append(SafetyEvent(source="scaler", event="stale_human_data", severity="stop", text="no human sample",
+                                  stamp=100.21))
+    write_mcap(out, ROBOT, CellConfig(), rec, epoch_t0=EPOCH, code="abc123")
+    return out, rec
+
+
+def test_the_mcap_reads_back_to_the_recordings_values(bag):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    out, rec = bag
+    with open(out / "recording.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        header = reader.get_header()
+        by_topic: dict[str, list] = {}
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            by_topic.setdefault(channel.topic, []).append((message.log_time, decoded))
+            assert schema.encoding == "ros2msg" and channel.message_encoding == "cdr"
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+        compressions = {c.compression for c in reader.get_summary().chunk_indexes}
+    assert header.profile == "ros2" and compressions == {"zstd"}
+    positions = np.array([d.position for _, d in by_topic["/joint_states"]])
+    assert np.allclose(positions, [js.q for js in rec.joint_states])
+    first = by_topic["/joint_states"][0][0]
+    assert first == pytest.approx(EPOCH * 1e9, abs=1e3)                      # the run on the wall clock
+    assert np.allclose([d.data for _, d in by_topic["/speed_scaling_factor"]], [s.alpha for s in rec.statuses])
+    assert [d.data for _, d in by_topic["/hrc/replan_request"]] == [s.beta for s in rec.statuses]
+    assert len(by_topic["/hrc/separation"]) == 29                             # not while there is none
+    assert len(by_topic["/tf"]) == 30 and len(by_topic["/hrc/robot_capsules"]) == 6   # capsules at 20 Hz
+    people = [d for _, d in by_topic["/hrc/people"]]
+    assert len(people[0].markers) == 4 and len(people[1].markers) == 1       # a cylinder, two spheres; then cleared
+    assert "prbt" in by_topic["/robot_description"][0][1].data
+    (events,) = [d for _, d in by_topic["/diagnostics"]]
+    assert events.status[0].level == 2 and "stale_human_data" in events.status[0].message
+    assert metadata["hrc"]["code"] == "abc123" and "reaction_time" in metadata["hrc"]["ssm"]
+
+
+def test_rosbags_opens_the_report_folder_as_a_rosbag2(bag):
+    from rosbags.highlevel import AnyReader
+
+    out, rec = bag
+    with AnyReader([out]) as reader:
+        topics = {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
+        assert topics["/joint_states"] == ("sensor_msgs/msg/JointState", 30)
+        assert topics["/hrc/people"] == ("visualization_msgs/msg/MarkerArray", 2)
+        joint = [c for c in reader.connections if c.topic == "/joint_states"]
+        q = [reader.deserialize(raw, c.msgtype).position for c, _, raw in reader.messages(connections=joint)]
+    assert np.allclose(q, [js.q for js in rec.joint_states])

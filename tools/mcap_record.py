@@ -1,0 +1,118 @@
+"""A run as a ROS 2 bag: ``recording.mcap`` (MCAP, ROS 2 profile, CDR messages with their ros2msg schemas,
+zstd-compressed chunks) and ``metadata.yaml`` beside it, so that ``ros2 bag play FOLDER`` (rosbag2's mcap
+storage), Foxglove and rosbags open a report folder as it is.
+
+Topics (ROS 2 names and types, Jazzy): /robot_description (std_msgs/String, the URDF, once), /joint_states
+(measured), /tf (every link from the world frame, at each joint state), /hrc/people and /hrc/robot_capsules
+(visualization_msgs/MarkerArray), /speed_scaling_factor (the scaling layer's alpha, std_msgs/Float64),
+/hrc/safe_alpha, /hrc/separation, /hrc/margin (Float64), /hrc/replan_request (beta, std_msgs/Bool) and
+/diagnostics (the safety events). Message times are the senders' stamps on the wall clock of the run
+(`epoch_t0`: the epoch time of the recording's t0). The run's metadata (code version, the configuration's ISO
+parameters) is an MCAP metadata record named "hrc"."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from shared.config import CellConfig
+from shared.robot.model import URDF_PATH, RobotModel
+from shared.ros2 import convert
+from shared.ros2.types import DISTRO, msgdef, serialize, type_hash
+from tools.report import Recording
+
+CAPSULE_PERIOD = 0.05            # s between two /hrc/robot_capsules messages (20 Hz)
+PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)
+
+
+class BagWriter:
+    """MCAP with the ROS 2 profile: one schema per type, one channel per topic, counts for metadata.yaml."""
+
+    def __init__(self, path: Path) -> None:
+        from mcap.writer import CompressionType, Writer
+
+        self.file = open(path, "wb")
+        self.writer = Writer(self.file, compression=CompressionType.ZSTD)
+        self.writer.start(profile="ros2", library="hrc-ssm")
+        self.schemas: dict[str, int] = {}
+        self.channels: dict[str, tuple[int, str]] = {}
+        self.counts: dict[str, int] = {}
+        self.first = self.last = None
+
+    def write(self, topic: str, msgtype: str, message, t_ns: int) -> None:
+        if msgtype not in self.schemas:
+            self.schemas[msgtype] = self.writer.register_schema(msgtype, "ros2msg", msgdef(msgtype).encode())
+        if topic not in self.channels:
+            self.channels[topic] = (self.writer.register_channel(topic, "cdr", self.schemas[msgtype]), msgtype)
+            self.counts[topic] = 0
+        self.writer.add_message(self.channels[topic][0], log_time=t_ns, data=serialize(message, msgtype),
+                                publish_time=t_ns, sequence=self.counts[topic])
+        self.counts[topic] += 1
+        self.first = t_ns if self.first is None else min(self.first, t_ns)
+        self.last = t_ns if self.last is None else max(self.last, t_ns)
+
+    def close(self, metadata: dict[str, str]) -> dict:
+        self.writer.add_metadata("hrc", metadata)
+        self.writer.finish()
+        self.file.close()
+        return {"first": self.first or 0, "last": self.last or 0, "counts": dict(self.counts),
+                "types": {t: m for t, (_, m) in self.channels.items()}}
+
+
+def rosbag2_metadata(name: str, info: dict) -> dict:
+    """metadata.yaml (rosbag2 format version 9) for one MCAP file `name`."""
+    duration = int(info["last"] - info["first"])
+    topics = [{"message_count": n, "topic_metadata": {
+        "name": topic, "type": info["types"][topic], "serialization_format": "cdr",
+        "offered_qos_profiles": [],         # played with rosbag2's default QoS
+        "type_description_hash": type_hash(info["types"][topic])}} for topic, n in info["counts"].items()]
+    total = sum(info["counts"].values())
+    return {"rosbag2_bagfile_information": {
+        "version": 9, "storage_identifier": "mcap", "relative_file_paths": [name],
+        "duration": {"nanoseconds": duration}, "starting_time": {"nanoseconds_since_epoch": int(info["first"])},
+        "message_count": total, "topics_with_message_count": topics, "compression_format": "",
+        "compression_mode": "", "files": [{"path": name, "starting_time": {"nanoseconds_since_epoch": int(info["first"])},
+                                          "duration": {"nanoseconds": duration}, "message_count": total}],
+        "custom_data": None, "ros_distro": DISTRO}}
+
+
+def write_mcap(out: Path, robot: RobotModel, config: CellConfig, rec: Recording, epoch_t0: float,
+               code: str = "unknown") -> Path:
+    """``out/recording.mcap`` and ``out/metadata.yaml`` from a recording; the MCAP's path."""
+    ns = lambda stamp: int(round((stamp - rec.t0 + epoch_t0) * 1e9))
+    bag = BagWriter(out / "recording.mcap")
+    bag.write("/robot_description", convert.STRING, convert.string(URDF_PATH.read_text()), ns(rec.t0))
+    last_capsules = -np.inf
+    for js in sorted(rec.joint_states, key=lambda m: m.stamp):
+        t = ns(js.stamp)
+        bag.write("/joint_states", convert.JOINT_STATE, convert.joint_state(robot.joint_names, js.q, js.qd, t), t)
+        bag.write("/tf", convert.TF, convert.link_transforms(robot.link_poses(js.q), "world", t), t)
+        if js.stamp - last_capsules >= CAPSULE_PERIOD:
+            last_capsules = js.stamp
+            bag.write("/hrc/robot_capsules", convert.MARKERS, convert.capsule_markers(
+                robot.capsule_segments(js.q), robot.radii, "robot", "world", t, ROBOT_RGBA), t)
+    for hs in sorted(rec.human_states, key=lambda m: m.stamp):
+        t = ns(hs.stamp)
+        segments = np.asarray(hs.segments) if hs.valid else np.zeros((0, 2, 3))
+        radii = np.asarray(hs.radii) if hs.valid else np.zeros(0)
+        bag.write("/hrc/people", convert.MARKERS, convert.capsule_markers(segments, radii, "people", "world", t,
+                                                                          PEOPLE_RGBA), t)
+    for st in sorted(rec.statuses, key=lambda m: m.stamp):
+        t = ns(st.stamp)
+        bag.write("/speed_scaling_factor", convert.FLOAT64, convert.float64(st.alpha), t)
+        bag.write("/hrc/safe_alpha", convert.FLOAT64, convert.float64(st.safe_alpha), t)
+        bag.write("/hrc/replan_request", convert.BOOL, convert.boolean(st.beta), t)
+        if st.min_separation is not None:
+            bag.write("/hrc/separation", convert.FLOAT64, convert.float64(st.min_separation), t)
+        if st.min_margin is not None:
+            bag.write("/hrc/margin", convert.FLOAT64, convert.float64(st.min_margin), t)
+    for ev in sorted(rec.events, key=lambda m: m.stamp):
+        bag.write("/diagnostics", convert.DIAGNOSTICS, convert.diagnostics([ev], ns(ev.stamp)), ns(ev.stamp))
+    info = bag.close({"code": code, "ros_distro": DISTRO, "ssm": json.dumps(asdict(config.ssm)),
+                      "scaling": json.dumps(asdict(config.scaling)), "prefix": config.keys.prefix})
+    (out / "metadata.yaml").write_text(yaml.safe_dump(rosbag2_metadata("recording.mcap", info), sort_keys=False))
+    return out / "recording.mcap"
