@@ -141,7 +141,8 @@ def test_every_outgoing_message_reads_back_with_an_independent_decoder():
     spheres = [m for m in markers.markers if m.type == convert.SPHERE]
     assert np.allclose([[m.pose.position.x, m.pose.position.y, m.pose.position.z] for m in spheres],
                        seg.reshape(-1, 3))
-    for msgtype, message, value in ((convert.FLOAT64, convert.float64(0.25), 0.25), (convert.BOOL, convert.boolean(True), True),
+    for msgtype, message, value in ((convert.FLOAT64, convert.float64(0.25), 0.25),
+                                    (convert.BOOL, convert.boolean(True), True),
                                     (convert.STRING, convert.string("prbt"), "prbt")):
         assert decoded(msgtype, types.serialize(message, msgtype)).data == value
 
