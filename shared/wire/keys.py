@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from shared.core.errors import KeyError_
 
 _CHUNK = re.compile(r"^[A-Za-z0-9_\-]+$")
-SERVICES = ("tracker_ingest", "planner", "scaler", "robot_driver", "safety_monitor", "router", "cli")
+SERVICES = ("tracker_ingest", "planner", "scaler", "robot_driver", "safety_monitor", "router", "cli", "ros2_bridge")
 
 
 def validate_prefix(prefix: str) -> str:
