@@ -161,18 +161,30 @@ class Ros2Bridge:
 
 def main(argv: list[str] | None = None) -> int:
     parser = service_parser("ros2_bridge", __doc__)
-    parser.add_argument("--domain", type=int, default=0, help="ROS_DOMAIN_ID of the ROS 2 graph (default 0)")
+    parser.add_argument("--domain", type=int, default=None,
+                        help="ROS_DOMAIN_ID of the ROS 2 graph (default: the configuration's ros2.domain_id, 0)")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
-    if not 0 <= args.domain <= 232:
+    if args.domain is not None and not 0 <= args.domain <= 232:
         print("ros2_bridge: error: --domain must be a ROS domain id, 0 to 232", file=sys.stderr)
         return 2
+    from shared.config import load_config
+    from shared.core.errors import ConfigError
+
+    try:
+        ros2 = load_config(args.config).ros2
+    except ConfigError as exc:
+        print(f"ros2_bridge: error: {exc}", file=sys.stderr)
+        return 2
+    if ros2.router:
+        args.connect = [*args.connect, ros2.router]           # the ROS 2 host's router, besides the cell
     opened = open_service("ros2_bridge", args)
     if opened is None:
         return 2
     _, shell = opened
-    bridge = Ros2Bridge(shell, RobotModel(), args.domain)
-    return serve(shell, f"ros2_bridge: ROS 2 domain {args.domain}, node hrc_bridge, session {bridge.node.session_id}, "
+    domain = ros2.domain_id if args.domain is None else args.domain
+    bridge = Ros2Bridge(shell, RobotModel(), domain)
+    return serve(shell, f"ros2_bridge: ROS 2 domain {domain}, node hrc_bridge, session {bridge.node.session_id}, "
                         f"keys {shell.keys.prefix}/", bridge.loop)
 
 

@@ -3,6 +3,7 @@
     cell:    {prefix: hrc/cell1}
     ssm:     ISO/TS 15066 parameters (shared.safety.parameters.SsmParameters)
     scaling: control loop parameters (shared.scaling.parameters.ScalingParameters)
+    ros2:    the ROS 2 graph the bridge joins (shared.ros2.parameters.Ros2Parameters)
 
 A missing file section takes the defaults; an unknown section or key, a wrong type, a negative time or a
 NaN raises ConfigError naming the field. ``deploy/cell.yaml`` is the shipped configuration.
@@ -16,11 +17,13 @@ from pathlib import Path
 import yaml
 
 from shared.core.errors import ConfigError, KeyError_
+from shared.core.sections import from_mapping
+from shared.ros2.parameters import Ros2Parameters
 from shared.safety.parameters import SsmParameters
 from shared.scaling.parameters import ScalingParameters
 from shared.wire.keys import KeySpace
 
-SECTIONS = ("cell", "ssm", "scaling")
+SECTIONS = ("cell", "ssm", "scaling", "ros2")
 
 
 @dataclass(frozen=True)
@@ -28,6 +31,7 @@ class CellConfig:
     keys: KeySpace = field(default_factory=KeySpace)
     ssm: SsmParameters = field(default_factory=SsmParameters)
     scaling: ScalingParameters = field(default_factory=ScalingParameters)
+    ros2: Ros2Parameters = field(default_factory=Ros2Parameters)
 
     @classmethod
     def from_mapping(cls, doc: object, where: str = "config") -> "CellConfig":
@@ -44,7 +48,8 @@ class CellConfig:
         try:
             keys = KeySpace(cell.get("prefix", KeySpace.prefix))
             return cls(keys, SsmParameters.from_mapping(doc.get("ssm")),
-                       ScalingParameters.from_mapping(doc.get("scaling")))
+                       ScalingParameters.from_mapping(doc.get("scaling")),
+                       from_mapping(Ros2Parameters, doc.get("ros2"), "ros2"))
         except (KeyError_, TypeError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
         except ConfigError as exc:

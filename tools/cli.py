@@ -167,12 +167,13 @@ def cmd_up(args: argparse.Namespace) -> int:
         print(f"hrc up: error: --port must be in 1024..65530, got {args.port}", file=sys.stderr)
         return 2
     try:
-        pid = up(args.prefix, interface, args.port)
+        pid = up(args.prefix, interface, args.port, ("ros2_bridge",) if args.ros2 else ())
     except RuntimeError as exc:
         print(f"hrc up: error: {exc}", file=sys.stderr)
         return 1
+    bridge = f"; ROS 2 bridge on tcp/127.0.0.1:{args.port + 5}" if args.ros2 else ""
     print(f"hrc up: cell {args.prefix} starting under supervisord (pid {pid}, CAN {interface}, Zenoh "
-          f"tcp/127.0.0.1:{args.port}); logs in {run_dir(args.prefix)}; `hrc status` to follow it")
+          f"tcp/127.0.0.1:{args.port}{bridge}); logs in {run_dir(args.prefix)}; `hrc status` to follow it")
     return 0
 
 
@@ -455,7 +456,8 @@ def cmd_status(args: argparse.Namespace) -> int:
         alive = sorted({str(r.ok.key_expr).rsplit("/", 1)[-1] for r in session.liveliness().get(keys.alive_all, timeout=1.0)
                         if r.ok is not None})
         print(f"cell {args.prefix} at {args.connect}")
-        print("  services: " + ", ".join(f"{s} {'up' if s in alive else 'down'}" for s in SERVICES if s != "cli"))
+        print("  services: " + ", ".join(f"{s} {'up' if s in alive else 'down'}" for s in SERVICES
+                                         if s != "cli" and (s != "ros2_bridge" or s in alive)))
         js = latest.get(JointState)
         lag = latest.get(DriveLagReport)
         print(f"  robot:    {js.drive_state if js else 'no joint state'}"

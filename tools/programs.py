@@ -29,6 +29,7 @@ class Program:
     priority: int = 30             # supervisord's start order (lower first)
     startsecs: int = 1             # supervisord counts a start as good after this long
     ready: str = ""
+    optional: bool = False         # started only when asked (hrc up --ros2), never by hrc demo
 
     def argv(self, *, interface: str, channel: str | None = None, prefix: str = "", listen: str = "",
              connect: str = "", config: str | None = None, extra: tuple[str, ...] | list[str] = ()) -> list[str]:
@@ -57,9 +58,10 @@ PROGRAMS: tuple[Program, ...] = (
     Program("scaler", "services.scaler", ready="scaler:"),
     Program("planner", "services.planner", niceness=10, ready="planner:"),
     Program("safety_monitor", "services.safety_monitor", niceness=5, ready="safety_monitor:"),
+    Program("ros2_bridge", "services.ros2_bridge", niceness=10, priority=40, ready="ros2_bridge:", optional=True),
 )
 BY_NAME = {p.name: p for p in PROGRAMS}
-SERVICES = tuple(p.name for p in PROGRAMS if p.on_zenoh)        # in start order, the hub first
+SERVICES = tuple(p.name for p in PROGRAMS if p.on_zenoh and not p.optional)   # in start order, the hub first
 
 _HEADER = """\
 ; The whole cell under supervisord: the PRBT emulator and every service, restarted when they crash,
@@ -69,7 +71,7 @@ _HEADER = """\
 ; is udp_multicast) with these variables set:
 ;   HRC_RUN     a run folder (sockets, logs)       HRC_PYTHON  the interpreter of the installed project
 ;   HRC_CAN     python-can interface               HRC_PREFIX  the cell's key prefix
-;   HRC_PORT    the first of six loopback ports (robot driver, then one per service)
+;   HRC_PORT    the first of six loopback ports (robot driver, then one per service; the sixth: ros2_bridge)
 ; The planner (nice 10) and the monitor (nice 5) yield the CPU to the control path.
 [supervisord]
 nodaemon=true
@@ -92,11 +94,12 @@ def _port(k: int) -> str:
     return f"%(ENV_HRC_PORT{k if k else ''})s"
 
 
-def supervisord_conf() -> str:
-    """supervisord's configuration of the whole cell (the values come from HRC_* environment variables)."""
+def supervisord_conf(optional: tuple[str, ...] = ()) -> str:
+    """supervisord's configuration of the whole cell (the values come from HRC_* environment variables), with
+    the optional programs named in `optional` (ros2_bridge)."""
     sections = [_HEADER]
     zenoh = [p for p in PROGRAMS if p.on_zenoh]
-    for program in PROGRAMS:
+    for program in (p for p in PROGRAMS if not p.optional or p.name in optional):
         port = _port(zenoh.index(program)) if program.on_zenoh else ""
         argv = program.argv(interface="%(ENV_HRC_CAN)s", prefix="%(ENV_HRC_PREFIX)s",
                             listen=f"tcp/127.0.0.1:{port}", connect=f"tcp/127.0.0.1:{_port(0)}")

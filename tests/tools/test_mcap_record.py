@@ -82,3 +82,12 @@ def test_rosbags_opens_the_report_folder_as_a_rosbag2(bag):
         joint = [c for c in reader.connections if c.topic == "/joint_states"]
         q = [reader.deserialize(raw, c.msgtype).position for c, _, raw in reader.messages(connections=joint)]
     assert np.allclose(q, [js.q for js in rec.joint_states])
+
+
+def test_the_ros2_bridge_is_in_the_supervised_cell_only_when_asked():
+    from tools.programs import SERVICES, supervisord_conf
+
+    assert "[program:ros2_bridge]" not in supervisord_conf() and "ros2_bridge" not in SERVICES
+    conf = supervisord_conf(("ros2_bridge",))
+    section = conf.split("[program:ros2_bridge]")[1]
+    assert "-m services.ros2_bridge" in section and "%(ENV_HRC_PORT5)s" in section and "nice -n 10" in section
