@@ -68,7 +68,8 @@ class ServiceShell:
         self.keys = KeySpace(args.prefix)
         tls = TlsIdentity.from_dir(args.tls_dir, name) if getattr(args, "tls_dir", None) else None
         self.session = open_session(args.mode, listen=args.listen if args.mode == "peer" else [],
-                                    connect=args.connect, allow_remote=args.allow_remote, tls=tls)
+                                    connect=args.connect, allow_remote=args.allow_remote, tls=tls,
+                                    timestamping=getattr(args, "timestamping", False))
         self.token = None
         self.bad_messages = 0
         self._last_bad_log = -1e9

@@ -2,8 +2,8 @@
 
 Out, every 10 ms on what is new: /joint_states and /tf (the measured joints, every link from the world
 frame), /hrc/robot_capsules (20 Hz), /hrc/people (the tracked people), /speed_scaling_factor (alpha) and
-/hrc/replan_request (beta), /diagnostics (the safety events), /robot_description (the URDF, once a second:
-this Zenoh has no publication cache, so a late subscriber gets it within a second). Each sample carries
+/hrc/replan_request (beta), /diagnostics (the safety events), /robot_description (the URDF, transient local:
+zenoh-ext's advanced publisher keeps it for late subscribers, as rmw_zenoh does; sent again every 10 s). Each sample carries
 rmw_zenoh's attachment; the node and every endpoint declare their liveliness tokens, so `ros2 topic list` and
 rviz2 see them (shared.ros2.graph, shared.ros2.bridge).
 
@@ -28,12 +28,12 @@ from services.common import ServiceShell, open_service, run_paced, serve, servic
 from shared.robot.model import URDF_PATH, RobotModel
 from shared.ros2 import convert
 from shared.ros2.bridge import ENDPOINTS, BridgeNode, Inbound
-from shared.ros2.graph import PUBLISHER
+from shared.ros2.graph import PUBLISHER, TRANSIENT_LOCAL
 from shared.ros2.types import serialize
 from shared.wire.messages import Goal, HumanRaw, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
 PERIOD = 0.01
-CAPSULE_PERIOD, DESCRIPTION_PERIOD, REPORT_PERIOD = 0.05, 1.0, 1.0
+CAPSULE_PERIOD, DESCRIPTION_PERIOD, REPORT_PERIOD = 0.05, 10.0, 1.0
 PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)
 
 
@@ -42,8 +42,7 @@ class Ros2Bridge:
         self.shell, self.robot = shell, robot
         self.node = BridgeNode(domain, str(shell.session.zid()))
         self.inbound = Inbound()
-        self.pubs = {e.topic: shell.session.declare_publisher(self.node.key(e.topic))
-                     for e in ENDPOINTS if e.kind == PUBLISHER}
+        self.pubs = {e.topic: self._publisher(e) for e in ENDPOINTS if e.kind == PUBLISHER}
         self.joints = shell.latest(shell.keys.joint_state, JointState)
         self.people = shell.latest(shell.keys.human_state, HumanState)
         self.status = shell.latest(shell.keys.scaler_status, ScalerStatus)
@@ -61,6 +60,18 @@ class Ros2Bridge:
         self.goal_id = int(time.time() * 1000) % 2**31
         self.raw_seq = 0
         self.reported = 0
+
+    def _publisher(self, endpoint):
+        """A Zenoh publisher on the endpoint's key; for TRANSIENT_LOCAL (/robot_description) zenoh-ext's advanced
+        publisher with a cache of its depth, as rmw_zenoh makes it, so a late subscriber gets the last sample."""
+        key = self.node.key(endpoint.topic)
+        if endpoint.qos.durability != TRANSIENT_LOCAL:
+            return self.shell.session.declare_publisher(key)
+        import zenoh.ext
+
+        return zenoh.ext.declare_advanced_publisher(self.shell.session, key,
+                                                    cache=zenoh.ext.CacheConfig(max_samples=endpoint.qos.depth),
+                                                    publisher_detection=True)
 
     def put(self, topic: str, message, msgtype: str) -> None:
         now_ns = time.time_ns()
@@ -178,6 +189,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if ros2.router:
         args.connect = [*args.connect, ros2.router]           # the ROS 2 host's router, besides the cell
+    args.timestamping = True                # zenoh-ext's advanced publisher (transient local) needs it
     opened = open_service("ros2_bridge", args)
     if opened is None:
         return 2

@@ -40,7 +40,9 @@ def _tls_section(tls: TlsIdentity) -> dict:
 
 def make_config(mode: str = "peer", listen: list[str] = (), connect: list[str] = (),
                 allow_remote: bool = False, tls: TlsIdentity | None = None,
-                access_control: dict | None = None) -> zenoh.Config:
+                access_control: dict | None = None, timestamping: bool = False) -> zenoh.Config:
+    """timestamping: every sample gets the session's HLC timestamp (zenoh-ext's advanced publisher needs it:
+    the ROS 2 bridge's transient-local topics); off elsewhere."""
     if mode not in ("peer", "client", "router"):
         raise ConfigError(f"zenoh mode {mode!r}: expected peer, client or router")
     config = zenoh.Config()
@@ -53,15 +55,17 @@ def make_config(mode: str = "peer", listen: list[str] = (), connect: list[str] =
         config.insert_json5("transport/link/tls", json.dumps(_tls_section(tls)))
     if access_control is not None:
         config.insert_json5("access_control", json.dumps(access_control))
+    if timestamping:
+        config.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))
     return config
 
 
 def open_session(mode: str = "peer", listen: list[str] = (), connect: list[str] = (),
                  allow_remote: bool = False, tls: TlsIdentity | None = None,
-                 access_control: dict | None = None) -> zenoh.Session:
+                 access_control: dict | None = None, timestamping: bool = False) -> zenoh.Session:
     """Open a Zenoh session with the safe config (see module docstring). A session that cannot be opened
     (a port in use, an unreadable certificate, no router to connect to) is a ConfigError saying why."""
-    config = make_config(mode, listen, connect, allow_remote, tls, access_control)
+    config = make_config(mode, listen, connect, allow_remote, tls, access_control, timestamping)
     try:
         return zenoh.open(config)
     except zenoh.ZError as exc:

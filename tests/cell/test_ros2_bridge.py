@@ -88,6 +88,22 @@ def test_a_ros_2_peer_finds_the_topics_and_reads_the_joint_states(bridge):
     assert len({att[17:] for att in attachments}) == 1                      # one publisher, one GID
 
 
+def test_a_late_subscriber_gets_the_robot_description_from_the_cache(bridge):
+    """Transient local as rmw_zenoh does it: a subscriber that comes after the sample asks the publisher's cache."""
+    import zenoh.ext
+
+    session, keys, proc = bridge
+    key = f"{DOMAIN}/robot_description/{types.dds_type_name(convert.STRING)}/{types.type_hash(convert.STRING)}"
+    got = []
+    sub = zenoh.ext.declare_advanced_subscriber(session, key, lambda s: got.append(s.payload.to_bytes()),
+                                                history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
+    deadline = time.monotonic() + 3.0                   # well before the bridge sends it again (every 10 s)
+    while not got and time.monotonic() < deadline:
+        time.sleep(0.05)
+    sub.undeclare()
+    assert got and '<robot name="prbt"' in types.deserialize(got[0], convert.STRING).data
+
+
 def ros_put(session, topic: str, msgtype: str, payload: bytes, seq: int, attached: bool = True) -> None:
     key = f"{DOMAIN}/{topic.strip('/')}/{types.dds_type_name(msgtype)}/{types.type_hash(msgtype)}"
     attachment = struct.pack("<qqB", seq, time.time_ns(), 16) + bytes(16) if attached else None
