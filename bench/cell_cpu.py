@@ -19,7 +19,10 @@ Last line: one JSON object.
 With --people far, one person stands 2.8 m away the whole time: nothing needs planning but each new
 shuttle's direct line, and the planner's share says what it costs at rest.
 
-    python bench/cell_cpu.py [--seconds 60] [--warmup 8] [--seed 1] [--people two|far]
+With --ros2 the ROS 2 bridge runs too, with a subscriber of every ROS 2 topic: its own share, and the safety
+chain's beside it.
+
+    python bench/cell_cpu.py [--seconds 60] [--warmup 8] [--seed 1] [--people two|far] [--ros2]
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from tools.actors import HumanFeed, Recorder, Shuttle  # noqa: E402
 from tools.cell import choose_bus  # noqa: E402
 from tools.demo import reexec_in_namespace  # noqa: E402
 from tools.launch import CellProcesses, free_port  # noqa: E402
+from tools.programs import SERVICES  # noqa: E402
 from tools.report import Recording  # noqa: E402
 
 SAFETY_CHAIN = ("robot_driver", "scaler", "tracker_ingest", "safety_monitor")
@@ -66,12 +70,13 @@ def far_person(duration: float) -> ScriptedHuman:
                           Keyframe(duration, -2.8, 0.0, 0.0, IN_PATH, "far away")])
 
 
-def measure(seconds: float, warmup: float, seed: int, people_kind: str = "two") -> dict:
+def measure(seconds: float, warmup: float, seed: int, people_kind: str = "two", ros2: bool = False) -> dict:
     speed = [reference_loop_ms()]              # the machine's speed before the cell starts and after it stops
     interface, channel = choose_bus()
     keys = KeySpace("bench/cpu")
     with tempfile.TemporaryDirectory(prefix="hrc-cell-cpu-") as tmp:
-        cell = CellProcesses(Path(tmp), keys.prefix, interface, channel, planner_seed=seed)
+        services = SERVICES + (("ros2_bridge",) if ros2 else ())
+        cell = CellProcesses(Path(tmp), keys.prefix, interface, channel, planner_seed=seed, services=services)
         session = open_session("peer", listen=[f"tcp/127.0.0.1:{free_port()}"], connect=[cell.endpoint])
         feed = recorder = None
         try:
@@ -83,6 +88,9 @@ def measure(seconds: float, warmup: float, seed: int, people_kind: str = "two") 
             capsules = people.at(0.0).count
             feed = HumanFeed(session, keys, people, rec.t0, source="bench")
             feed.start()
+            ros_samples = [0]
+            ros_subs = [session.declare_subscriber("0/**", lambda s: ros_samples.__setitem__(0, ros_samples[0] + 1))] \
+                if ros2 else []                      # a ROS 2 subscriber of every topic, so the bridge's puts go somewhere
             shuttle = Shuttle(session, keys, recorder, rec)
             shuttle.start(time.monotonic())
             t_start = rec.t0 + warmup
@@ -96,6 +104,8 @@ def measure(seconds: float, warmup: float, seed: int, people_kind: str = "two") 
             shuttles, statuses = rec.shuttles, len(rec.statuses)
             faults = [e.text for e in rec.events if e.source == "robot_driver" and e.event in ("emcy", "drive_fault")]
             clamps = sum(e.event == "command_clamped" for e in rec.events)
+            for sub in ros_subs:
+                sub.undeclare()
         finally:
             if feed is not None:
                 feed.running = False
@@ -112,7 +122,8 @@ def measure(seconds: float, warmup: float, seed: int, people_kind: str = "two") 
     return {"bench": "cell_cpu", "seconds": round(span, 1), "people": people_kind, "capsules": capsules, "can": interface,
             "percent_of_core": share, "threads": threads,
             "services_total": round(sum(share.get(n, 0.0) for n in SAFETY_CHAIN), 1),
-            "emulator": share.get("hwsim"), "planner": share.get("planner"),
+            "emulator": share.get("hwsim"), "planner": share.get("planner"), "ros2_bridge": share.get("ros2_bridge"),
+            "ros2_samples_per_s": round(ros_samples[0] / (t_after - rec.t0), 1) if ros2 else None,
             "total": round(sum(share.values()), 1), "shuttles": shuttles, "drive_faults": faults,
             "command_clamped": clamps, "reference_loop_ms": speed,
             "control_rate_hz": round(statuses / (t_after - rec.t0), 1)}
@@ -125,13 +136,16 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--people", choices=("two", "far"), default="two",
                         help="two people moving through the cell (default), or one standing far away")
+    parser.add_argument("--ros2", action="store_true",
+                        help="also run the ROS 2 bridge (services.ros2_bridge) with a subscriber of every ROS 2 topic: "
+                             "its share, and whether the safety chain keeps its own")
     args = parser.parse_args()
     if args.seconds <= 0 or args.warmup < 0:
         parser.error("--seconds must be positive and --warmup not negative")
     code = reexec_in_namespace([sys.executable, __file__, *sys.argv[1:]])
     if code is not None:
         return code
-    result = measure(args.seconds, args.warmup, args.seed, args.people)
+    result = measure(args.seconds, args.warmup, args.seed, args.people, args.ros2)
     for name, pct in sorted(result["percent_of_core"].items(), key=lambda kv: -kv[1]):
         busiest = sorted(result["threads"].get(name, {}).items(), key=lambda kv: -kv[1])[:4]
         print(f"{name:<16} {pct:5.1f} % of one core   ({', '.join(f'{t} {p}' for t, p in busiest if p > 0)})")
