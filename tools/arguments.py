@@ -263,6 +263,16 @@ def _add_sweep(sub) -> None:
                             "--workers processes")
 
 
+def _add_report(sub) -> None:
+    """hrc report: more out of a report folder."""
+    report = sub.add_parser("report", help="write more into an hrc demo report folder (a ROS 2 bag of an older run)",
+                            description="Read an hrc demo report folder back (trace.csv, humans.csv, events.csv) and "
+                                        "write what an older run lacks: --mcap, recording.mcap and metadata.yaml "
+                                        "(a rosbag2 bag; docs/ros2.md).")
+    report.add_argument("folder", type=Path, help="an hrc demo report folder")
+    report.add_argument("--mcap", action="store_true", help="write recording.mcap and metadata.yaml")
+
+
 def _add_status(sub) -> None:
     """hrc status: what the running cell is doing."""
     status = sub.add_parser("status", help="what the running cell is doing",
@@ -285,5 +295,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_certs(sub)
     _add_faults(sub)
     _add_sweep(sub)
+    _add_report(sub)
     _add_status(sub)
     return parser

@@ -545,6 +545,31 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    """hrc report FOLDER --mcap: the ROS 2 bag of an older report, from its trace files."""
+    import time
+
+    from shared.config import CellConfig
+    from shared.robot.model import default_robot
+    from tools.mcap_record import ReportError, recording_from_report, write_mcap
+
+    if not args.mcap:
+        raise UsageError("nothing to write: give --mcap")
+    if not (args.folder / "trace.csv").is_file():
+        raise UsageError(f"{args.folder}: not an hrc demo report folder (no trace.csv)")
+    try:
+        rec = recording_from_report(args.folder)
+    except ReportError as exc:
+        raise UsageError(str(exc)) from None
+    summary = args.folder / "summary.json"
+    ended = summary.stat().st_mtime if summary.exists() else time.time()
+    last = max([m.stamp for m in rec.statuses] or [0.0])
+    path = write_mcap(args.folder, default_robot(), CellConfig(), rec, epoch_t0=ended - last)
+    print(f"hrc report: {path} ({path.stat().st_size / 1e6:.1f} MB, {len(rec.joint_states)} joint states) and "
+          f"metadata.yaml: `ros2 bag play {args.folder}`")
+    return 0
+
+
 class CertsArgumentError(HrcError):
     """hrc certs cannot write where it was asked to."""
 
@@ -604,7 +629,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
                 "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults,
-                "certs": cmd_certs, "view": cmd_view, "sweep": cmd_sweep}[args.command](args)
+                "certs": cmd_certs, "view": cmd_view, "sweep": cmd_sweep,
+                "report": cmd_report}[args.command](args)
     except Unreachable as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)
         return 1

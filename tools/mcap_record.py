@@ -116,3 +116,64 @@ def write_mcap(out: Path, robot: RobotModel, config: CellConfig, rec: Recording,
                       "scaling": json.dumps(asdict(config.scaling)), "prefix": config.keys.prefix})
     (out / "metadata.yaml").write_text(yaml.safe_dump(rosbag2_metadata("recording.mcap", info), sort_keys=False))
     return out / "recording.mcap"
+
+
+class ReportError(ValueError):
+    """A report folder that cannot be read back (a missing file, a row that is not a trace row), saying where."""
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    import csv
+
+    try:
+        with open(path, newline="") as f:
+            return list(csv.DictReader(f))
+    except OSError as exc:
+        raise ReportError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except (csv.Error, UnicodeDecodeError) as exc:
+        raise ReportError(f"{path}: not a CSV trace: {exc}") from None
+
+
+def recording_from_report(folder: Path) -> Recording:
+    """The joint states, scaler statuses, people and events of an `hrc demo` report folder (trace.csv,
+    humans.csv, events.csv; docs/report-format.md), t0 = 0, as a Recording to write a bag from."""
+    from shared.wire.messages import HumanState, JointState, SafetyEvent, ScalerStatus
+
+    rec = Recording(t0=0.0)
+    num = lambda row, key: float(row[key]) if row.get(key, "") != "" else None
+    j6 = lambda row, name: np.array([float(row[f"{name}_{k}"]) for k in range(1, 7)])
+    where = "trace.csv"
+    try:
+        for n, row in enumerate(_rows(folder / "trace.csv"), start=2):
+            where = f"trace.csv line {n}"
+            t = float(row["t"])
+            rec.statuses.append(ScalerStatus(s=float(row["s"]), alpha=float(row["alpha"]),
+                                             safe_alpha=float(row["safe_alpha"]), beta=row["beta"] == "1",
+                                             q_command=j6(row, "q_cmd"), trajectory_version=int(row["trajectory_version"]),
+                                             status=row["status"], method="", min_separation=num(row, "min_separation_m"),
+                                             min_margin=None, compute_us=0.0, stamp=t))
+            if row.get("q_meas_1", "") != "":
+                rec.joint_states.append(JointState(q=j6(row, "q_meas"), qd=j6(row, "qd_meas"),
+                                                   drive_state=row["drive_state"] or "unknown", enabled=True,
+                                                   fault=False, stamp=t))
+        people: dict[tuple[str, str], list[dict]] = {}
+        for n, row in enumerate(_rows(folder / "humans.csv"), start=2):
+            where = f"humans.csv line {n}"
+            people.setdefault((row["t"], row["seq"]), []).append(row)
+        for (t, _), rows in people.items():
+            where = f"humans.csv at t={t}"
+            capsules = [r for r in rows if r["valid"] == "1" and r["capsule"] != ""]
+            seg = np.array([[[float(r[k]) for k in ("ax", "ay", "az")], [float(r[k]) for k in ("bx", "by", "bz")]]
+                            for r in capsules]).reshape(-1, 2, 3)
+            rec.human_states.append(HumanState(segments=seg, radii=np.array([float(r["radius"]) for r in capsules]),
+                                               velocities=np.zeros_like(seg), velocity_known=np.zeros(len(capsules), bool),
+                                               valid=bool(capsules), sample_stamp=float(t), stamp=float(t)))
+        for n, row in enumerate(_rows(folder / "events.csv"), start=2):
+            where = f"events.csv line {n}"
+            rec.events.append(SafetyEvent(source=row["source"], event=row["event"], severity=row["severity"],
+                                          text=row["text"], value=num(row, "value"), stamp=float(row["t"])))
+    except (KeyError, ValueError, TypeError) as exc:
+        if isinstance(exc, ReportError):
+            raise
+        raise ReportError(f"{folder}: {where}: not a trace row ({type(exc).__name__}: {exc})") from None
+    return rec

@@ -91,3 +91,29 @@ def test_the_ros2_bridge_is_in_the_supervised_cell_only_when_asked():
     conf = supervisord_conf(("ros2_bridge",))
     section = conf.split("[program:ros2_bridge]")[1]
     assert "-m services.ros2_bridge" in section and "%(ENV_HRC_PORT5)s" in section and "nice -n 10" in section
+
+
+def test_an_older_report_folder_gets_its_bag_from_the_trace(bag, tmp_path):
+    from tests.util import run_hrc
+    from tools.mcap_record import ReportError, recording_from_report
+    from tools.report import write_trace
+
+    _, rec = bag
+    rec.commands = []
+    write_trace(tmp_path, rec)
+    back = recording_from_report(tmp_path)
+    assert len(back.statuses) == 30 and np.allclose([s.alpha for s in back.statuses], [s.alpha for s in rec.statuses])
+    assert np.allclose([js.q for js in back.joint_states], [js.q for js in rec.joint_states], atol=1e-6)
+    assert [h.valid for h in back.human_states] == [True, False] and back.events[0].event == "stale_human_data"
+    done = run_hrc("report", str(tmp_path), "--mcap")
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "recording.mcap").stat().st_size > 0 and "rosbag2_bagfile_information" in \
+        (tmp_path / "metadata.yaml").read_text()
+    lines = (tmp_path / "trace.csv").read_text().splitlines()
+    (tmp_path / "trace.csv").write_text("\n".join(lines[:5] + ["0.5,x,1"] + lines[6:]) + "\n")
+    with pytest.raises(ReportError, match="trace.csv line 6"):
+        recording_from_report(tmp_path)
+    refused = run_hrc("report", str(tmp_path), "--mcap")
+    assert refused.returncode == 2 and "trace.csv line 6" in refused.stderr
+    assert run_hrc("report", str(tmp_path / "nothing"), "--mcap").returncode == 2
+    assert run_hrc("report", str(tmp_path)).returncode == 2                  # nothing asked
