@@ -1,11 +1,12 @@
 """ros2_bridge: the cell as ROS 2 topics (rmw_zenoh, Jazzy), and goals and people from ROS 2.
 
 Out, every 10 ms on what is new: /joint_states and /tf (the measured joints, every link from the world
-frame), /hrc/robot_capsules (20 Hz), /hrc/people (the tracked people), /speed_scaling_factor (alpha) and
-/hrc/replan_request (beta), /diagnostics (the safety events), /robot_description (the URDF, transient local:
-zenoh-ext's advanced publisher keeps it for late subscribers, as rmw_zenoh does; sent again every 10 s). Each sample carries
-rmw_zenoh's attachment; the node and every endpoint declare their liveliness tokens, so `ros2 topic list` and
-rviz2 see them (shared.ros2.graph, shared.ros2.bridge).
+frame), /hrc/robot_capsules (20 Hz), /hrc/people (the tracked people, at most 30 Hz: a viewer's rate),
+/speed_scaling_factor (alpha) and /hrc/replan_request (beta), /diagnostics (the safety events),
+/robot_description (the URDF, transient local: zenoh-ext's advanced publisher keeps it for late subscribers,
+as rmw_zenoh does; sent again every 10 s). Each sample carries rmw_zenoh's attachment; the node and every
+endpoint declare their liveliness tokens, so `ros2 topic list` and rviz2 see them (shared.ros2.graph,
+shared.ros2.bridge).
 
 In: /hrc/goal (sensor_msgs/JointState) becomes a Goal for the planner; /hrc/perception/people
 (visualization_msgs/MarkerArray of CYLINDER capsules) raw human data for tracker_ingest, which filters and
@@ -33,7 +34,7 @@ from shared.ros2.types import serialize
 from shared.wire.messages import Goal, HumanRaw, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
 PERIOD = 0.01
-CAPSULE_PERIOD, DESCRIPTION_PERIOD, REPORT_PERIOD = 0.05, 10.0, 1.0
+CAPSULE_PERIOD, PEOPLE_PERIOD, DESCRIPTION_PERIOD, REPORT_PERIOD = 0.05, 1.0 / 30.0, 10.0, 1.0
 PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)
 
 
@@ -89,9 +90,9 @@ class Ros2Bridge:
                 self.put("/hrc/robot_capsules", convert.capsule_markers(self.robot.capsule_segments(js.q),
                                                                         self.robot.radii, "robot", "world", t_ns,
                                                                         ROBOT_RGBA), convert.MARKERS)
-        hs = self.people.take()
-        if hs is not None and hs.stamp != self.last_people:
-            self.last_people = hs.stamp
+        hs = self.people.take() if now - self.last_people >= PEOPLE_PERIOD else None
+        if hs is not None:
+            self.last_people = now
             seg, radii = (np.asarray(hs.segments), np.asarray(hs.radii)) if hs.valid else (np.zeros((0, 2, 3)), np.zeros(0))
             self.put("/hrc/people", convert.capsule_markers(seg, radii, "people", "world", t_ns, PEOPLE_RGBA),
                      convert.MARKERS)

@@ -71,13 +71,14 @@ def link_transforms(frames: list[tuple[str, np.ndarray]], base: str, t_ns: int):
                                      for name, pose in frames])
 
 
-def _axis_rotation(axis: np.ndarray) -> np.ndarray:
-    """A rotation whose z axis is `axis` (unit), for a cylinder marker."""
-    z = axis
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(z, x), z])
+def _z_to(ax: float, ay: float, az: float) -> tuple[float, float, float, float]:
+    """(x, y, z, w): the shortest rotation turning +z onto the unit vector (ax, ay, az), for a cylinder
+    marker (plain floats: numpy's cross product on 3-vectors costs more than the whole marker)."""
+    w = 1.0 + az
+    if w < 1e-9:                                   # pointing down: half a turn about x
+        return 1.0, 0.0, 0.0, 0.0
+    norm = math.sqrt(ay * ay + ax * ax + w * w)
+    return -ay / norm, ax / norm, 0.0, w / norm
 
 
 def capsule_markers(segments: np.ndarray, radii: np.ndarray, ns: str, frame: str, t_ns: int,
@@ -89,29 +90,31 @@ def capsule_markers(segments: np.ndarray, radii: np.ndarray, ns: str, frame: str
     Vec, Color = msg_class("geometry_msgs/msg/Vector3"), msg_class("std_msgs/msg/ColorRGBA")
     Duration = msg_class("builtin_interfaces/msg/Duration")
     color = Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+    # the parts every marker of the array has alike, made once (serialising only reads them)
+    same = {"header": header(t_ns, frame), "ns": ns, "color": color, "lifetime": Duration(sec=0, nanosec=0),
+            "frame_locked": False, "points": [], "colors": [], "texture_resource": "", "uv_coordinates": [],
+            "texture": msg_class("sensor_msgs/msg/CompressedImage")(header=header(0, ""), format="",
+                                                                    data=np.zeros(0, np.uint8)),
+            "text": "", "mesh_resource": "", "mesh_use_embedded_materials": False,
+            "mesh_file": msg_class("visualization_msgs/msg/MeshFile")(filename="", data=np.zeros(0, np.uint8))}
+    upright = Quat(x=0.0, y=0.0, z=0.0, w=1.0)
 
-    def marker(k: int, kind: int, centre: np.ndarray, rotation: np.ndarray, scale: tuple[float, float, float],
+    def marker(k: int, kind: int, centre: np.ndarray, rotation: tuple | None, scale: tuple[float, float, float],
                action: int = ADD):
-        x, y, z, w = _quaternion(rotation)
-        return Marker(header=header(t_ns, frame), ns=ns, id=k, type=kind, action=action,
+        orientation = upright if rotation is None else Quat(*rotation)
+        return Marker(id=k, type=kind, action=action, **same,
                       pose=Pose(position=Point(x=float(centre[0]), y=float(centre[1]), z=float(centre[2])),
-                                orientation=Quat(x=x, y=y, z=z, w=w)),
-                      scale=Vec(x=scale[0], y=scale[1], z=scale[2]), color=color,
-                      lifetime=Duration(sec=0, nanosec=0), frame_locked=False, points=[], colors=[],
-                      texture_resource="", texture=msg_class("sensor_msgs/msg/CompressedImage")(
-                          header=header(0, ""), format="", data=np.zeros(0, np.uint8)),
-                      uv_coordinates=[], text="", mesh_resource="",
-                      mesh_file=msg_class("visualization_msgs/msg/MeshFile")(filename="", data=np.zeros(0, np.uint8)),
-                      mesh_use_embedded_materials=False)
+                                orientation=orientation),
+                      scale=Vec(x=scale[0], y=scale[1], z=scale[2]))
 
-    markers = [marker(0, CYLINDER, np.zeros(3), np.eye(3), (0.0, 0.0, 0.0), DELETEALL)]
+    markers = [marker(0, CYLINDER, np.zeros(3), None, (0.0, 0.0, 0.0), DELETEALL)]
     for k, ((a, b), r) in enumerate(zip(np.asarray(segments, float), np.asarray(radii, float))):
         d = 2.0 * float(r)
         length = float(np.linalg.norm(b - a))
-        rotation = _axis_rotation((b - a) / length) if length > 1e-9 else np.eye(3)
+        rotation = _z_to(*((b - a) / length).tolist()) if length > 1e-9 else None
         markers.append(marker(3 * k, CYLINDER, (a + b) / 2.0, rotation, (d, d, length)))
-        markers.append(marker(3 * k + 1, SPHERE, a, np.eye(3), (d, d, d)))
-        markers.append(marker(3 * k + 2, SPHERE, b, np.eye(3), (d, d, d)))
+        markers.append(marker(3 * k + 1, SPHERE, a, None, (d, d, d)))
+        markers.append(marker(3 * k + 2, SPHERE, b, None, (d, d, d)))
     return msg_class(MARKERS)(markers=markers)
 
 
