@@ -224,8 +224,13 @@ def _run_dask(pieces, todo, out, workers, address, retries, task, progress, resu
     if address is None:
         # a worker samples its task thread's stack every 10 ms by default (its profiler) and may watch the GIL:
         # for a pure-Python simulation that is time taken from the task, so a cluster started here does neither
+        # nor wakes its event loop 50 times a second for the blocked-loop watchdog, 10 for the memory monitor:
+        # each wake-up takes the GIL from the task (a sweep's workers need neither at that rate)
         dask.config.set({"distributed.worker.profile.enabled": False,
-                         "distributed.admin.system-monitor.gil.enabled": False})
+                         "distributed.admin.system-monitor.gil.enabled": False,
+                         "distributed.admin.tick.interval": "1000ms",
+                         "distributed.worker.memory.monitor-interval": "1000ms",
+                         "distributed.admin.system-monitor.interval": "2000ms"})
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                                host="127.0.0.1", scheduler_port=0, silence_logs=40)
         address = cluster.scheduler_address
