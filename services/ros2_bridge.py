@@ -35,7 +35,6 @@ from shared.wire.messages import Goal, HumanRaw, HumanState, JointState, SafetyE
 
 PERIOD = 0.01
 CAPSULE_PERIOD, PEOPLE_PERIOD, DESCRIPTION_PERIOD, REPORT_PERIOD = 0.05, 1.0 / 30.0, 10.0, 1.0
-PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)
 
 
 class Ros2Bridge:
@@ -89,12 +88,12 @@ class Ros2Bridge:
                 self.last_capsules = now
                 self.put("/hrc/robot_capsules", convert.capsule_markers(self.robot.capsule_segments(js.q),
                                                                         self.robot.radii, "robot", "world", t_ns,
-                                                                        ROBOT_RGBA), convert.MARKERS)
+                                                                        convert.ROBOT_RGBA), convert.MARKERS)
         hs = self.people.take() if now - self.last_people >= PEOPLE_PERIOD else None
         if hs is not None:
             self.last_people = now
             seg, radii = (np.asarray(hs.segments), np.asarray(hs.radii)) if hs.valid else (np.zeros((0, 2, 3)), np.zeros(0))
-            self.put("/hrc/people", convert.capsule_markers(seg, radii, "people", "world", t_ns, PEOPLE_RGBA),
+            self.put("/hrc/people", convert.capsule_markers(seg, radii, "people", "world", t_ns, convert.PEOPLE_RGBA),
                      convert.MARKERS)
         st = self.status.take()
         if st is not None and st.stamp != self.last_status:

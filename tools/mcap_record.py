@@ -26,7 +26,6 @@ from shared.ros2.types import DISTRO, msgdef, serialize, type_hash
 from tools.report import Recording
 
 CAPSULE_PERIOD = 0.05            # s between two /hrc/robot_capsules messages (20 Hz)
-PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)
 
 
 class BagWriter:
@@ -94,13 +93,13 @@ def write_mcap(out: Path, robot: RobotModel, config: CellConfig, rec: Recording,
         if js.stamp - last_capsules >= CAPSULE_PERIOD:
             last_capsules = js.stamp
             bag.write("/hrc/robot_capsules", convert.MARKERS, convert.capsule_markers(
-                robot.capsule_segments(js.q), robot.radii, "robot", "world", t, ROBOT_RGBA), t)
+                robot.capsule_segments(js.q), robot.radii, "robot", "world", t, convert.ROBOT_RGBA), t)
     for hs in sorted(rec.human_states, key=lambda m: m.stamp):
         t = ns(hs.stamp)
         segments = np.asarray(hs.segments) if hs.valid else np.zeros((0, 2, 3))
         radii = np.asarray(hs.radii) if hs.valid else np.zeros(0)
         bag.write("/hrc/people", convert.MARKERS, convert.capsule_markers(segments, radii, "people", "world", t,
-                                                                          PEOPLE_RGBA), t)
+                                                                          convert.PEOPLE_RGBA), t)
     for st in sorted(rec.statuses, key=lambda m: m.stamp):
         t = ns(st.stamp)
         bag.write("/speed_scaling_factor", convert.FLOAT64, convert.float64(st.alpha), t)

@@ -25,6 +25,7 @@ CYLINDER, SPHERE = 3, 2                      # visualization_msgs/Marker types
 ADD, DELETEALL = 0, 3
 LEVELS = {"info": 0, "warning": 1, "stop": 2}     # diagnostic_msgs/DiagnosticStatus OK, WARN, ERROR
 MAX_CAPSULES = 64
+PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)   # the view's colours of both kinds
 
 
 def stamp(t_ns: int):
