@@ -493,16 +493,17 @@ def cmd_certs(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    """A grid of configuration values (tools.sweep), each point's figures from the Parquet records."""
+    """A grid of configuration values (tools.grid) run by tools.sweep, each point's figures from the Parquet records."""
     from evidence.scenarios import SCENARIO_KINDS
     from evidence.summary import per_point
     from shared.safety.parameters import SsmParameters
+    from tools import grid as grids
     from tools import sweep
 
-    doc = sweep.load_grid(args.grid) if args.grid is not None else {}
+    doc = grids.load_grid(args.grid) if args.grid is not None else {}
     values = dict(doc.get("set") or {})
     for text in args.values:
-        key, numbers = sweep.parse_values(text)
+        key, numbers = grids.parse_values(text)
         values[key] = numbers
     if not values:
         raise UsageError("nothing to sweep: give --set KEY=V1,V2,... or --grid FILE")
@@ -512,14 +513,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         try:
             return given if given is not None else kind(doc.get(key, default))
         except (TypeError, ValueError):
-            raise sweep.GridError(f"{args.grid}: {key}: expected a number, got {doc.get(key)!r}") from None
+            raise grids.GridError(f"{args.grid}: {key}: expected a number, got {doc.get(key)!r}") from None
 
-    grid = sweep.Grid(values=values, strategies=listed(args.strategies, "strategies", ["scale_only", "full"]),
-                      kinds=listed(args.kinds, "kinds", sorted(SCENARIO_KINDS)),
-                      scenarios=number(args.scenarios, "scenarios", 20, int),
-                      duration=number(args.duration, "duration", 12.0, float),
-                      seed=number(args.seed, "seed", 0, int))
-    sweep.check_grid(grid)
+    grid = grids.Grid(values=values, strategies=listed(args.strategies, "strategies", ["scale_only", "full"]),
+                       kinds=listed(args.kinds, "kinds", sorted(SCENARIO_KINDS)),
+                       scenarios=number(args.scenarios, "scenarios", 20, int),
+                       duration=number(args.duration, "duration", 12.0, float),
+                       seed=number(args.seed, "seed", 0, int))
+    grids.check_grid(grid)
     if args.workers < 1 or args.chunk < 1:
         raise UsageError("--workers and --chunk must be >= 1")
     specs = grid.specs()
@@ -536,7 +537,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         pairs = "  ".join(f"{pair} {r.describe().split(' (')[0]}" for pair, r in p["ratios"].items()
                           if not isinstance(r, str))
         print(f"{where}: {figures}  {pairs}")
-    sweep.write_summary(points, grid, args.out)
+    grids.write_summary(points, grid, args.out)
     print(f"{done.ran} chunks run, {done.skipped} already there, {len(done.failed)} failed, in {done.wall_s:.0f} s; "
           f"summary.json, sweep.csv and plots in {args.out}")
     if done.failed:

@@ -10,6 +10,7 @@ import pytest
 from evidence.summary import per_point, wide_rows
 from evidence.sweep import RECORD_FIELDS, ScenarioSpec, config_of, run_scenario
 from shared.core.errors import ConfigError
+from tools import grid as grids
 from tools import sweep
 
 
@@ -60,30 +61,30 @@ def test_records_survive_parquet_and_sum_up_as_the_comparison_does(tmp_path):
 
 
 def test_the_grid_is_every_combination_and_bad_grids_are_refused():
-    grid = sweep.Grid({"ssm.reaction_time": [0.1, 0.2], "scaling.alpha_min": [0.1, 0.15, 0.2]}, ["scale_only"],
+    grid = grids.Grid({"ssm.reaction_time": [0.1, 0.2], "scaling.alpha_min": [0.1, 0.15, 0.2]}, ["scale_only"],
                       ["standing", "crossing"], 3, 2.0)
     assert len(grid.points()) == 6 and len(grid.specs()) == 18
     assert [s.kind for s in grid.specs()[:3]] == ["standing", "crossing", "standing"]
-    sweep.check_grid(grid)
+    grids.check_grid(grid)
     for bad, what in ((dict(strategies=["fastest"]), "strategies"), (dict(kinds=["moon"]), "kinds"),
                       (dict(values={"ssm.reaction_time": [-1.0]}), "reaction_time"), (dict(scenarios=0), "scenarios")):
-        with pytest.raises(sweep.GridError, match=what):
-            sweep.check_grid(sweep.Grid(**{**grid.__dict__, **bad}))
-    assert sweep.parse_values("ssm.reaction_time=0.1,0.15") == ("ssm.reaction_time", [0.1, 0.15])
+        with pytest.raises(grids.GridError, match=what):
+            grids.check_grid(grids.Grid(**{**grid.__dict__, **bad}))
+    assert grids.parse_values("ssm.reaction_time=0.1,0.15") == ("ssm.reaction_time", [0.1, 0.15])
     for text in ("ssm.reaction_time", "=1", "ssm.reaction_time=fast"):
-        with pytest.raises(sweep.GridError):
-            sweep.parse_values(text)
+        with pytest.raises(grids.GridError):
+            grids.parse_values(text)
 
 
 def test_a_grid_file_is_read_and_a_broken_one_refused(tmp_path):
     good = tmp_path / "g.yaml"
     good.write_text("set:\n  ssm.reaction_time: [0.1, 0.2]\nscenarios: 4\n")
-    assert sweep.load_grid(good)["set"] == {"ssm.reaction_time": [0.1, 0.2]}
+    assert grids.load_grid(good)["set"] == {"ssm.reaction_time": [0.1, 0.2]}
     for text in ("set: 3\n", "sett: {}\n", "set: {ssm.reaction_time: []}\n", "\x00\xff[", "- 1\n"):
         bad = tmp_path / "b.yaml"
         bad.write_bytes(text.encode("latin-1"))
-        with pytest.raises(sweep.GridError):
-            sweep.load_grid(bad)
+        with pytest.raises(grids.GridError):
+            grids.load_grid(bad)
 
 
 def test_a_folder_holds_one_sweep(tmp_path):

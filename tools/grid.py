@@ -1,0 +1,150 @@
+"""hrc sweep's grid: every combination of configuration values, with every strategy on the same seeded
+scenarios; the grid read from the command line or a YAML file and checked before anything runs; the figures
+of each point written as summary.json, sweep.csv and a plot per key (the runs themselves: tools.sweep)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from evidence.sweep import ScenarioSpec
+from shared.core.errors import HrcError
+
+
+@dataclass
+class Grid:
+    """A sweep: every combination of the values in `values` (dotted configuration keys), each with every
+    strategy on the same `scenarios` seeded scenarios (kinds in turn, seeds from `seed`, `duration` s)."""
+
+    values: dict[str, list[float]]
+    strategies: list[str]
+    kinds: list[str]
+    scenarios: int
+    duration: float
+    seed: int = 0
+
+    def points(self) -> list[tuple[tuple[str, float], ...]]:
+        import itertools
+
+        keys = sorted(self.values)
+        return [tuple(zip(keys, combo)) for combo in itertools.product(*(self.values[k] for k in keys))]
+
+    def specs(self, forecaster: str | None = None) -> list[ScenarioSpec]:
+        """Point by point, scenario by scenario, every strategy: a chunk holds whole scenarios of one point."""
+        return [ScenarioSpec(self.kinds[k % len(self.kinds)], self.seed + k, self.duration, strategy,
+                             overrides=point, forecaster=forecaster)
+                for point in self.points() for k in range(self.scenarios) for strategy in self.strategies]
+
+
+class GridError(HrcError, ValueError):
+    """A sweep's grid is not usable (a bad key, value, strategy or kind), with what is wrong."""
+
+
+def parse_values(text: str) -> tuple[str, list[float]]:
+    """``ssm.reaction_time=0.1,0.15,0.2`` -> ("ssm.reaction_time", [0.1, 0.15, 0.2])."""
+    key, sep, values = text.partition("=")
+    if not sep or not key.strip() or not values.strip():
+        raise GridError(f"--set {text!r}: expected KEY=V1,V2,... (e.g. ssm.reaction_time=0.1,0.15)")
+    try:
+        numbers = [float(v) for v in values.split(",")]
+    except ValueError:
+        raise GridError(f"--set {text!r}: the values must be numbers") from None
+    return key.strip(), numbers
+
+
+def load_grid(path: Path) -> dict:
+    """A grid file (YAML): ``set: {KEY: [values]}`` and optionally strategies, kinds, scenarios, duration, seed."""
+    import yaml
+
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise GridError(f"{path}: cannot read the grid: {exc}") from None
+    known = {"set", "strategies", "kinds", "scenarios", "duration", "seed"}
+    if not isinstance(doc, dict) or set(map(str, doc)) - known:
+        raise GridError(f"{path}: expected a mapping with some of {sorted(known)}")
+    values = doc.get("set") or {}
+    if not isinstance(values, dict) or not all(isinstance(v, list) and v for v in values.values()):
+        raise GridError(f"{path}: set: expected a mapping of keys to non-empty lists of numbers")
+    return doc
+
+
+def check_grid(grid: Grid) -> None:
+    """Every point a valid configuration, every strategy and kind known (GridError naming what is not)."""
+    import math
+
+    from evidence.scenarios import SCENARIO_KINDS
+    from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES
+    from evidence.sweep import config_of
+    from shared.core.errors import ConfigError
+
+    known = STRATEGIES + BASELINES + BOUNDS + PAPER
+    if not grid.strategies or set(grid.strategies) - set(known):
+        raise GridError(f"strategies: unknown or none {sorted(set(grid.strategies) - set(known))}; known: "
+                        f"{', '.join(known)}")
+    if not grid.kinds or set(grid.kinds) - set(SCENARIO_KINDS):
+        raise GridError(f"kinds: unknown or none {sorted(set(grid.kinds) - set(SCENARIO_KINDS))}; known: "
+                        f"{', '.join(sorted(SCENARIO_KINDS))}")
+    if grid.scenarios < 1 or not (grid.duration > 0 and math.isfinite(grid.duration)):
+        raise GridError("scenarios must be >= 1 and duration a positive number of seconds")
+    for key, values in grid.values.items():
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            raise GridError(f"{key}: the values must be numbers, got {values}")
+    for point in grid.points():
+        try:
+            config_of(point)
+        except ConfigError as exc:
+            raise GridError(str(exc)) from None
+
+
+def plot_sweep(points: list[dict], grid: Grid, out: Path) -> list[Path]:
+    """One plot per swept key: shuttles per minute of every strategy against the key's values (a line for each
+    combination of the other keys' values)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    for key in sorted(grid.values):
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        others = sorted({tuple((k, v) for k, v in sorted(p["point"].items()) if k != key) for p in points})
+        for strategy in grid.strategies:
+            for rest in others:
+                line = sorted((p["point"][key], p["strategies"][strategy]["shuttles_per_min"]) for p in points
+                              if tuple((k, v) for k, v in sorted(p["point"].items()) if k != key) == rest
+                              and strategy in p["strategies"])
+                label = strategy + ("" if not rest else " (" + ", ".join(f"{k}={v:g}" for k, v in rest) + ")")
+                ax.plot([x for x, _ in line], [y for _, y in line], "o-", label=label)
+        ax.set_xlabel(key)
+        ax.set_ylabel("shuttles per minute")
+        ax.set_title(f"{grid.scenarios} scenarios a point ({', '.join(grid.kinds)}), {grid.duration:g} s each")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        path = out / f"sweep-{key}.png"
+        fig.savefig(path, dpi=80)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
+def write_summary(points: list[dict], grid: Grid, out: Path) -> None:
+    """summary.json (every point's figures and ratios with their intervals), sweep.csv (a row per point and
+    strategy) and the plots."""
+    import csv
+
+    out.mkdir(parents=True, exist_ok=True)
+    doc = {"grid": {"set": grid.values, "strategies": grid.strategies, "kinds": grid.kinds,
+                    "scenarios": grid.scenarios, "duration": grid.duration, "seed": grid.seed},
+           "points": [{**p, "ratios": {k: (r if isinstance(r, str) else r.as_list()) for k, r in p["ratios"].items()}}
+                      for p in points]}
+    (out / "summary.json").write_text(json.dumps(doc, indent=1))
+    keys = sorted(grid.values)
+    with open(out / "sweep.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(keys + ["strategy", "scenarios", "shuttles_per_min", "stopped_s", "slowed_s", "violations"])
+        for p in points:
+            for strategy, a in p["strategies"].items():
+                writer.writerow([p["point"].get(k) for k in keys] + [strategy, p["scenarios"], a["shuttles_per_min"],
+                                                                      a["stopped_s"], a["slowed_s"], a["violations"]])
+    plot_sweep(points, grid, out)
