@@ -42,6 +42,9 @@ class Ros2Bridge:
         self.shell, self.robot = shell, robot
         self.node = BridgeNode(domain, str(shell.session.zid()))
         self.inbound = Inbound()
+        self.lock = threading.Lock()              # before the subscriptions: their callbacks take it
+        self.goal_id = int(time.time() * 1000) % 2**31
+        self.raw_seq = 0
         self.pubs = {e.topic: self._publisher(e) for e in ENDPOINTS if e.kind == PUBLISHER}
         self.joints = shell.latest(shell.keys.joint_state, JointState)
         self.people = shell.latest(shell.keys.human_state, HumanState)
@@ -54,11 +57,8 @@ class Ros2Bridge:
                      for topic in ("/hrc/goal", "/hrc/perception/people")]
         self.tokens = [shell.session.liveliness().declare_token(t) for t in self.node.tokens()]
         self.urdf = URDF_PATH.read_text()
-        self.lock = threading.Lock()
         self.last_js = self.last_people = self.last_status = -1.0
         self.last_capsules = self.last_description = self.last_report = -1e9
-        self.goal_id = int(time.time() * 1000) % 2**31
-        self.raw_seq = 0
         self.reported = 0
 
     def _publisher(self, endpoint):
