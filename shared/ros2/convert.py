@@ -10,11 +10,11 @@ naming what is wrong. Times are ns since the epoch."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
+import pinocchio as pin
 
 from shared.core.errors import MessageError
+from shared.core.geometry import capsule_frames
 from shared.core.humans import HumanCapsules
 from shared.ros2.types import msg_class
 
@@ -41,23 +41,8 @@ def joint_state(names: list[str], q: np.ndarray, qd: np.ndarray, t_ns: int):
                                   velocity=np.asarray(qd, np.float64), effort=np.zeros(0, np.float64))
 
 
-def _quaternion(rotation: np.ndarray) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of a rotation matrix (Shepperd's method, the largest of four pivots)."""
-    r = rotation
-    trace = r[0, 0] + r[1, 1] + r[2, 2]
-    if trace > 0:
-        s = 2.0 * math.sqrt(1.0 + trace)
-        return (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s
-    i = int(np.argmax([r[0, 0], r[1, 1], r[2, 2]]))
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = 2.0 * math.sqrt(max(1.0 + r[i, i] - r[j, j] - r[k, k], 1e-300))
-    out = [0.0, 0.0, 0.0, (r[k, j] - r[j, k]) / s]
-    out[i], out[j], out[k] = 0.25 * s, (r[j, i] + r[i, j]) / s, (r[k, i] + r[i, k]) / s
-    return tuple(out)
-
-
 def _transform(translation: np.ndarray, rotation: np.ndarray):
-    x, y, z, w = _quaternion(rotation)
+    x, y, z, w = pin.Quaternion(rotation).coeffs().tolist()            # pinocchio's: (x, y, z, w)
     return msg_class("geometry_msgs/msg/Transform")(
         translation=msg_class("geometry_msgs/msg/Vector3")(x=float(translation[0]), y=float(translation[1]),
                                                            z=float(translation[2])),
@@ -70,16 +55,6 @@ def link_transforms(frames: list[tuple[str, np.ndarray]], base: str, t_ns: int):
     return msg_class(TF)(transforms=[stamped(header=header(t_ns, base), child_frame_id=name,
                                              transform=_transform(pose[:3, 3], pose[:3, :3]))
                                      for name, pose in frames])
-
-
-def _z_to(ax: float, ay: float, az: float) -> tuple[float, float, float, float]:
-    """(x, y, z, w): the shortest rotation turning +z onto the unit vector (ax, ay, az), for a cylinder
-    marker (plain floats: numpy's cross product on 3-vectors costs more than the whole marker)."""
-    w = 1.0 + az
-    if w < 1e-9:                                   # pointing down: half a turn about x
-        return 1.0, 0.0, 0.0, 0.0
-    norm = math.sqrt(ay * ay + ax * ax + w * w)
-    return -ay / norm, ax / norm, 0.0, w / norm
 
 
 def capsule_markers(segments: np.ndarray, radii: np.ndarray, ns: str, frame: str, t_ns: int,
@@ -109,11 +84,11 @@ def capsule_markers(segments: np.ndarray, radii: np.ndarray, ns: str, frame: str
                       scale=Vec(x=scale[0], y=scale[1], z=scale[2]))
 
     markers = [marker(0, CYLINDER, np.zeros(3), None, (0.0, 0.0, 0.0), DELETEALL)]
-    for k, ((a, b), r) in enumerate(zip(np.asarray(segments, float), np.asarray(radii, float))):
+    seg = np.asarray(segments, float).reshape(-1, 2, 3)
+    _, quats, lengths = capsule_frames(seg)                # the 3D view's own poses: +z turned onto each axis
+    for k, ((a, b), r) in enumerate(zip(seg, np.asarray(radii, float))):
         d = 2.0 * float(r)
-        length = float(np.linalg.norm(b - a))
-        rotation = _z_to(*((b - a) / length).tolist()) if length > 1e-9 else None
-        markers.append(marker(3 * k, CYLINDER, (a + b) / 2.0, rotation, (d, d, length)))
+        markers.append(marker(3 * k, CYLINDER, (a + b) / 2.0, tuple(quats[k].tolist()), (d, d, float(lengths[k]))))
         markers.append(marker(3 * k + 1, SPHERE, a, None, (d, d, d)))
         markers.append(marker(3 * k + 2, SPHERE, b, None, (d, d, d)))
     return msg_class(MARKERS)(markers=markers)
