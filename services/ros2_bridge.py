@@ -23,8 +23,6 @@ import sys
 import threading
 import time
 
-import numpy as np
-
 from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
 from shared.robot.model import URDF_PATH, RobotModel
 from shared.ros2 import convert
@@ -34,7 +32,7 @@ from shared.ros2.types import serialize
 from shared.wire.messages import Goal, HumanRaw, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
 PERIOD = 0.01
-CAPSULE_PERIOD, PEOPLE_PERIOD, DESCRIPTION_PERIOD, REPORT_PERIOD = 0.05, 1.0 / 30.0, 10.0, 1.0
+PEOPLE_PERIOD, DESCRIPTION_PERIOD, REPORT_PERIOD = 1.0 / 30.0, 10.0, 1.0
 
 
 class Ros2Bridge:
@@ -84,17 +82,13 @@ class Ros2Bridge:
             self.last_js = js.stamp
             self.put("/joint_states", convert.joint_state(self.robot.joint_names, js.q, js.qd, t_ns), convert.JOINT_STATE)
             self.put("/tf", convert.link_transforms(self.robot.link_poses(js.q), "world", t_ns), convert.TF)
-            if now - self.last_capsules >= CAPSULE_PERIOD:
+            if now - self.last_capsules >= convert.ROBOT_MARKER_PERIOD:
                 self.last_capsules = now
-                self.put("/hrc/robot_capsules", convert.capsule_markers(self.robot.capsule_segments(js.q),
-                                                                        self.robot.radii, "robot", "world", t_ns,
-                                                                        convert.ROBOT_RGBA), convert.MARKERS)
+                self.put("/hrc/robot_capsules", convert.robot_markers(self.robot, js.q, t_ns), convert.MARKERS)
         hs = self.people.take() if now - self.last_people >= PEOPLE_PERIOD else None
         if hs is not None:
             self.last_people = now
-            seg, radii = (np.asarray(hs.segments), np.asarray(hs.radii)) if hs.valid else (np.zeros((0, 2, 3)), np.zeros(0))
-            self.put("/hrc/people", convert.capsule_markers(seg, radii, "people", "world", t_ns, convert.PEOPLE_RGBA),
-                     convert.MARKERS)
+            self.put("/hrc/people", convert.people_markers(hs, t_ns), convert.MARKERS)
         st = self.status.take()
         if st is not None and st.stamp != self.last_status:
             self.last_status = st.stamp

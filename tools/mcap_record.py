@@ -25,8 +25,6 @@ from shared.ros2 import convert
 from shared.ros2.types import DISTRO, msgdef, serialize, type_hash
 from tools.report import Recording
 
-CAPSULE_PERIOD = 0.05            # s between two /hrc/robot_capsules messages (20 Hz)
-
 
 class BagWriter:
     """MCAP with the ROS 2 profile: one schema per type, one channel per topic, counts for metadata.yaml."""
@@ -90,16 +88,11 @@ def write_mcap(out: Path, robot: RobotModel, config: CellConfig, rec: Recording,
         t = ns(js.stamp)
         bag.write("/joint_states", convert.JOINT_STATE, convert.joint_state(robot.joint_names, js.q, js.qd, t), t)
         bag.write("/tf", convert.TF, convert.link_transforms(robot.link_poses(js.q), "world", t), t)
-        if js.stamp - last_capsules >= CAPSULE_PERIOD:
+        if js.stamp - last_capsules >= convert.ROBOT_MARKER_PERIOD:
             last_capsules = js.stamp
-            bag.write("/hrc/robot_capsules", convert.MARKERS, convert.capsule_markers(
-                robot.capsule_segments(js.q), robot.radii, "robot", "world", t, convert.ROBOT_RGBA), t)
+            bag.write("/hrc/robot_capsules", convert.MARKERS, convert.robot_markers(robot, js.q, t), t)
     for hs in sorted(rec.human_states, key=lambda m: m.stamp):
-        t = ns(hs.stamp)
-        segments = np.asarray(hs.segments) if hs.valid else np.zeros((0, 2, 3))
-        radii = np.asarray(hs.radii) if hs.valid else np.zeros(0)
-        bag.write("/hrc/people", convert.MARKERS, convert.capsule_markers(segments, radii, "people", "world", t,
-                                                                          convert.PEOPLE_RGBA), t)
+        bag.write("/hrc/people", convert.MARKERS, convert.people_markers(hs, ns(hs.stamp)), ns(hs.stamp))
     for st in sorted(rec.statuses, key=lambda m: m.stamp):
         t = ns(st.stamp)
         bag.write("/speed_scaling_factor", convert.FLOAT64, convert.float64(st.alpha), t)

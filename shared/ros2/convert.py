@@ -26,6 +26,7 @@ ADD, DELETEALL = 0, 3
 LEVELS = {"info": 0, "warning": 1, "stop": 2}     # diagnostic_msgs/DiagnosticStatus OK, WARN, ERROR
 MAX_CAPSULES = 64
 PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)   # the view's colours of both kinds
+ROBOT_MARKER_PERIOD = 0.05   # s between two robot capsule MarkerArrays (20 Hz), live and in a bag
 
 
 def stamp(t_ns: int):
@@ -92,6 +93,18 @@ def capsule_markers(segments: np.ndarray, radii: np.ndarray, ns: str, frame: str
         markers.append(marker(3 * k + 1, SPHERE, a, None, (d, d, d)))
         markers.append(marker(3 * k + 2, SPHERE, b, None, (d, d, d)))
     return msg_class(MARKERS)(markers=markers)
+
+
+def people_markers(state, t_ns: int):
+    """The tracked people of a HumanState as capsule markers in the world frame; an invalid track clears them."""
+    if not state.valid:
+        return capsule_markers(np.zeros((0, 2, 3)), np.zeros(0), "people", "world", t_ns, PEOPLE_RGBA)
+    return capsule_markers(state.segments, state.radii, "people", "world", t_ns, PEOPLE_RGBA)
+
+
+def robot_markers(robot, q: np.ndarray, t_ns: int):
+    """The robot's safety capsules at configuration q as markers in the world frame."""
+    return capsule_markers(robot.capsule_segments(q), robot.radii, "robot", "world", t_ns, ROBOT_RGBA)
 
 
 def float64(value: float):
