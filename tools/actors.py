@@ -21,6 +21,7 @@ import numpy as np
 from evidence.scenarios import Q_GOAL, Q_START
 from shared.core.errors import MessageError
 from shared.core.humans import HumanCapsules
+from shared.wire.convert import humans_to_msg
 from shared.wire.keys import KeySpace
 from shared.wire.messages import (
     DriveLagReport,
@@ -135,9 +136,9 @@ class HumanFeed(threading.Thread):
             shifted = fault.kind == "jump" and (fault.every <= 0 or k % fault.every == 0)
             segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
             if self.tracked:
-                payload = encode(HumanState(segments=segments, radii=caps.radii, velocities=caps.velocities,
-                                            velocity_known=caps.velocity_known, valid=True, sample_stamp=due,
-                                            sample_interval=1.0 / self.rate, seq=k, stamp=time.monotonic()))
+                shown = HumanCapsules(segments, caps.radii, caps.velocities, caps.velocity_known)
+                payload = encode(humans_to_msg(shown, True, due, seq=k, stamp=time.monotonic(),
+                                               sample_interval=1.0 / self.rate))
             else:
                 payload = encode(HumanRaw(source=self.source, sample_time=due, segments=segments, radii=caps.radii,
                                           seq=k, stamp=time.monotonic()))
