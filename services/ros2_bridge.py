@@ -9,8 +9,10 @@ endpoint declare their liveliness tokens, so `ros2 topic list` and rviz2 see the
 shared.ros2.bridge).
 
 In: /hrc/goal (sensor_msgs/JointState) becomes a Goal for the planner; /hrc/perception/people
-(visualization_msgs/MarkerArray of CYLINDER capsules) raw human data for tracker_ingest, which filters and
-checks it as any tracker's. Refusals (no attachment, not the type, invalid, over the rate) are counted and
+(visualization_msgs/MarkerArray of CYLINDER capsules) and /hrc/perception/keypoints, .../arm_keypoints
+(geometry_msgs/PoseArray of skeletons, made capsules by the code of `hrc human from-keypoints`) raw human data
+for tracker_ingest, sampled when their header stamps say, which filters and checks it as any tracker's.
+Refusals (no attachment, not the type, invalid, stale, partly seen, over the rate) are counted and
 said once a second in an info event. The bridge is outside the safety chain: it only reads the cell's keys,
 and what it sends in takes the cell's own checks; a slow or dead bridge stops nothing but itself.
 
@@ -26,7 +28,7 @@ import time
 from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
 from shared.robot.model import URDF_PATH, RobotModel
 from shared.ros2 import convert
-from shared.ros2.bridge import ENDPOINTS, BridgeNode, Inbound
+from shared.ros2.bridge import ENDPOINTS, PEOPLE_TOPICS, BridgeNode, Inbound
 from shared.ros2.graph import PUBLISHER, TRANSIENT_LOCAL
 from shared.ros2.types import serialize
 from shared.wire.messages import Goal, HumanRaw, HumanState, JointState, SafetyEvent, ScalerStatus, encode
@@ -52,7 +54,7 @@ class Ros2Bridge:
         self.raw_pub = shell.session.declare_publisher(shell.keys.human_raw)
         self.event_pub = shell.session.declare_publisher(shell.keys.safety_events)
         self.subs = [shell.session.declare_subscriber(self.node.key(topic), lambda s, t=topic: self.on_ros(t, s))
-                     for topic in ("/hrc/goal", "/hrc/perception/people")]
+                     for topic in ("/hrc/goal", *PEOPLE_TOPICS)]
         self.tokens = [shell.session.liveliness().declare_token(t) for t in self.node.tokens()]
         self.urdf = URDF_PATH.read_text()
         self.last_js = self.last_people = self.last_status = -1.0
@@ -134,11 +136,12 @@ class Ros2Bridge:
                 self.goal_id += 1
                 self.goal_pub.put(encode(Goal(goal_id=self.goal_id, name="ros2", q=q, seq=self.goal_id, stamp=now)))
             else:
-                people = self.inbound.convert(convert.people_from_markers, message)
-                if people is None:
+                taken = self.inbound.people(topic, message, time.time_ns())
+                if taken is None:
                     return
+                people, age = taken
                 self.raw_seq += 1
-                self.raw_pub.put(encode(HumanRaw(source="ros2", sample_time=now, segments=people.segments,
+                self.raw_pub.put(encode(HumanRaw(source="ros2", sample_time=now - age, segments=people.segments,
                                                  radii=people.radii, seq=self.raw_seq, stamp=now)))
 
     def safe_tick(self, now: float) -> None:

@@ -271,6 +271,9 @@ def _add_report(sub) -> None:
                                         "(a rosbag2 bag; docs/ros2.md).")
     report.add_argument("folder", type=Path, help="an hrc demo report folder")
     report.add_argument("--mcap", action="store_true", help="write recording.mcap and metadata.yaml")
+    report.add_argument("--config", type=Path, default=None, metavar="FILE",
+                        help="the cell configuration the run had, for the bag's metadata (default: the built-in "
+                             "one; deploy/cell-paper.yaml for a run with --paper-formula)")
 
 
 def _add_status(sub) -> None:

@@ -141,7 +141,11 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
                          beta_replans=not args.no_beta, on_replan=replanned)
     summary = result.summary()
     if args.out is not None:
+        from tools.mcap_record import recording_from_sim
+        from tools.report import write_bag
+
         args.out.mkdir(parents=True, exist_ok=True)
+        summary["ros2_bag"] = write_bag(args.out, robot, config, recording_from_sim(result, human))
         (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(json.dumps(summary))
     return 0 if summary["violations"] == 0 else 1
@@ -548,9 +552,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """hrc report FOLDER --mcap: the ROS 2 bag of an older report, from its trace files."""
+    import json
     import time
 
-    from shared.config import CellConfig
+    from shared.config import load_config
     from shared.robot.model import default_robot
     from tools.mcap_record import ReportError, recording_from_report, write_mcap
 
@@ -558,14 +563,22 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise UsageError("nothing to write: give --mcap")
     if not (args.folder / "trace.csv").is_file():
         raise UsageError(f"{args.folder}: not an hrc demo report folder (no trace.csv)")
+    config = load_config(args.config)                     # a ConfigError is the CLI's clear error
     try:
         rec = recording_from_report(args.folder)
     except ReportError as exc:
         raise UsageError(str(exc)) from None
     summary = args.folder / "summary.json"
     ended = summary.stat().st_mtime if summary.exists() else time.time()
+    try:
+        ran = json.loads(summary.read_text()).get("human_acceleration_m_s2") if summary.exists() else None
+    except (OSError, ValueError, AttributeError):
+        ran = None
+    if isinstance(ran, (int, float)) and ran != config.ssm.human_acceleration:
+        print(f"hrc report: warning: the run had human_acceleration {ran} m/s^2 (summary.json), the configuration "
+              f"{config.ssm.human_acceleration}: give the run's own with --config", file=sys.stderr)
     last = max([m.stamp for m in rec.statuses] or [0.0])
-    path = write_mcap(args.folder, default_robot(), CellConfig(), rec, epoch_t0=ended - last)
+    path = write_mcap(args.folder, default_robot(), config, rec, epoch_t0=ended - last)
     print(f"hrc report: {path} ({path.stat().st_size / 1e6:.1f} MB, {len(rec.joint_states)} joint states) and "
           f"metadata.yaml: `ros2 bag play {args.folder}`")
     return 0

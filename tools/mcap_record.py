@@ -22,8 +22,26 @@ import yaml
 from shared.config import CellConfig
 from shared.robot.model import URDF_PATH, RobotModel
 from shared.ros2 import convert
+from shared.ros2.bridge import BY_TOPIC
+from shared.ros2.graph import SENSOR
 from shared.ros2.types import DISTRO, msgdef, serialize, type_hash
 from tools.report import Recording
+
+
+def offered_qos(topic: str) -> list[dict]:
+    """What a topic's publisher offers, as rosbag2 (format 9) writes it in metadata.yaml and in the MCAP
+    channel's ``offered_qos_profiles`` (the ros2 profile requires it; ``ros2 bag play`` offers it again, so
+    /robot_description replays transient local and a late rviz2 still gets the model): the bridge's own QoS
+    of the topic (shared.ros2.bridge.ENDPOINTS), else a stream's (SENSOR); durations 0 (the system default),
+    in rosbags' own dump of them."""
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+    from rosbags.rosbag2.metadata import dump_qos_v9
+
+    endpoint = BY_TOPIC.get(topic)
+    q = endpoint.qos if endpoint is not None else SENSOR
+    default = QosTime(sec=0, nsec=0)
+    return dump_qos_v9([Qos(QosHistory(q.history), q.depth, QosReliability(q.reliability), QosDurability(q.durability),
+                            default, default, QosLiveliness.AUTOMATIC, default, False)])
 
 
 class BagWriter:
@@ -44,7 +62,9 @@ class BagWriter:
         if msgtype not in self.schemas:
             self.schemas[msgtype] = self.writer.register_schema(msgtype, "ros2msg", msgdef(msgtype).encode())
         if topic not in self.channels:
-            self.channels[topic] = (self.writer.register_channel(topic, "cdr", self.schemas[msgtype]), msgtype)
+            qos = yaml.safe_dump(offered_qos(topic), default_flow_style=False).strip()
+            self.channels[topic] = (self.writer.register_channel(topic, "cdr", self.schemas[msgtype],
+                                                                 {"offered_qos_profiles": qos}), msgtype)
             self.counts[topic] = 0
         self.writer.add_message(self.channels[topic][0], log_time=t_ns, data=serialize(message, msgtype),
                                 publish_time=t_ns, sequence=self.counts[topic])
@@ -65,7 +85,7 @@ def rosbag2_metadata(name: str, info: dict) -> dict:
     duration = int(info["last"] - info["first"])
     topics = [{"message_count": n, "topic_metadata": {
         "name": topic, "type": info["types"][topic], "serialization_format": "cdr",
-        "offered_qos_profiles": [],         # played with rosbag2's default QoS
+        "offered_qos_profiles": offered_qos(topic),
         "type_description_hash": type_hash(info["types"][topic])}} for topic, n in info["counts"].items()]
     total = sum(info["counts"].values())
     return {"rosbag2_bagfile_information": {
@@ -108,6 +128,35 @@ def write_mcap(out: Path, robot: RobotModel, config: CellConfig, rec: Recording,
                       "scaling": json.dumps(asdict(config.scaling)), "prefix": config.keys.prefix})
     (out / "metadata.yaml").write_text(yaml.safe_dump(rosbag2_metadata("recording.mcap", info), sort_keys=False))
     return out / "recording.mcap"
+
+
+def recording_from_sim(result, human) -> Recording:
+    """An in-process run (``evidence.sim.run_shuttle``'s SimResult; `human` its scenario, ``at(t)``) as a
+    Recording on its simulated clock, t0 = 0: the commanded joints stand for the measured ones (the simulated
+    robot follows its commands), the scaling layer's step each cycle, the scenario's people at each cycle
+    (None: a dropout, an invalid track), and each replan as an info event."""
+    from shared.core.humans import HumanCapsules
+    from shared.wire.convert import humans_to_msg
+    from shared.wire.messages import JointState, SafetyEvent, ScalerStatus
+
+    rec = Recording(t0=0.0)
+    finite = lambda v: v if np.isfinite(v) else None  # noqa: E731
+    for r in result.records:
+        s = r.step
+        rec.joint_states.append(JointState(q=s.q_command, qd=s.qd_command, drive_state="simulated", enabled=True,
+                                           fault=False, stamp=r.t))
+        rec.statuses.append(ScalerStatus(s=s.s, alpha=s.alpha, safe_alpha=s.safe_alpha, beta=s.beta,
+                                         q_command=s.q_command, trajectory_version=s.trajectory_version,
+                                         status=s.status.value, method=s.method,
+                                         min_separation=finite(s.min_separation), min_margin=finite(s.min_margin),
+                                         compute_us=s.compute_us, stamp=r.t))
+        people = human.at(r.t)
+        rec.human_states.append(humans_to_msg(HumanCapsules.empty() if people is None else people, people is not None,
+                                              r.t, stamp=r.t))
+    rec.events += [SafetyEvent(source="planner", event="replanned" if e.ok else "replan_refused", severity="info",
+                               text=f"{e.reason}: {e.detail}"[:500], value=e.compute_ms, stamp=e.t)
+                   for e in result.replans]
+    return rec
 
 
 class ReportError(ValueError):

@@ -3,8 +3,9 @@
 The bridge is one ROS 2 node, ``hrc_bridge``: the endpoints below, each with its rmw_zenoh data key, liveliness
 token, GID and sequence numbers (``BridgeNode``). What comes in from ROS 2 (a goal, people from a perception
 node) passes ``Inbound``: a sample without its attachment, a buffer that is not the type, a message that is not
-valid, or one more than `max_rate` a second on its topic is refused and counted by reason; what passes becomes
-the cell's own message and takes the cell's own checks (a goal the planner's, people the tracker's)."""
+valid (or stale, or a skeleton partly seen), or one more than `max_rate` a second on its topic is refused and
+counted by reason; what passes becomes the cell's own message and takes the cell's own checks (a goal the
+planner's, people the tracker's)."""
 
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from shared.ros2.graph import (
     topic_key,
 )
 from shared.ros2.types import deserialize
+from shared.tracking.keypoints import ARM_KEYPOINTS, KEYPOINTS
 
 NODE_NAME = "hrc_bridge"
 
@@ -50,7 +52,12 @@ ENDPOINTS = (
     Endpoint("/diagnostics", convert.DIAGNOSTICS, PUBLISHER, SENSOR, 8),
     Endpoint("/hrc/perception/people", convert.MARKERS, SUBSCRIPTION, SENSOR, 9),
     Endpoint("/hrc/goal", convert.JOINT_STATE, SUBSCRIPTION, SENSOR, 10),
+    Endpoint("/hrc/perception/keypoints", convert.POSES, SUBSCRIPTION, SENSOR, 11),
+    Endpoint("/hrc/perception/arm_keypoints", convert.POSES, SUBSCRIPTION, SENSOR, 12),
 )
+# the keypoint topics and the skeleton each carries per person (shared.tracking.keypoints, in that order)
+KEYPOINT_TOPICS = {"/hrc/perception/keypoints": KEYPOINTS, "/hrc/perception/arm_keypoints": ARM_KEYPOINTS}
+PEOPLE_TOPICS = ("/hrc/perception/people", *KEYPOINT_TOPICS)
 BY_TOPIC = {e.topic: e for e in ENDPOINTS}
 
 
@@ -114,13 +121,30 @@ class Inbound:
         self.last[topic] = now
         return message
 
-    def convert(self, make, *args):
-        """make(*args), or None with 'invalid' counted (the MessageError of convert.goal_positions and
-        convert.people_from_markers)."""
+    def _checked(self, make, *args):
+        """make(*args), or None with the refusal counted: the MessageError of a shared.ros2.convert reader,
+        under its ``reason`` ('invalid' unless it says: 'stale', 'partly seen')."""
         try:
-            value = make(*args)
-        except MessageError:
-            self._refuse("invalid")
+            return make(*args)
+        except MessageError as exc:
+            self._refuse(getattr(exc, "reason", "invalid"))
             return None
-        self.accepted += 1
+
+    def convert(self, make, *args):
+        """make(*args) of a reader (``_checked``), counted as accepted where it passes."""
+        value = self._checked(make, *args)
+        self.accepted += value is not None
         return value
+
+    def people(self, topic: str, message, wall_ns: int):
+        """(capsules, age in s) of a people message on one of PEOPLE_TOPICS (a MarkerArray of capsules, or a
+        PoseArray of keypoints), the age from its header stamps (``convert.sample_age``), at wall time
+        `wall_ns`; None, counted, for one that is refused."""
+        keypoints = KEYPOINT_TOPICS.get(topic)
+        stamps = [message.header.stamp] if keypoints else [m.header.stamp for m in message.markers]
+        age = self._checked(convert.sample_age, stamps, wall_ns)
+        if age is None:
+            return None
+        humans = (self.convert(convert.people_from_keypoints, message, keypoints) if keypoints
+                  else self.convert(convert.people_from_markers, message))
+        return None if humans is None else (humans, age)

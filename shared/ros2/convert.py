@@ -5,8 +5,11 @@ frame), capsules as visualization_msgs/MarkerArray (a cylinder and two spheres e
 the replan request (std_msgs/Float64, std_msgs/Bool), the safety events (diagnostic_msgs/DiagnosticArray).
 In: a goal as a sensor_msgs/JointState (positions by joint name), people as a MarkerArray of CYLINDER
 markers (one capsule each: its pose's z axis is the capsule's axis, scale.z its length between the centres
-of the end spheres, scale.x its diameter; the marker's ns names the person). Bad input raises MessageError
-naming what is wrong. Times are ns since the epoch."""
+of the end spheres, scale.x its diameter; the marker's ns names the person), or body keypoints as a
+geometry_msgs/PoseArray (every person seen in a frame, one after another, each the keypoints of
+shared.tracking.keypoints in their order), turned into capsules by the code of ``hrc human from-keypoints``.
+Bad input raises MessageError naming what is wrong (``reason`` says how it is counted). Times are ns since
+the epoch."""
 
 from __future__ import annotations
 
@@ -17,14 +20,19 @@ from shared.core.errors import MessageError
 from shared.core.geometry import capsule_frames
 from shared.core.humans import HumanCapsules
 from shared.ros2.types import msg_class
+from shared.tracking.keypoints import body_capsules
 
 JOINT_STATE, TF, MARKERS = "sensor_msgs/msg/JointState", "tf2_msgs/msg/TFMessage", "visualization_msgs/msg/MarkerArray"
 FLOAT64, BOOL, STRING = "std_msgs/msg/Float64", "std_msgs/msg/Bool", "std_msgs/msg/String"
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
+POSES = "geometry_msgs/msg/PoseArray"
 CYLINDER, SPHERE = 3, 2                      # visualization_msgs/Marker types
 ADD, DELETEALL = 0, 3
 LEVELS = {"info": 0, "warning": 1, "stop": 2}     # diagnostic_msgs/DiagnosticStatus OK, WARN, ERROR
 MAX_CAPSULES = 64
+BASE_FRAMES = ("world", "")    # the frames people may come in: the robot base, the root of the bridge's /tf
+MAX_SAMPLE_AGE = 0.5           # s: a sample stamped longer ago than this is stale, never the person of now
+CELL_SIZE = 10.0               # m: a keypoint farther than this from the robot base is not a person in the cell
 PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)   # the view's colours of both kinds
 ROBOT_MARKER_PERIOD = 0.05   # s between two robot capsule MarkerArrays (20 Hz), live and in a bag
 
@@ -176,3 +184,56 @@ def people_from_markers(msg) -> HumanCapsules:
         return HumanCapsules.empty()
     seg = np.array(segments)
     return HumanCapsules.from_arrays(seg, np.array(radii), np.zeros_like(seg), np.zeros(len(radii), bool))
+
+
+def refused(text: str, reason: str = "invalid") -> MessageError:
+    """A MessageError that the bridge counts under `reason`."""
+    exc = MessageError(text)
+    exc.reason = reason
+    return exc
+
+
+def sample_age(stamps, wall_ns: int) -> float:
+    """How old (s) a sample is at wall time `wall_ns` by the newest of its header stamps (builtin_interfaces/Time,
+    the sender's wall clock): the age of the capture, so that the tracker's velocities and the data's age
+    count from it, not from the arrival. 0 for unset stamps (all zero) or a stamp ahead of this clock (a host
+    whose clock runs ahead: the arrival stands for the capture); MessageError ("stale") past MAX_SAMPLE_AGE."""
+    newest = max((int(t.sec) * 1_000_000_000 + int(t.nanosec) for t in stamps), default=0)
+    if newest <= 0:
+        return 0.0
+    age = (wall_ns - newest) * 1e-9
+    if age > MAX_SAMPLE_AGE:
+        raise refused(f"people: stamped {age:.3f} s ago, more than {MAX_SAMPLE_AGE} s", "stale")
+    return max(age, 0.0)
+
+
+def people_from_keypoints(msg, keypoints: tuple[str, ...]) -> HumanCapsules:
+    """The capsules of the people in a PoseArray of body keypoints: len(keypoints) poses a person, in the order
+    of `keypoints` (shared.tracking.keypoints.KEYPOINTS, or ARM_KEYPOINTS for an arm-only skeleton), one
+    person after another, positions in the robot base frame (m; orientations are not used), each person's
+    capsules those of ``body_capsules`` (as ``hrc human from-keypoints`` makes them; no velocity: the tracker
+    estimates it); an empty array is nobody in view. MessageError for another frame, a count that is not
+    whole people, an infinite or far-off position, or too many capsules; and, counted as "partly seen", for
+    a NaN position: a keypoint not seen makes the frame a dropout (nothing reaches the tracker, so it stops
+    the robot once the data is stale, rather than guess where that limb is)."""
+    frame = msg.header.frame_id
+    if frame not in BASE_FRAMES:
+        raise refused(f"keypoints: frame {frame!r}: send them in the robot base frame 'world' (the bridge has "
+                      f"no transforms of other frames)")
+    n = len(keypoints)
+    points = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses], dtype=float).reshape(-1, 3)
+    if len(points) % n:
+        raise refused(f"keypoints: {len(points)} poses are not whole people of {n} ({', '.join(keypoints)})")
+    if np.isnan(points).any():
+        raise refused("keypoints: a keypoint not seen (NaN): the frame is a dropout", "partly seen")
+    if not np.all(np.isfinite(points)) or np.abs(points).max(initial=0.0) > CELL_SIZE:
+        raise refused(f"keypoints: a position is infinite or farther than {CELL_SIZE} m from the robot base")
+    capsules = [c for k in range(0, len(points), n)
+                for c in body_capsules({name: points[k + i] for i, name in enumerate(keypoints)})]
+    if len(capsules) > MAX_CAPSULES:
+        raise refused(f"keypoints: {len(capsules)} capsules, more than {MAX_CAPSULES}")
+    if not capsules:
+        return HumanCapsules.empty()
+    seg = np.array([[a, b] for _, a, b, _ in capsules])
+    return HumanCapsules.from_arrays(seg, np.array([r for *_, r in capsules]), np.zeros_like(seg),
+                                     np.zeros(len(capsules), bool))

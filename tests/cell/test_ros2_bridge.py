@@ -1,8 +1,9 @@
 """The ROS 2 bridge as a process, seen by a ROS 2 peer written only from rmw_zenoh's design document: it finds
 the bridge's topics by their liveliness tokens, subscribes to the data key a token names, and decodes
 /joint_states to what the cell published, every sample with its 33-byte attachment and a rising sequence
-number. Goals and people from ROS 2 reach the cell's keys; samples without an attachment, garbage, a NaN
-capsule and a flood are refused and counted, and the bridge goes on."""
+number. Goals and people (capsules and skeletons) from ROS 2 reach the cell's keys; samples without an
+attachment, garbage, a NaN capsule, a partly seen or stale skeleton and a flood are refused and counted, and the
+bridge goes on."""
 
 import os
 import struct
@@ -15,9 +16,11 @@ import pytest
 
 from shared.robot.model import default_robot
 from shared.ros2 import convert, types
+from shared.tracking.keypoints import ARM_KEYPOINTS, body_capsules
 from shared.transport.zenoh_session import await_liveliness, open_session
 from shared.wire.keys import KeySpace
 from shared.wire.messages import Goal, HumanRaw, JointState, SafetyEvent, decode, encode
+from tests.ros2.test_ros2_wire import pose_array
 from tests.util import ROOT, free_port
 
 ROBOT = default_robot()
@@ -147,3 +150,41 @@ def test_goals_and_people_from_ros_2_reach_the_cell_and_bad_ones_are_refused(bri
     said = [e.text for e in events if e.event == "ros2_refused"]
     assert said and all(why in said[-1] for why in reasons)
     assert proc.poll() is None                                       # and it goes on
+
+
+def test_skeletons_from_ros_2_reach_the_tracker_as_capsules_sampled_when_stamped(bridge):
+    """An arm-only skeleton on /hrc/perception/arm_keypoints becomes the seven capsules of `hrc human
+    from-keypoints` on the cell's raw key, its sample time its header stamp's moment; a skeleton with an unseen
+    keypoint (a dropout) and one stamped a second ago (stale) are refused by reason, and nothing of them
+    reaches the tracker."""
+    session, keys, proc = bridge
+    raws, events = [], []
+    subs = [session.declare_subscriber(keys.human_raw, lambda s: raws.append(decode(s.payload.to_bytes(), HumanRaw))),
+            session.declare_subscriber(keys.safety_events,
+                                       lambda s: events.append(decode(s.payload.to_bytes(), SafetyEvent)))]
+    time.sleep(0.5)
+    points = [[-0.9, 0.2, 1.4], [-0.9, -0.2, 1.4], [-0.7, 0.25, 1.2], [-0.7, -0.25, 1.2], [-0.5, 0.2, 1.1],
+              [-0.5, -0.2, 1.1]]
+    topic = "/hrc/perception/arm_keypoints"
+    sent = time.monotonic()
+    ros_put(session, topic, convert.POSES, types.serialize(pose_array(points, t_ns=time.time_ns() - 80_000_000),
+                                                           convert.POSES), 1)
+    time.sleep(0.05)
+    unseen = [*points[:5], [float("nan"), 0.0, 0.0]]
+    ros_put(session, topic, convert.POSES, types.serialize(pose_array(unseen), convert.POSES), 2)
+    time.sleep(0.05)
+    ros_put(session, topic, convert.POSES, types.serialize(pose_array(points, t_ns=time.time_ns() - 1_000_000_000),
+                                                           convert.POSES), 3)
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline and not any(e.event == "ros2_refused" and "partly seen" in e.text and
+                                                  "stale" in e.text for e in events):
+        time.sleep(0.1)
+    for sub in subs:
+        sub.undeclare()
+    expected = body_capsules({k: np.array(p) for k, p in zip(ARM_KEYPOINTS, points)})
+    assert len(raws) == 1, [r.segments.shape for r in raws]
+    assert np.allclose(raws[0].segments, [[a, b] for _, a, b, _ in expected])
+    assert np.allclose(raws[0].radii, [r for *_, r in expected])
+    assert sent - 0.08 - 0.03 <= raws[0].sample_time <= sent - 0.08 + 0.03     # when stamped, not when it came
+    assert any("partly seen" in e.text and "stale" in e.text for e in events if e.event == "ros2_refused")
+    assert proc.poll() is None

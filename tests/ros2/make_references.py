@@ -3,7 +3,7 @@ tests of shared.ros2 (there is no ROS 2 on the test machines). Run it with an in
 ROS 2 wheels (Kilted, cp311; the message definitions used here are the same in Jazzy):
 
     python3 -m venv /tmp/rosvenv
-    /tmp/rosvenv/bin/pip install ros-rclpy ros-rmw-fastrtps-cpp ros-sensor-msgs ros-std-msgs
+    /tmp/rosvenv/bin/pip install ros-rclpy ros-rmw-fastrtps-cpp ros-sensor-msgs ros-std-msgs ros-geometry-msgs
     /tmp/rosvenv/bin/python tests/ros2/make_references.py /tmp/rosvenv
 
 Each case is a message given as plain fields, serialised by rclpy.serialization (the rmw's own CDR), and each
@@ -13,6 +13,7 @@ import json
 import sys
 from pathlib import Path
 
+from geometry_msgs.msg import Pose, PoseArray
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, String
@@ -28,6 +29,13 @@ CASES = [
     ("std_msgs/msg/Bool", {"data": True}),
     ("std_msgs/msg/String", {"data": "<robot name=\"prbt\"/>"}),
     ("std_msgs/msg/String", {"data": "abc"}),
+    # inbound: a perception node's arm-only skeleton (ARM_KEYPOINTS' order), and one with an unseen wrist
+    ("geometry_msgs/msg/PoseArray", {"stamp_ns": 1_764_650_000_500_000_000, "frame_id": "world", "positions": [
+        [-0.9, 0.2, 1.4], [-0.9, -0.2, 1.4], [-0.7, 0.25, 1.2], [-0.7, -0.25, 1.2], [-0.5, 0.2, 1.1],
+        [-0.5, -0.2, 1.1]]}),
+    ("geometry_msgs/msg/PoseArray", {"stamp_ns": 0, "frame_id": "world", "positions": [
+        [-0.9, 0.2, 1.4], [-0.9, -0.2, 1.4], [-0.7, 0.25, 1.2], [-0.7, -0.25, 1.2], [-0.5, 0.2, 1.1],
+        [float("nan"), 0.0, 0.0]]}),
 ]
 
 
@@ -37,6 +45,15 @@ def build(msgtype: str, fields: dict):
         m.header.stamp.sec, m.header.stamp.nanosec = divmod(fields["stamp_ns"], 1_000_000_000)
         m.header.frame_id = fields["frame_id"]
         m.name, m.position, m.velocity, m.effort = fields["name"], fields["position"], fields["velocity"], fields["effort"]
+        return m
+    if msgtype == "geometry_msgs/msg/PoseArray":
+        m = PoseArray()
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(fields["stamp_ns"], 1_000_000_000)
+        m.header.frame_id = fields["frame_id"]
+        for x, y, z in fields["positions"]:
+            pose = Pose()
+            pose.position.x, pose.position.y, pose.position.z = x, y, z
+            m.poses.append(pose)
         return m
     return {"std_msgs/msg/Float64": Float64, "std_msgs/msg/Bool": Bool, "std_msgs/msg/String": String}[msgtype](**fields)
 

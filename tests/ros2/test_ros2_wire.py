@@ -13,6 +13,7 @@ import xxhash
 from shared.core.errors import MessageError
 from shared.robot.model import default_robot
 from shared.ros2 import convert, graph, types
+from shared.tracking.keypoints import ARM_KEYPOINTS, KEYPOINTS, body_capsules
 from tests.util import ROOT
 
 REFERENCES = json.loads((ROOT / "tests" / "data" / "ros2" / "references.json").read_text())
@@ -56,6 +57,11 @@ def padding(msgtype: str, fields: dict) -> set[int]:
             f64s(fields[key])
     elif msgtype == "std_msgs/msg/String":
         text(fields["data"])
+    elif msgtype == convert.POSES:
+        u32(), u32(), text(fields["frame_id"])
+        u32()
+        if fields["positions"]:
+            align(8)
     return pad
 
 
@@ -65,7 +71,17 @@ def ours(msgtype: str, fields: dict):
                                 fields["stamp_ns"])
         m.header.frame_id = fields["frame_id"]
         return m
+    if msgtype == convert.POSES:
+        return pose_array(fields["positions"], fields["frame_id"], fields["stamp_ns"])
     return types.msg_class(msgtype)(**fields)
+
+
+def pose_array(positions, frame: str = "world", t_ns: int = 0):
+    """A geometry_msgs/PoseArray of these positions (m), unrotated, as a perception node sends keypoints."""
+    Pose, Point = types.msg_class("geometry_msgs/msg/Pose"), types.msg_class("geometry_msgs/msg/Point")
+    upright = types.msg_class("geometry_msgs/msg/Quaternion")(x=0.0, y=0.0, z=0.0, w=1.0)
+    return types.msg_class(convert.POSES)(header=convert.header(t_ns, frame), poses=[
+        Pose(position=Point(x=float(x), y=float(y), z=float(z)), orientation=upright) for x, y, z in positions])
 
 
 @pytest.mark.parametrize("case", REFERENCES["cases"], ids=lambda c: c["type"])
@@ -176,3 +192,44 @@ def test_a_buffer_that_is_not_the_type_is_a_clear_error():
         with pytest.raises(MessageError, match="sensor_msgs/msg/JointState"):
             types.deserialize(bad, convert.JOINT_STATE)
     assert types.deserialize(good, convert.JOINT_STATE).name == ROBOT.joint_names
+
+
+def test_keypoints_from_ros_2_become_the_capsules_of_hrc_human_from_keypoints():
+    """rclpy's own PoseArray bytes, read by the bridge's reader: each person's capsules are body_capsules' (the
+    code of `hrc human from-keypoints`), an unseen keypoint is a dropout, bad arrays are refused by reason."""
+    cases = [c for c in REFERENCES["cases"] if c["type"] == convert.POSES]
+    arms = types.deserialize(bytes.fromhex(cases[0]["cdr"]), convert.POSES)
+    people = convert.people_from_keypoints(arms, ARM_KEYPOINTS)
+    points = {k: np.array(p) for k, p in zip(ARM_KEYPOINTS, cases[0]["fields"]["positions"])}
+    expected = body_capsules(points)
+    assert people.count == len(expected) == 7 and not people.velocity_known.any()
+    assert np.allclose(people.segments, [[a, b] for _, a, b, _ in expected])
+    assert np.allclose(people.radii, [r for *_, r in expected])
+    with pytest.raises(MessageError, match="not seen") as seen:
+        convert.people_from_keypoints(types.deserialize(bytes.fromhex(cases[1]["cdr"]), convert.POSES), ARM_KEYPOINTS)
+    assert seen.value.reason == "partly seen"
+    full = {k: np.array([-0.8, 0.0, 1.0]) + 0.1 * i for i, k in enumerate(KEYPOINTS)}
+    two = convert.people_from_keypoints(pose_array([*full.values(), *[p + [0, 1.0, 0] for p in full.values()]]),
+                                        KEYPOINTS)
+    assert two.count == 16 and np.allclose(two.segments[:8], [[a, b] for _, a, b, _ in body_capsules(full)])
+    assert convert.people_from_keypoints(pose_array([]), ARM_KEYPOINTS).count == 0      # nobody in view
+    for positions, frame, match in ((list(full.values())[:7], "world", "whole people"),
+                                    (list(points.values()), "camera_link", "frame"),
+                                    ([[np.inf, 0, 0]] + list(points.values())[1:], "world", "infinite"),
+                                    ([[50.0, 0, 0]] + list(points.values())[1:], "world", "farther"),
+                                    (list(points.values()) * 10, "world", "more than")):
+        with pytest.raises(MessageError, match=match) as refused:
+            convert.people_from_keypoints(pose_array(positions, frame), ARM_KEYPOINTS)
+        assert refused.value.reason == "invalid"
+
+
+def test_a_samples_age_is_its_header_stamps():
+    stamp = lambda t_ns: convert.stamp(t_ns)  # noqa: E731
+    now = 1_764_650_000_000_000_000
+    assert convert.sample_age([stamp(0)], now) == 0.0                      # unset: the arrival stands for it
+    assert convert.sample_age([], now) == 0.0
+    assert convert.sample_age([stamp(now - 40_000_000), stamp(now - 90_000_000)], now) == pytest.approx(0.04)
+    assert convert.sample_age([stamp(now + 5_000_000_000)], now) == 0.0    # a clock ahead of this one
+    with pytest.raises(MessageError, match="stamped") as stale:
+        convert.sample_age([stamp(now - 600_000_000)], now)
+    assert stale.value.reason == "stale"

@@ -1,6 +1,8 @@
 """Every report's ROS 2 bag: recording.mcap read back with mcap-ros2-support gives the recording's values,
 and rosbags opens the folder as a rosbag2 (metadata.yaml), with the types and counts of each topic."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -9,6 +11,7 @@ from shared.config import CellConfig
 from shared.core.trajectory import straight_line_trajectory
 from shared.robot.model import default_robot
 from shared.wire.messages import HumanState, JointState, SafetyEvent, ScalerStatus
+from tests.util import ROOT
 from tools.mcap_record import write_mcap
 from tools.report import Recording
 
@@ -81,7 +84,34 @@ def test_rosbags_opens_the_report_folder_as_a_rosbag2(bag):
         assert topics["/hrc/people"] == ("visualization_msgs/msg/MarkerArray", 2)
         joint = [c for c in reader.connections if c.topic == "/joint_states"]
         q = [reader.deserialize(raw, c.msgtype).position for c, _, raw in reader.messages(connections=joint)]
+        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
     assert np.allclose(q, [js.q for js in rec.joint_states])
+    # each topic offers the bridge's QoS again when played: the URDF transient local, the streams reliable
+    (description,) = qos["/robot_description"]
+    assert description.durability.name == "TRANSIENT_LOCAL" and description.depth == 1
+    assert all(len(q) == 1 and q[0].reliability.name == "RELIABLE" and q[0].durability.name == "VOLATILE"
+               for topic, q in qos.items() if topic != "/robot_description")
+
+
+def test_each_mcap_channel_states_its_offered_qos_as_the_ros2_profile_requires(bag):
+    import yaml
+    from mcap.reader import make_reader
+
+    out, _ = bag
+    with open(out / "recording.mcap", "rb") as f:
+        channels = make_reader(f).get_summary().channels.values()
+    profiles = {c.topic: yaml.safe_load(c.metadata["offered_qos_profiles"]) for c in channels}
+    assert profiles["/robot_description"][0]["durability"] == "transient_local"
+    assert profiles["/joint_states"][0] == {**profiles["/joint_states"][0], "history": "keep_last", "depth": 10,
+                                            "reliability": "reliable", "durability": "volatile"}
+
+
+def bag_metadata(folder) -> dict:
+    """The MCAP metadata record "hrc" of a folder's recording.mcap."""
+    from mcap.reader import make_reader
+
+    with open(folder / "recording.mcap", "rb") as f:
+        return {m.name: m.metadata for m in make_reader(f).iter_metadata()}["hrc"]
 
 
 def test_the_ros2_bridge_is_in_the_supervised_cell_only_when_asked():
@@ -109,6 +139,13 @@ def test_an_older_report_folder_gets_its_bag_from_the_trace(bag, tmp_path):
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "recording.mcap").stat().st_size > 0 and "rosbag2_bagfile_information" in \
         (tmp_path / "metadata.yaml").read_text()
+    (tmp_path / "summary.json").write_text('{"human_acceleration_m_s2": 0.0}')       # a --paper-formula run
+    warned = run_hrc("report", str(tmp_path), "--mcap")
+    assert warned.returncode == 0 and "human_acceleration 0.0" in warned.stderr and "--config" in warned.stderr
+    paper = run_hrc("report", str(tmp_path), "--mcap", "--config", str(ROOT / "deploy" / "cell-paper.yaml"))
+    assert paper.returncode == 0 and "warning" not in paper.stderr
+    assert json.loads(bag_metadata(tmp_path)["ssm"])["human_acceleration"] == 0.0
+    assert run_hrc("report", str(tmp_path), "--mcap", "--config", str(tmp_path / "none.yaml")).returncode == 2
     lines = (tmp_path / "trace.csv").read_text().splitlines()
     (tmp_path / "trace.csv").write_text("\n".join(lines[:5] + ["0.5,x,1"] + lines[6:]) + "\n")
     with pytest.raises(ReportError, match="trace.csv line 6"):

@@ -153,6 +153,14 @@ def test_hrc_converts_keypoints_and_runs_the_demo_on_them(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["duration_s"] == pytest.approx(3.9, abs=0.02)      # the motion's own length
     assert summary["violations"] == 0 and summary["mean_alpha"] < 1.0  # she slowed it, safely
+    from rosbags.highlevel import AnyReader                             # and the run is a ROS 2 bag too
+
+    with AnyReader([out]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        people = [c for c in reader.connections if c.topic == "/hrc/people"]
+        shown = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=people)]
+    assert summary["ros2_bag"] == "recording.mcap" and counts["/joint_states"] == summary["cycles"] == len(shown)
+    assert max(len(m.markers) for m in shown) == 1 + 3 * 8           # her eight capsules, as markers
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"schema": "hrc-human-motion/1", "frames": [{"t": 0, "people": [{"id": "a"}]}]}))
     capsys.readouterr()
