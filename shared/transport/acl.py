@@ -19,6 +19,9 @@ PUBLISHERS: dict[str, tuple[str, ...]] = {
     "robot_driver": ("joint_state", "safety_events", "latency", "drive_lag"),
     "safety_monitor": ("safety_events", "monitor"),
     "operator": ("goal", "human_raw", "driver_request"),        # the hrc tools, the tracker bridge, an HMI
+    # the ROS 2 bridge: goals and people from ROS 2, its refusal reports; its ROS 2 keys and tokens (outside the
+    # cell's prefix) are not taken here: a secured cell reaches ROS 2 through a ROS 2 router (ros2.router)
+    "ros2_bridge": ("goal", "human_raw", "safety_events"),
 }
 IDENTITIES = (*PUBLISHERS, "router")
 DECLARATIONS = ["declare_subscriber", "declare_queryable", "query", "reply", "liveliness_token",

@@ -19,7 +19,7 @@ from shared.transport.acl import IDENTITIES, PUBLISHERS, access_control
 from shared.transport.pki import TlsIdentity, make_cell_pki
 from shared.transport.zenoh_session import await_liveliness, check_endpoints, make_config, open_session
 from shared.wire.keys import KeySpace
-from shared.wire.messages import HumanState, JointCommand, JointState, decode, encode
+from shared.wire.messages import HumanRaw, HumanState, JointCommand, JointState, decode, encode
 from tests.util import ROOT, free_port
 
 KEYS = KeySpace("hrc/cell1")
@@ -87,7 +87,9 @@ def test_only_the_scaler_commands_the_robot_and_only_the_tracker_publishes_human
     driver, monitor = _session(certs, "robot_driver", endpoint), _session(certs, "safety_monitor", endpoint)
     tracker, planner = _session(certs, "tracker_ingest", endpoint), _session(certs, "planner", endpoint)
     operator, intruder = _session(certs, "operator", endpoint), _session(certs, "intruder", endpoint)
+    bridge = _session(certs, "ros2_bridge", endpoint)
     try:
+        raws, sub4 = _collect(tracker, KEYS.human_raw, HumanRaw)
         commands, sub1 = _collect(driver, KEYS.command, JointCommand)
         humans, sub2 = _collect(monitor, KEYS.human_state, HumanState)
         stolen, sub3 = _collect(intruder, f"{KEYS.prefix}/**", JointCommand)
@@ -104,16 +106,21 @@ def test_only_the_scaler_commands_the_robot_and_only_the_tracker_publishes_human
             intruder.put(KEYS.command, forged)             # a certificate the ACL does not know
             tracker.put(KEYS.human_state, encode(person))
             operator.put(KEYS.human_state, encode(HumanState(**{**person.__dict__, "radii": np.array([0.9])})))
+            bridge.put(KEYS.command, forged)               # the ROS 2 bridge sends people and goals in, no commands
+            bridge.put(KEYS.human_state, encode(HumanState(**{**person.__dict__, "radii": np.array([0.8])})))
+            bridge.put(KEYS.human_raw, encode(HumanRaw(source="ros2", sample_time=time.monotonic(),
+                                                       segments=person.segments, radii=person.radii, seq=k)))
             time.sleep(0.02)
         time.sleep(0.5)
         assert commands, "the scaler's commands did not reach the driver"
         assert all(np.allclose(c.q, Q) for c in commands), "a command from another identity got through"
         assert humans and all(np.allclose(h.radii, [0.1]) for h in humans), "a human state not from the tracker"
         assert stolen == [], "a session with an unknown certificate received the cell's messages"
-        for sub in (sub1, sub2, sub3):
+        assert raws and all(r.source == "ros2" for r in raws), "the ROS 2 bridge's people did not reach the tracker"
+        for sub in (sub1, sub2, sub3, sub4):
             sub.undeclare()
     finally:
-        for s in (driver, monitor, tracker, planner, operator, intruder):
+        for s in (driver, monitor, tracker, planner, operator, intruder, bridge):
             s.close()
 
 
