@@ -1,12 +1,12 @@
 """ros2_bridge: the cell as ROS 2 topics (rmw_zenoh, Jazzy), and goals and people from ROS 2.
 
-Out, every 10 ms on what is new: /joint_states and /tf (the measured joints, every link from the world
-frame), /hrc/robot_capsules (20 Hz), /hrc/people (the tracked people, at most 30 Hz: a viewer's rate),
-/speed_scaling_factor (alpha) and /hrc/replan_request (beta), /diagnostics (the safety events),
-/robot_description (the URDF, transient local: zenoh-ext's advanced publisher keeps it for late subscribers,
-as rmw_zenoh does; sent again every 10 s). Each sample carries rmw_zenoh's attachment; the node and every
-endpoint declare their liveliness tokens, so `ros2 topic list` and rviz2 see them (shared.ros2.graph,
-shared.ros2.bridge).
+Out, every 10 ms on what is new: /joint_states and /tf (the measured joints, every moving link from the
+world frame; the base, fixed to it, on /tf_static, transient local), /hrc/robot_capsules (20 Hz),
+/hrc/people (the tracked people, at most 30 Hz: a viewer's rate), /speed_scaling_factor (alpha) and
+/hrc/replan_request (beta), /diagnostics (the safety events), /robot_description (the URDF, transient local:
+zenoh-ext's advanced publisher keeps it for late subscribers, as rmw_zenoh does; sent again every 10 s, with
+/tf_static). Each sample carries rmw_zenoh's attachment; the node and every endpoint declare their liveliness
+tokens, so `ros2 topic list` and rviz2 see them (shared.ros2.graph, shared.ros2.bridge).
 
 In: /hrc/goal (sensor_msgs/JointState) becomes a Goal for the planner; /hrc/perception/people
 (visualization_msgs/MarkerArray of CYLINDER capsules) and /hrc/perception/keypoints, .../arm_keypoints
@@ -24,6 +24,8 @@ from __future__ import annotations
 import sys
 import threading
 import time
+
+import numpy as np
 
 from services.common import ServiceShell, open_service, run_paced, serve, service_parser, setup_logging
 from shared.robot.model import URDF_PATH, RobotModel
@@ -83,7 +85,8 @@ class Ros2Bridge:
         if js is not None and js.stamp != self.last_js:
             self.last_js = js.stamp
             self.put("/joint_states", convert.joint_state(self.robot.joint_names, js.q, js.qd, t_ns), convert.JOINT_STATE)
-            self.put("/tf", convert.link_transforms(self.robot.link_poses(js.q), "world", t_ns), convert.TF)
+            self.put("/tf", convert.link_transforms(self.robot.link_poses(js.q, fixed=False), "world", t_ns),
+                     convert.TF)
             if now - self.last_capsules >= convert.ROBOT_MARKER_PERIOD:
                 self.last_capsules = now
                 self.put("/hrc/robot_capsules", convert.robot_markers(self.robot, js.q, t_ns), convert.MARKERS)
@@ -102,9 +105,14 @@ class Ros2Bridge:
         if now - self.last_description >= DESCRIPTION_PERIOD:
             self.last_description = now
             self.put("/robot_description", convert.string(self.urdf), convert.STRING)
+            self.put("/tf_static", self.static_frames(t_ns), convert.TF)
         if now - self.last_report >= REPORT_PERIOD:
             self.last_report = now
             self.report(now)
+
+    def static_frames(self, t_ns: int):
+        """/tf_static: the links fixed to the world (the base), as robot_state_publisher sends them."""
+        return convert.link_transforms(self.robot.link_poses(np.zeros(self.robot.nq), fixed=True), "world", t_ns)
 
     def report(self, now: float) -> None:
         with self.lock:

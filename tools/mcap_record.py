@@ -2,8 +2,9 @@
 zstd-compressed chunks) and ``metadata.yaml`` beside it, so that ``ros2 bag play FOLDER`` (rosbag2's mcap
 storage), Foxglove and rosbags open a report folder as it is.
 
-Topics (ROS 2 names and types, Jazzy): /robot_description (std_msgs/String, the URDF, once), /joint_states
-(measured), /tf (every link from the world frame, at each joint state), /hrc/people and /hrc/robot_capsules
+Topics (ROS 2 names and types, Jazzy): /robot_description (std_msgs/String, the URDF, once), /tf_static (the
+base, fixed to the world frame, once), /joint_states (measured), /tf (every moving link from the world frame,
+at each joint state), /hrc/people and /hrc/robot_capsules
 (visualization_msgs/MarkerArray), /speed_scaling_factor (the scaling layer's alpha, std_msgs/Float64),
 /hrc/safe_alpha, /hrc/separation, /hrc/margin (Float64), /hrc/replan_request (beta, std_msgs/Bool) and
 /diagnostics (the safety events). Message times are the senders' stamps on the wall clock of the run
@@ -103,11 +104,13 @@ def write_mcap(out: Path, robot: RobotModel, config: CellConfig, rec: Recording,
     ns = lambda stamp: int(round((stamp - rec.t0 + epoch_t0) * 1e9))
     bag = BagWriter(out / "recording.mcap")
     bag.write("/robot_description", convert.STRING, convert.string(URDF_PATH.read_text()), ns(rec.t0))
+    fixed = robot.link_poses(np.zeros(robot.nq), fixed=True)
+    bag.write("/tf_static", convert.TF, convert.link_transforms(fixed, "world", ns(rec.t0)), ns(rec.t0))
     last_capsules = -np.inf
     for js in sorted(rec.joint_states, key=lambda m: m.stamp):
         t = ns(js.stamp)
         bag.write("/joint_states", convert.JOINT_STATE, convert.joint_state(robot.joint_names, js.q, js.qd, t), t)
-        bag.write("/tf", convert.TF, convert.link_transforms(robot.link_poses(js.q), "world", t), t)
+        bag.write("/tf", convert.TF, convert.link_transforms(robot.link_poses(js.q, fixed=False), "world", t), t)
         if js.stamp - last_capsules >= convert.ROBOT_MARKER_PERIOD:
             last_capsules = js.stamp
             bag.write("/hrc/robot_capsules", convert.MARKERS, convert.robot_markers(robot, js.q, t), t)

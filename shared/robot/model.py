@@ -174,11 +174,14 @@ class RobotModel:
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return pin.SE3(self.data.oMf[self.flange_frame])
 
-    def link_poses(self, q: np.ndarray) -> list[tuple[str, np.ndarray]]:
-        """Every link's pose (4x4) in the world frame at configuration q, by link name (the URDF's bodies)."""
+    def link_poses(self, q: np.ndarray, fixed: bool | None = None) -> list[tuple[str, np.ndarray]]:
+        """Every link's pose (4x4) in the world frame at configuration q, by link name (the URDF's bodies);
+        fixed True: only the links fixed to the world (no joint moves them: the base; ROS 2's /tf_static),
+        False: only the others (/tf)."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return [(f.name, self.data.oMf[k].homogeneous.copy()) for k, f in enumerate(self.model.frames)
-                if f.type == pin.FrameType.BODY and f.name != "world"]
+                if f.type == pin.FrameType.BODY and f.name != "world"
+                and (fixed is None or fixed == (f.parentJoint == 0))]
 
     def frame_position(self, q: np.ndarray, frame: str) -> np.ndarray:
         """Position (3,) of any named frame of the model at configuration q."""

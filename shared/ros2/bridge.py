@@ -54,6 +54,7 @@ ENDPOINTS = (
     Endpoint("/hrc/goal", convert.JOINT_STATE, SUBSCRIPTION, SENSOR, 10),
     Endpoint("/hrc/perception/keypoints", convert.POSES, SUBSCRIPTION, SENSOR, 11),
     Endpoint("/hrc/perception/arm_keypoints", convert.POSES, SUBSCRIPTION, SENSOR, 12),
+    Endpoint("/tf_static", convert.TF, PUBLISHER, LATCHED, 13),
 )
 # the keypoint topics and the skeleton each carries per person (shared.tracking.keypoints, in that order)
 KEYPOINT_TOPICS = {"/hrc/perception/keypoints": KEYPOINTS, "/hrc/perception/arm_keypoints": ARM_KEYPOINTS}

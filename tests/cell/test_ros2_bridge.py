@@ -62,7 +62,7 @@ def ros2_topics(session) -> dict[str, dict]:
 def test_a_ros_2_peer_finds_the_topics_and_reads_the_joint_states(bridge):
     session, keys, proc = bridge
     topics = ros2_topics(session)
-    assert {"/joint_states", "/tf", "/robot_description", "/speed_scaling_factor", "/hrc/people",
+    assert {"/joint_states", "/tf", "/tf_static", "/robot_description", "/speed_scaling_factor", "/hrc/people",
             "/diagnostics"} <= set(topics)
     js = topics["/joint_states"]
     assert js["node"] == "hrc_bridge" and js["type"] == "sensor_msgs::msg::dds_::JointState_"
@@ -91,20 +91,25 @@ def test_a_ros_2_peer_finds_the_topics_and_reads_the_joint_states(bridge):
     assert len({att[17:] for att in attachments}) == 1                      # one publisher, one GID
 
 
-def test_a_late_subscriber_gets_the_robot_description_from_the_cache(bridge):
+def test_a_late_subscriber_gets_the_robot_description_and_static_frames_from_the_cache(bridge):
     """Transient local as rmw_zenoh does it: a subscriber that comes after the sample asks the publisher's cache."""
     import zenoh.ext
 
     session, keys, proc = bridge
-    key = f"{DOMAIN}/robot_description/{types.dds_type_name(convert.STRING)}/{types.type_hash(convert.STRING)}"
-    got = []
-    sub = zenoh.ext.declare_advanced_subscriber(session, key, lambda s: got.append(s.payload.to_bytes()),
-                                                history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
-    deadline = time.monotonic() + 3.0                   # well before the bridge sends it again (every 10 s)
-    while not got and time.monotonic() < deadline:
+    got = {}
+    subs = []
+    for topic, msgtype in (("robot_description", convert.STRING), ("tf_static", convert.TF)):
+        key = f"{DOMAIN}/{topic}/{types.dds_type_name(msgtype)}/{types.type_hash(msgtype)}"
+        subs.append(zenoh.ext.declare_advanced_subscriber(
+            session, key, lambda s, t=topic, m=msgtype: got.setdefault(t, types.deserialize(s.payload.to_bytes(), m)),
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True)))
+    deadline = time.monotonic() + 3.0                   # well before the bridge sends them again (every 10 s)
+    while len(got) < 2 and time.monotonic() < deadline:
         time.sleep(0.05)
-    sub.undeclare()
-    assert got and '<robot name="prbt"' in types.deserialize(got[0], convert.STRING).data
+    for sub in subs:
+        sub.undeclare()
+    assert '<robot name="prbt"' in got["robot_description"].data
+    assert [t.child_frame_id for t in got["tf_static"].transforms] == ["prbt_base_link"]
 
 
 def ros_put(session, topic: str, msgtype: str, payload: bytes, seq: int, attached: bool = True) -> None:

@@ -142,6 +142,9 @@ def test_every_outgoing_message_reads_back_with_an_independent_decoder():
     assert js.name == ROBOT.joint_names and np.allclose(js.position, q) and np.allclose(js.velocity, -q)
     assert (js.header.stamp.sec, js.header.stamp.nanosec) == (1500, 250)
     poses = ROBOT.link_poses(q)
+    fixed, moving = ROBOT.link_poses(q, fixed=True), ROBOT.link_poses(q, fixed=False)
+    assert [n for n, _ in fixed] == ["prbt_base_link"] and {n for n, _ in fixed + moving} == {n for n, _ in poses}
+    assert np.allclose(fixed[0][1], ROBOT.link_poses(-q, fixed=True)[0][1])        # /tf_static: no joint moves it
     tf = decoded(convert.TF, types.serialize(convert.link_transforms(poses, "world", 5), convert.TF))
     flange = next(t for t in tf.transforms if t.child_frame_id == "prbt_flange")
     assert np.allclose([flange.transform.translation.x, flange.transform.translation.y, flange.transform.translation.z],

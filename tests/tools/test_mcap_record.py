@@ -66,6 +66,9 @@ def test_the_mcap_reads_back_to_the_recordings_values(bag):
     assert [d.data for _, d in by_topic["/hrc/replan_request"]] == [s.beta for s in rec.statuses]
     assert len(by_topic["/hrc/separation"]) == 29                             # not while there is none
     assert len(by_topic["/tf"]) == 30 and len(by_topic["/hrc/robot_capsules"]) == 6   # capsules at 20 Hz
+    (fixed,) = [d for _, d in by_topic["/tf_static"]]
+    moving = {t.child_frame_id for t in by_topic["/tf"][0][1].transforms}
+    assert [t.child_frame_id for t in fixed.transforms] == ["prbt_base_link"] and "prbt_base_link" not in moving
     people = [d for _, d in by_topic["/hrc/people"]]
     assert len(people[0].markers) == 4 and len(people[1].markers) == 1       # a cylinder, two spheres; then cleared
     assert "prbt" in by_topic["/robot_description"][0][1].data
@@ -86,11 +89,13 @@ def test_rosbags_opens_the_report_folder_as_a_rosbag2(bag):
         q = [reader.deserialize(raw, c.msgtype).position for c, _, raw in reader.messages(connections=joint)]
         qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
     assert np.allclose(q, [js.q for js in rec.joint_states])
-    # each topic offers the bridge's QoS again when played: the URDF transient local, the streams reliable
-    (description,) = qos["/robot_description"]
-    assert description.durability.name == "TRANSIENT_LOCAL" and description.depth == 1
+    # each topic offers the bridge's QoS again when played: the URDF and the base frame transient local, the
+    # streams reliable and volatile
+    latched = ("/robot_description", "/tf_static")
+    assert all(len(qos[t]) == 1 and qos[t][0].durability.name == "TRANSIENT_LOCAL" and qos[t][0].depth == 1
+               for t in latched)
     assert all(len(q) == 1 and q[0].reliability.name == "RELIABLE" and q[0].durability.name == "VOLATILE"
-               for topic, q in qos.items() if topic != "/robot_description")
+               for topic, q in qos.items() if topic not in latched)
 
 
 def test_each_mcap_channel_states_its_offered_qos_as_the_ros2_profile_requires(bag):

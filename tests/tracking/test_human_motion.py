@@ -153,7 +153,7 @@ def test_hrc_converts_keypoints_and_runs_the_demo_on_them(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["duration_s"] == pytest.approx(3.9, abs=0.02)      # the motion's own length
     assert summary["violations"] == 0 and summary["mean_alpha"] < 1.0  # she slowed it, safely
-    from rosbags.highlevel import AnyReader                             # and the run is a ROS 2 bag too
+    from rosbags.highlevel import AnyReader  # and the run is a ROS 2 bag too
 
     with AnyReader([out]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
