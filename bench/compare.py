@@ -9,7 +9,7 @@ Prints progress (done/total, rate, time left). Writes a plot (compare.png) into 
 is one JSON object (overall and per kind: "kinds": {kind: {strategy: shuttles per minute}}; "ratios":
 {kind or "overall": {"full/scale_only": [ratio, low, high], "full/zones": [...]}}, the paired bootstrap
 95 % interval of evidence.stats: how far the ratio would move with another draw of scenarios. The paper's
-phases are one scripted scenario, the same in every seed, so their interval has no width; "empty_cell": the
+phases are a distribution: each seed's phase period within +-5 % (evidence.scenarios.perturbed_paper); "empty_cell": the
 shuttles per minute with nobody in the cell, the most any strategy can do; "won_back": {kind or "overall":
 (full - scale_only) / (empty_cell - scale_only)}, the share of what the people cost the scaling layer
 alone that the planning layer wins back: a ratio's room depends on the kind, and this says how much of

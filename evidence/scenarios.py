@@ -214,7 +214,17 @@ def two_humans(rng: np.random.Generator, duration: float) -> Crowd:
     return Crowd([crossing(rng, duration), random_walk(rng, duration)])
 
 
-SCENARIO_KINDS = {"paper": lambda rng, d: paper_phases(d / 4.0), "crossing": crossing,
+PAPER_SPREAD = 0.05      # the paper's experiment as a distribution: each seed's phase period within +-5 %
+
+
+def perturbed_paper(rng: np.random.Generator, duration: float) -> ScriptedHuman:
+    """The paper's four phases over `duration` s, the phase period drawn within +-PAPER_SPREAD of duration / 4
+    (the person's timing never repeats to the millisecond, and neither does the robot's; one fixed script
+    measured many times would give a ratio with no interval). Later phases are cut off by the duration."""
+    return paper_phases(duration / 4.0 * (1.0 + float(rng.uniform(-PAPER_SPREAD, PAPER_SPREAD))))
+
+
+SCENARIO_KINDS = {"paper": perturbed_paper, "crossing": crossing,
                   "standing": standing_in_path, "two_humans": two_humans, "random_walk": random_walk}
 
 

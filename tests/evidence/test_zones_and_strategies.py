@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import evidence.foresight as bounds
-from evidence.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario
+from evidence.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario, paper_phases
 from evidence.strategies import Strategies
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
 from shared.config import CellConfig
@@ -71,6 +71,14 @@ def test_scenarios_are_seeded_and_walk_no_faster_than_iso_13855(kind):
     assert torso_speed <= 1.6 + 1e-6 or kind == "paper"
     with pytest.raises(ValueError):
         make_scenario("flying", 1, 1.0)
+
+
+def test_the_paper_is_a_distribution_of_phase_periods_within_five_percent():
+    periods = [make_scenario("paper", seed, 12.0).keyframes[1].t for seed in range(16)]
+    assert all(3.0 * 0.95 <= p <= 3.0 * 1.05 for p in periods)
+    assert len(set(periods)) == 16 and max(periods) - min(periods) > 0.15      # spread over the range
+    script = make_scenario("paper", 3, 12.0)
+    assert [k.phase for k in script.keyframes] == [k.phase for k in paper_phases(3.0).keyframes]
 
 
 @pytest.fixture(scope="module")
