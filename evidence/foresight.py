@@ -44,13 +44,16 @@ def foresight_options(options: ReplanOptions = ReplanOptions()) -> ReplanOptions
     return replace(options, patience=FORESIGHT_STAY, cost=replace(options.cost, extrapolation=FORESIGHT_HORIZON))
 
 
-def oracle_options(options: ReplanOptions = ReplanOptions()) -> ReplanOptions:
-    """foresight_options with the search ORACLE_SEARCH times as large, every predicted gain taken
-    (min_gain 0: its predictions are right) and its own replans from ORACLE_SLOW s of predicted loss on."""
+def oracle_options(options: ReplanOptions = ReplanOptions(), times: int = ORACLE_SEARCH,
+                   judge: str = "cost") -> ReplanOptions:
+    """foresight_options with the search `times` (ORACLE_SEARCH) times as large, every predicted gain taken
+    (min_gain 0: its predictions are right) and its own replans from ORACLE_SLOW s of predicted loss on; its
+    decisions predicted by `judge` ("scaling": the scaling layer's forward run against the known future).
+    A bound must not fall as its search grows: bench/bound_search.py runs it at 1x, 2x, 4x, 8x."""
     fore = foresight_options(options)
-    search = replace(fore.search, candidates=ORACLE_SEARCH * fore.search.candidates,
-                     refinements=ORACLE_SEARCH * fore.search.refinements)
-    return replace(fore, search=search, min_gain=0.0, min_saving=0.0, slow_excess=ORACLE_SLOW)
+    search = replace(fore.search, candidates=times * fore.search.candidates,
+                     refinements=times * fore.search.refinements)
+    return replace(fore, search=search, min_gain=0.0, min_saving=0.0, slow_excess=ORACLE_SLOW, judge=judge)
 
 
 class Foresight:

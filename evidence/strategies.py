@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from evidence.fixed_path import FixedPath
-from evidence.foresight import Foresight, foresight_options, oracle_options
+from evidence.foresight import ORACLE_SEARCH, Foresight, foresight_options, oracle_options
 from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
 from evidence.sim import SimResult, run_shuttle
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
@@ -52,9 +52,12 @@ BASELINES = ("fixed_path",)
 
 class Strategies:
     def __init__(self, config: CellConfig | None = None, scene: Scene | None = None, planner_seed: int = 1,
-                 forecaster: Forecaster | None = None) -> None:
+                 forecaster: Forecaster | None = None, oracle_search: int = ORACLE_SEARCH,
+                 oracle_judge: str = "cost") -> None:
         """forecaster: the full strategy's forecast of the people (None: the planning layer's default,
-        ``ConstantVelocity``): a researcher's predictor, measured on the same scenarios."""
+        ``ConstantVelocity``): a researcher's predictor, measured on the same scenarios. oracle_search: how
+        many times the planning layer's search the oracle bound searches; oracle_judge: what its decisions are
+        predicted by (``ReplanOptions.judge``)."""
         self.config = config or CellConfig()
         self.robot = default_robot()
         self.monitor = SafetyMonitor(self.robot, self.config.ssm)
@@ -64,7 +67,9 @@ class Strategies:
         # the same planning layer, its forecast the script's own future (set per run) over a longer horizon
         self.foreseeing = Replanner(self.collision, self.replanner.planner, self.config.ssm,
                                     options=foresight_options())
-        self.oracle = Replanner(self.collision, self.replanner.planner, self.config.ssm, options=oracle_options())
+        self.oracle = Replanner(self.collision, self.replanner.planner, self.config.ssm,
+                                options=oracle_options(times=oracle_search, judge=oracle_judge),
+                                scaling=self.config.scaling)
         self.paper_ssm = self.config.ssm.paper_formula()
         self.paper_replanner = Replanner(self.collision, self.replanner.planner, self.paper_ssm, forecaster=forecaster)
         lim = self.robot.limits

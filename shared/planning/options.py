@@ -37,7 +37,10 @@ class ReplanOptions:
     gives the same path in any order, see ``Replanner._rng``); search, cost:
     the search's bounds and the time cost's sampling; posture_gap (m): while someone is nearer than this to the
     robot's reach, a new goal's default leg is the folded one (``shared.planning.postures``, which suggests
-    POSTURE_GAP; None, the default: never. Not on by default yet: it changes the paper's story, issue 38)."""
+    POSTURE_GAP; None, the default: never. Not on by default yet: it changes the paper's story, issue 38);
+    judge: what a decision's trajectories are predicted by, "cost" (the time cost's model,
+    ``shared.planning.time_cost``) or "scaling" (a forward run of the scaling layer itself against the same
+    forecast, ``shared.planning.executed``: slower, for a bound or a cell with the budget for it)."""
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
     lead: float = 0.1
@@ -53,5 +56,13 @@ class ReplanOptions:
     action_budget: float | None = None
     posture_gap: float | None = None
     seed: int = 0
+    judge: str = "cost"
     search: SearchOptions = SearchOptions()
     cost: TimeCostOptions = TimeCostOptions()
+
+    def __post_init__(self) -> None:
+        if self.judge not in JUDGES:
+            raise ValueError(f"ReplanOptions.judge: one of {JUDGES}, not {self.judge!r}")
+
+
+JUDGES = ("cost", "scaling")

@@ -41,6 +41,7 @@ from shared.planning.budget import ActionBudget
 from shared.planning.candidates import Candidates
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanResult, keep_or_replace, required_gain
+from shared.planning.executed import ExecutedTime
 from shared.planning.forecast import Forecaster
 from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach, people_passing, reach_gap
 from shared.planning.ompl_planner import JointPlanner, PlanningError
@@ -51,6 +52,7 @@ from shared.planning.postures import FoldedLegs
 from shared.planning.time_cost import SsmTimeCost
 from shared.planning.timing import TimingError
 from shared.safety.parameters import SsmParameters
+from shared.scaling.parameters import ScalingParameters
 
 # rad: how near a prepared plan's start (the goal the robot was on its way to) the robot must be to take it: its
 # commands end exactly there; the scaler takes a plan from rest within 0.02 rad (services.scaler)
@@ -80,9 +82,10 @@ class Replanner:
 
     def __init__(self, collision: CollisionModel, planner: JointPlanner, ssm: SsmParameters,
                  horizon: HorizonOptions = HorizonOptions(), options: ReplanOptions = ReplanOptions(),
-                 forecaster: Forecaster | None = None) -> None:
+                 forecaster: Forecaster | None = None, scaling: ScalingParameters | None = None) -> None:
         """forecaster: where the time cost has the people go (None: ``ConstantVelocity``, see
-        ``shared.planning.forecast``)."""
+        ``shared.planning.forecast``); scaling: the scaling layer's parameters, for a forward run of it
+        (``options.judge`` "scaling"; None: the defaults)."""
         self.collision = collision
         self.planner = planner
         self.ssm = ssm
@@ -90,6 +93,8 @@ class Replanner:
         self.options = options
         self.limits = collision.robot.limits
         self.cost = SsmTimeCost(collision.robot, ssm, options.cost, forecaster)
+        self.executed = ExecutedTime(collision.robot, ssm, scaling or ScalingParameters()) \
+            if options.judge == "scaling" else None
         self.search = PathSearch(collision, self.cost, options.search)
         self.paths = SearchedPaths(collision, planner, self.search, options)
         self.budget = ActionBudget(self.search, options.action_budget)
@@ -141,7 +146,12 @@ class Replanner:
     def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None,
                        waited: float = 0.0) -> float:
         """Time (s) from s_from to the end of the trajectory under the SSM (shared.planning.time_cost), the people
-        staying patience + waited seconds: the one prediction both sides of every decision get."""
+        staying patience + waited seconds: the one prediction both sides of every decision get; with
+        ``options.judge`` "scaling", the scaling layer's own forward run against the same forecast
+        (shared.planning.executed)."""
+        if self.executed is not None:
+            self.executed.forecaster = self.cost.forecaster        # the one forecast (a bound sets its own per run)
+            return self.executed.time(trajectory, s_from, humans, self.stay(waited))
         return self.cost.trajectory_time(trajectory, s_from, humans, self.stay(waited))
 
     def path(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, waited: float = 0.0,
