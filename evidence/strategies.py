@@ -35,6 +35,7 @@ from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.forecast import Forecaster
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions
+from shared.planning.options import ReplanOptions
 from shared.planning.path_search import CELL_BUDGET
 from shared.planning.replanner import Replanner
 from shared.planning.scene import Scene
@@ -62,16 +63,19 @@ class Strategies:
         self.robot = default_robot()
         self.monitor = SafetyMonitor(self.robot, self.config.ssm)
         self.collision = CollisionModel(self.robot, scene or Scene(floor_z=0.0), self.config.ssm.min_separation)
+        # the planning layer as the cell configures it (the planning section: patience, gains, posture, judge)
+        options = ReplanOptions(**self.config.planning.replan_fields())
         self.replanner = Replanner(self.collision, JointPlanner(self.collision, PlannerOptions(seed=planner_seed)),
-                                   self.config.ssm, forecaster=forecaster)
+                                   self.config.ssm, options=options, forecaster=forecaster, scaling=self.config.scaling)
         # the same planning layer, its forecast the script's own future (set per run) over a longer horizon
         self.foreseeing = Replanner(self.collision, self.replanner.planner, self.config.ssm,
-                                    options=foresight_options())
+                                    options=foresight_options(options), scaling=self.config.scaling)
         self.oracle = Replanner(self.collision, self.replanner.planner, self.config.ssm,
-                                options=oracle_options(times=oracle_search, judge=oracle_judge),
+                                options=oracle_options(options, times=oracle_search, judge=oracle_judge),
                                 scaling=self.config.scaling)
         self.paper_ssm = self.config.ssm.paper_formula()
-        self.paper_replanner = Replanner(self.collision, self.replanner.planner, self.paper_ssm, forecaster=forecaster)
+        self.paper_replanner = Replanner(self.collision, self.replanner.planner, self.paper_ssm, options=options,
+                                         forecaster=forecaster, scaling=self.config.scaling)
         lim = self.robot.limits
         shuttle = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration)
         s = np.linspace(0.0, shuttle.duration, 200)

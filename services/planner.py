@@ -204,9 +204,9 @@ def main(argv: list[str] | None = None) -> int:
     # the wall clock bounds every search (anytime: the best path found by then is used); the simulation
     # bounds it by counts instead, for repeatable evidence
     options = ReplanOptions(seed=args.seed or 0, search=SearchOptions(time_budget=CELL_BUDGET),
-                            action_budget=ACTION_BUDGET)
+                            action_budget=ACTION_BUDGET, **config.planning.replan_fields())
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
-                          options=options)
+                          options=options, scaling=config.scaling)
     warm_up(replanner)               # every kind of action once: no kernel is loaded when it counts
     service = PlannerService(shell, PlanningLoop(replanner, beta_replans=not args.no_beta))
     return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, "

@@ -4,6 +4,7 @@
     ssm:     ISO/TS 15066 parameters (shared.safety.parameters.SsmParameters)
     scaling: control loop parameters (shared.scaling.parameters.ScalingParameters)
     ros2:    the ROS 2 graph the bridge joins (shared.ros2.parameters.Ros2Parameters)
+    planning: the planning layer's decisions (shared.planning.parameters.PlanningParameters)
 
 A missing file section takes the defaults; an unknown section or key, a wrong type, a negative time or a
 NaN raises ConfigError naming the field. ``deploy/cell.yaml`` is the shipped configuration.
@@ -18,12 +19,13 @@ import yaml
 
 from shared.core.errors import ConfigError, KeyError_
 from shared.core.sections import from_mapping
+from shared.planning.parameters import PlanningParameters
 from shared.ros2.parameters import Ros2Parameters
 from shared.safety.parameters import SsmParameters
 from shared.scaling.parameters import ScalingParameters
 from shared.wire.keys import KeySpace
 
-SECTIONS = ("cell", "ssm", "scaling", "ros2")
+SECTIONS = ("cell", "ssm", "scaling", "ros2", "planning")
 
 
 @dataclass(frozen=True)
@@ -32,6 +34,7 @@ class CellConfig:
     ssm: SsmParameters = field(default_factory=SsmParameters)
     scaling: ScalingParameters = field(default_factory=ScalingParameters)
     ros2: Ros2Parameters = field(default_factory=Ros2Parameters)
+    planning: PlanningParameters = field(default_factory=PlanningParameters)
 
     @classmethod
     def from_mapping(cls, doc: object, where: str = "config") -> "CellConfig":
@@ -49,7 +52,8 @@ class CellConfig:
             keys = KeySpace(cell.get("prefix", KeySpace.prefix))
             return cls(keys, SsmParameters.from_mapping(doc.get("ssm")),
                        ScalingParameters.from_mapping(doc.get("scaling")),
-                       from_mapping(Ros2Parameters, doc.get("ros2"), "ros2"))
+                       from_mapping(Ros2Parameters, doc.get("ros2"), "ros2"),
+                       from_mapping(PlanningParameters, doc.get("planning"), "planning"))
         except (KeyError_, TypeError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
         except ConfigError as exc:

@@ -111,7 +111,10 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
         from shared.planning.replanner import Replanner
 
         collision = CollisionModel(robot, _scene(args.scene), config.ssm.min_separation)
-        replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm)
+        from shared.planning.options import ReplanOptions
+
+        replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
+                              options=ReplanOptions(**config.planning.replan_fields()), scaling=config.scaling)
     every = max(1, int(round(0.5 / config.scaling.period)))
     count = [0]
 

@@ -1,10 +1,12 @@
 """The replanner's options (``shared.planning.replanner``, ``shared.planning.candidates``): one record, so the parts
-of the planning layer that build and judge candidates read the same numbers."""
+of the planning layer that build and judge candidates read the same numbers. Those a cell configures (the
+``planning`` section) take their defaults from ``shared.planning.parameters.PlanningParameters``."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from shared.planning.parameters import JUDGES, PlanningParameters
 from shared.planning.path_search import SearchOptions
 from shared.planning.time_cost import TimeCostOptions
 from shared.scaling.stopping import REST_SPEED
@@ -44,25 +46,22 @@ class ReplanOptions:
 
     lookback: tuple[float, ...] = (0.3, 0.6, 1.0)
     lead: float = 0.1
-    min_gain: float = 0.10
-    min_saving: float = 0.25
+    min_gain: float = PlanningParameters.min_gain
+    min_saving: float = PlanningParameters.min_saving
     rest_speed: float = REST_SPEED
     crawl: float = 0.25
     stop_lead: float = 0.2
-    patience: float = 1.5
+    patience: float = PlanningParameters.patience
     rrt_budget: float = 0.2
     worth_searching: float = 0.25
-    slow_excess: float = 1.0
+    slow_excess: float = PlanningParameters.slow_excess
     action_budget: float | None = None
-    posture_gap: float | None = None
+    posture_gap: float | None = PlanningParameters.posture_gap
     seed: int = 0
-    judge: str = "cost"
+    judge: str = PlanningParameters.judge
     search: SearchOptions = SearchOptions()
     cost: TimeCostOptions = TimeCostOptions()
 
     def __post_init__(self) -> None:
         if self.judge not in JUDGES:
             raise ValueError(f"ReplanOptions.judge: one of {JUDGES}, not {self.judge!r}")
-
-
-JUDGES = ("cost", "scaling")

@@ -42,6 +42,11 @@ def test_the_shipped_config_is_the_built_in_default():
     ("scaling: {solver: magic}", "scaling.solver"),
     ("scaling: {await_plan: -0.1}", "scaling.await_plan"),
     ("cell: {prefix: 'a/*'}", "prefix"),
+    ("planning: {patience: -1}", "planning.patience"),
+    ("planning: {posture_gap: .inf}", "planning.posture_gap"),
+    ("planning: {posture_gap: near}", "planning.posture_gap"),
+    ("planning: {judge: oracle}", "planning.judge"),
+    ("planning: {search: 3}", "unknown key"),
     ("mystery: {}", "unknown section"),
     ("ssm: [1, 2]", "ssm: expected a mapping"),
     ("- just a list", "expected a mapping"),
@@ -52,6 +57,26 @@ def test_bad_config_files_name_the_field(tmp_path, text, field):
     path.write_text(text)
     with pytest.raises(ConfigError, match=field.replace(".", r"\.").replace("*", r"\*")):
         load_config(path)
+
+
+def test_the_planning_section_reaches_the_planners_options(tmp_path):
+    """A configured planning section is what the planning layer decides with, in the cell's planner service,
+    hrc demo --sim and the simulation's strategies alike (each builds ReplanOptions from it); a negative posture
+    gap (as a sweep's number gives it) is never, as null is."""
+    from evidence.strategies import Strategies
+    from shared.planning.options import ReplanOptions
+
+    path = tmp_path / "cell.yaml"
+    path.write_text("planning: {patience: 3.0, min_gain: 0.2, posture_gap: 1.0, judge: scaling}")
+    config = load_config(path)
+    options = ReplanOptions(**config.planning.replan_fields())
+    assert (options.patience, options.min_gain, options.posture_gap, options.judge) == (3.0, 0.2, 1.0, "scaling")
+    full = Strategies(config).replanner
+    assert full.options.patience == 3.0 and full.options.posture_gap == 1.0 and full.executed is not None
+    assert CellConfig().planning.replan_fields()["posture_gap"] is None
+    path.write_text("planning: {posture_gap: -1}")
+    assert load_config(path).planning.replan_fields()["posture_gap"] is None
+    assert ReplanOptions().patience == CellConfig().planning.patience      # one default, written once
 
 
 def test_missing_file_is_a_config_error(tmp_path):

@@ -1,0 +1,55 @@
+"""The planning layer's parameters a cell configures (the ``planning`` section of its configuration): the
+numbers of its decisions that an integrator tunes for a cell and a researcher sweeps (``hrc sweep --set
+planning.patience=0.5,1.5,3``). Their own module, free of compiled code, so reading a configuration loads
+nothing heavy; ``shared.planning.options.ReplanOptions`` takes its defaults from here, so each number is
+written once.
+
+patience (s): how long people in the way are expected to stay before the robot has waited at all (a
+prediction assumes patience + the time already held). min_gain: the fraction of predicted time a replan must
+save, or min_saving (s) where that is less. slow_excess (s): the planning layer asks itself for a replan where
+the rest of the path is predicted to lose more than this to the SSM. posture_gap (m): while someone is
+nearer than this to the robot's reach, a new goal's default leg is the folded one
+(``shared.planning.postures``; None or negative: never, the default: it changes the paper's story, and on 24
+seeded scenarios per kind it gained 1.8 % with two people and lost 0.3 % crossing, docs/measurements.md).
+judge: what a decision's trajectories are predicted by, "cost" (the time cost's model) or "scaling" (a
+forward run of the scaling layer itself, ``shared.planning.executed``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from shared.core.errors import ConfigError
+from shared.core.sections import check_numbers
+
+JUDGES = ("cost", "scaling")
+
+
+@dataclass(frozen=True)
+class PlanningParameters:
+    patience: float = 1.5
+    min_gain: float = 0.10
+    min_saving: float = 0.25
+    slow_excess: float = 1.0
+    posture_gap: float | None = None
+    judge: str = "cost"
+
+    def __post_init__(self) -> None:
+        check_numbers(self, "planning", skip=("posture_gap", "judge"), non_negative=True)
+        gap = self.posture_gap
+        if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float)) or gap != gap
+                                or abs(gap) == float("inf")):
+            raise ConfigError(f"planning.posture_gap: expected a finite number (m) or null, got {gap!r}")
+        if self.judge not in JUDGES:
+            raise ConfigError(f"planning.judge: expected one of {JUDGES}, got {self.judge!r}")
+
+    @property
+    def folds(self) -> float | None:
+        """The posture gap (m) the replanner uses, None for never (a negative gap, as a sweep gives it)."""
+        return None if self.posture_gap is None or self.posture_gap < 0 else float(self.posture_gap)
+
+    def replan_fields(self) -> dict:
+        """These values as ``ReplanOptions`` fields (``dataclasses.replace(options, **fields)``)."""
+        return {"patience": float(self.patience), "min_gain": float(self.min_gain),
+                "min_saving": float(self.min_saving), "slow_excess": float(self.slow_excess),
+                "posture_gap": self.folds, "judge": self.judge}
