@@ -7,6 +7,7 @@ import json
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
@@ -22,7 +23,7 @@ scalars = st.none() | st.booleans() | st.integers(-10 ** 6, 10 ** 6) | st.floats
 values = st.recursive(scalars, lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=10), inner,
                                                                                              max_size=4), max_leaves=20)
 KEYS = {"config": ["cell", "ssm", "scaling", "reaction_time", "stopping_time", "period", "alpha_min", "solver",
-                   "min_separation", "human_timeout"],
+                   "min_separation", "human_timeout", "planning", "patience", "posture_gap", "judge", "ros2"],
         "scene": ["floor_z", "boxes", "capsules", "name", "center", "size", "a", "b", "radius"],
         "replay": ["frames", "t", "capsules", "a", "b", "radius"]}
 
@@ -89,6 +90,32 @@ def test_the_camera_skeleton_readers_take_any_table(rows):
             to_motion(reader("\n".join(sep.join(r) for r in rows), "fuzz"), FrameTransform(camera=True))
         except ConfigError:
             pass
+
+
+coordinate = st.floats(allow_nan=True, allow_infinity=True) | st.floats(-3.0, 3.0)
+
+
+@FUZZ
+@given(st.lists(st.tuples(coordinate, coordinate, coordinate), max_size=40), st.sampled_from(["world", "", "camera"]),
+       st.integers(0, 2 ** 31), st.booleans())
+def test_skeletons_from_ros_2_are_capsules_or_a_counted_refusal(positions, frame, stamp_s, arms):
+    """Any PoseArray on a keypoint topic: the people's capsules, or a MessageError with the reason it is counted
+    under; any header stamp: an age, or a refusal as stale. Nothing else escapes the bridge's readers."""
+    from shared.core.errors import MessageError
+    from shared.ros2 import convert
+    from shared.tracking.keypoints import ARM_KEYPOINTS, KEYPOINTS
+    from tests.ros2.test_ros2_wire import pose_array
+
+    message = pose_array([list(p) for p in positions], frame, stamp_s * 1_000_000_000)
+    try:
+        people = convert.people_from_keypoints(message, ARM_KEYPOINTS if arms else KEYPOINTS)
+        assert np.all(np.isfinite(people.segments)) and np.all(people.radii > 0)
+    except MessageError as exc:
+        assert str(exc) and getattr(exc, "reason", "invalid") in ("invalid", "partly seen")
+    try:
+        assert convert.sample_age([message.header.stamp], 1_764_650_000_000_000_000) >= 0.0
+    except MessageError as exc:
+        assert exc.reason == "stale"
 
 
 @FUZZ
