@@ -38,13 +38,12 @@ from shared.core.humans import HumanCapsules
 from shared.robot.model import default_robot
 from shared.scaling.layer import ScalingInputs, ScalingLayer
 from shared.tracking.tracker import stale_bound
-from shared.wire.convert import humans_from_msg, trajectory_from_msg
+from shared.wire.convert import humans_from_msg, status_from_step, trajectory_from_msg
 from shared.wire.messages import (
     DriveLagReport,
     HumanState,
     JointCommand,
     JointState,
-    ScalerStatus,
     TrajectoryMsg,
     encode,
 )
@@ -172,13 +171,7 @@ class Scaler:
                                              human_sample_stamp=stamp if fresh else None,
                                              human_wait=max(0.0, now - published) if fresh else None,
                                              seq=self.seq, stamp=now)))
-        finite = lambda v: v if np.isfinite(v) else None
-        self.status_pub.put(encode(ScalerStatus(
-            s=step.s, alpha=step.alpha, safe_alpha=step.safe_alpha, beta=step.beta, q_command=step.q_command,
-            trajectory_version=step.trajectory_version, status=step.status.value, method=step.method,
-            min_separation=finite(step.min_separation), min_margin=finite(step.min_margin),
-            compute_us=step.compute_us, stop_s=step.awaiting, speed=step.speed, held=step.held,
-            pending=-1 if step.pending is None else step.pending, received=self.received, seq=self.seq, stamp=now)))
+        self.status_pub.put(encode(status_from_step(step, self.received, self.seq, now)))
 
 
 def main(argv: list[str] | None = None) -> int:

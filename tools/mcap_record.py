@@ -139,20 +139,15 @@ def recording_from_sim(result, human) -> Recording:
     robot follows its commands), the scaling layer's step each cycle, the scenario's people at each cycle
     (None: a dropout, an invalid track), and each replan as an info event."""
     from shared.core.humans import HumanCapsules
-    from shared.wire.convert import humans_to_msg
-    from shared.wire.messages import JointState, SafetyEvent, ScalerStatus
+    from shared.wire.convert import humans_to_msg, status_from_step
+    from shared.wire.messages import JointState, SafetyEvent
 
     rec = Recording(t0=0.0)
-    finite = lambda v: v if np.isfinite(v) else None  # noqa: E731
     for r in result.records:
         s = r.step
         rec.joint_states.append(JointState(q=s.q_command, qd=s.qd_command, drive_state="simulated", enabled=True,
                                            fault=False, stamp=r.t))
-        rec.statuses.append(ScalerStatus(s=s.s, alpha=s.alpha, safe_alpha=s.safe_alpha, beta=s.beta,
-                                         q_command=s.q_command, trajectory_version=s.trajectory_version,
-                                         status=s.status.value, method=s.method,
-                                         min_separation=finite(s.min_separation), min_margin=finite(s.min_margin),
-                                         compute_us=s.compute_us, stamp=r.t))
+        rec.statuses.append(status_from_step(s, stamp=r.t))
         people = human.at(r.t)
         rec.human_states.append(humans_to_msg(HumanCapsules.empty() if people is None else people, people is not None,
                                               r.t, stamp=r.t))

@@ -37,6 +37,19 @@ def humans_from_msg(msg: HumanState) -> HumanCapsules | None:
                          np.asarray(msg.velocity_known))
 
 
+def status_from_step(step, received: int = -1, seq: int = 0, stamp: float = 0.0) -> ScalerStatus:
+    """The scaler's status message of one scaling step (``shared.scaling.layer.ScalingStep``): what the scaler
+    service publishes each cycle, and what a recording of an in-process run holds (infinite separations and
+    margins, where nobody is in view, as None)."""
+    finite = lambda v: v if np.isfinite(v) else None  # noqa: E731
+    return ScalerStatus(
+        s=step.s, alpha=step.alpha, safe_alpha=step.safe_alpha, beta=step.beta, q_command=step.q_command,
+        trajectory_version=step.trajectory_version, status=step.status.value, method=step.method,
+        min_separation=finite(step.min_separation), min_margin=finite(step.min_margin),
+        compute_us=step.compute_us, stop_s=step.awaiting, speed=step.speed, held=step.held,
+        pending=-1 if step.pending is None else step.pending, received=received, seq=seq, stamp=stamp)
+
+
 def report_from_status(msg: ScalerStatus) -> ScalerReport:
     """What the planning layer reads of the scaler's status (the same record a step in this process gives)."""
     return ScalerReport(version=msg.trajectory_version, s=msg.s, speed=msg.speed, beta=msg.beta, held=msg.held,
