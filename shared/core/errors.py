@@ -14,7 +14,12 @@ class ConfigError(HrcError):
 
 
 class MessageError(HrcError):
-    """A wire message could not be decoded or failed validation; the message names the field."""
+    """A wire message could not be decoded or failed validation; the message names the field. reason: how a
+    refusal is counted where refusals are counted by kind (the ROS 2 bridge: "invalid", "stale", "partly seen")."""
+
+    def __init__(self, text: str = "", reason: str = "invalid") -> None:
+        super().__init__(text)
+        self.reason = reason
 
 
 class KeyError_(HrcError):

@@ -34,39 +34,40 @@ LONGEST = 15.0       # s: a forward run not done by then counts this long (a per
 
 
 class ExecutedTime:
-    """time(trajectory, s_from, humans, stay) -> s: the forward run of the scaling layer along `trajectory` from
-    s_from (at rest at the start of a plan from rest, else at full path speed, as the cost assumes), against
-    the forecaster's frames of `humans`."""
+    """time(trajectory, s_from, humans, stay, forecaster) -> s: the forward run of the scaling layer along
+    `trajectory` from s_from (at rest at the start of a plan from rest, else at full path speed, as the cost
+    assumes), against the forecaster's frames of `humans` (the default: ``ConstantVelocity``)."""
 
     def __init__(self, robot: RobotModel, ssm: SsmParameters, scaling: ScalingParameters,
-                 forecaster: Forecaster | None = None, period: float | None = None, longest: float = LONGEST) -> None:
+                 period: float | None = None, longest: float = LONGEST) -> None:
         self.robot, self.ssm = robot, ssm
         self.params = replace(scaling, await_plan=0.0, period=period or scaling.period)
-        self.forecaster = forecaster or ConstantVelocity()
         self.longest = longest
         self.layer = ScalingLayer(robot, ssm, self.params)
         self.runs = 0                 # forward runs made (what a benchmark charges them by)
 
-    def people(self, humans: HumanCapsules | None, horizon: float):
+    @staticmethod
+    def people(humans: HumanCapsules | None, horizon: float, forecaster: Forecaster):
         """t -> HumanCapsules: the forecast of `humans` t seconds from now (None: nobody in view)."""
         if humans is None or humans.count == 0:
             nobody = HumanCapsules.empty()
             return lambda t: nobody
-        forecast = self.forecaster.forecast(humans, horizon)
+        forecast = forecaster.forecast(humans, horizon)
 
         def at(t: float) -> HumanCapsules:
             frame = min(int(max(t, 0.0) / forecast.step), forecast.frames.shape[0] - 1)
             return HumanCapsules(forecast.at(t), humans.radii, forecast.velocities[frame], humans.velocity_known)
         return at
 
-    def time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None, stay: float = np.inf) -> float:
+    def time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None, stay: float = np.inf,
+             forecaster: Forecaster | None = None) -> float:
         """Seconds from s_from to the end of `trajectory` as the scaling layer follows it (``longest`` if later)."""
         self.runs += 1
         layer = self.layer
         layer.set_trajectory(trajectory, s_from)
         layer.sdot = 1.0 if s_from > 0.0 else 0.0
         period = self.params.period
-        people = self.people(humans, min(stay, self.longest))
+        people = self.people(humans, min(stay, self.longest), forecaster or ConstantVelocity())
         gone = HumanCapsules.empty()
         for k in range(int(np.ceil(self.longest / period))):
             t = k * period

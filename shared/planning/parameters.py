@@ -17,6 +17,7 @@ forward run of the scaling layer itself, ``shared.planning.executed``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from shared.core.errors import ConfigError
@@ -37,8 +38,7 @@ class PlanningParameters:
     def __post_init__(self) -> None:
         check_numbers(self, "planning", skip=("posture_gap", "judge"), non_negative=True)
         gap = self.posture_gap
-        if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float)) or gap != gap
-                                or abs(gap) == float("inf")):
+        if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float)) or not math.isfinite(gap)):
             raise ConfigError(f"planning.posture_gap: expected a finite number (m) or null, got {gap!r}")
         if self.judge not in JUDGES:
             raise ConfigError(f"planning.judge: expected one of {JUDGES}, got {self.judge!r}")

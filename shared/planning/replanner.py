@@ -149,9 +149,8 @@ class Replanner:
         staying patience + waited seconds: the one prediction both sides of every decision get; with
         ``options.judge`` "scaling", the scaling layer's own forward run against the same forecast
         (shared.planning.executed)."""
-        if self.executed is not None:
-            self.executed.forecaster = self.cost.forecaster        # the one forecast (a bound sets its own per run)
-            return self.executed.time(trajectory, s_from, humans, self.stay(waited))
+        if self.executed is not None:               # the cost's forecast: one for both (a bound sets its own per run)
+            return self.executed.time(trajectory, s_from, humans, self.stay(waited), self.cost.forecaster)
         return self.cost.trajectory_time(trajectory, s_from, humans, self.stay(waited))
 
     def path(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, waited: float = 0.0,

@@ -128,7 +128,7 @@ class Inbound:
         try:
             return make(*args)
         except MessageError as exc:
-            self._refuse(getattr(exc, "reason", "invalid"))
+            self._refuse(exc.reason)
             return None
 
     def convert(self, make, *args):

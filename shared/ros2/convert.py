@@ -8,7 +8,7 @@ markers (one capsule each: its pose's z axis is the capsule's axis, scale.z its 
 of the end spheres, scale.x its diameter; the marker's ns names the person), or body keypoints as a
 geometry_msgs/PoseArray (every person seen in a frame, one after another, each the keypoints of
 shared.tracking.keypoints in their order), turned into capsules by the code of ``hrc human from-keypoints``.
-Bad input raises MessageError naming what is wrong (``reason`` says how it is counted). Times are ns since
+Bad input raises MessageError naming what is wrong (its ``reason`` says how it is counted). Times are ns since
 the epoch."""
 
 from __future__ import annotations
@@ -186,13 +186,6 @@ def people_from_markers(msg) -> HumanCapsules:
     return HumanCapsules.from_arrays(seg, np.array(radii), np.zeros_like(seg), np.zeros(len(radii), bool))
 
 
-def refused(text: str, reason: str = "invalid") -> MessageError:
-    """A MessageError that the bridge counts under `reason`."""
-    exc = MessageError(text)
-    exc.reason = reason
-    return exc
-
-
 def sample_age(stamps, wall_ns: int) -> float:
     """How old (s) a sample is at wall time `wall_ns` by the newest of its header stamps (builtin_interfaces/Time,
     the sender's wall clock): the age of the capture, so that the tracker's velocities and the data's age
@@ -203,7 +196,7 @@ def sample_age(stamps, wall_ns: int) -> float:
         return 0.0
     age = (wall_ns - newest) * 1e-9
     if age > MAX_SAMPLE_AGE:
-        raise refused(f"people: stamped {age:.3f} s ago, more than {MAX_SAMPLE_AGE} s", "stale")
+        raise MessageError(f"people: stamped {age:.3f} s ago, more than {MAX_SAMPLE_AGE} s", "stale")
     return max(age, 0.0)
 
 
@@ -218,20 +211,20 @@ def people_from_keypoints(msg, keypoints: tuple[str, ...]) -> HumanCapsules:
     the robot once the data is stale, rather than guess where that limb is)."""
     frame = msg.header.frame_id
     if frame not in BASE_FRAMES:
-        raise refused(f"keypoints: frame {frame!r}: send them in the robot base frame 'world' (the bridge has "
+        raise MessageError(f"keypoints: frame {frame!r}: send them in the robot base frame 'world' (the bridge has "
                       f"no transforms of other frames)")
     n = len(keypoints)
     points = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses], dtype=float).reshape(-1, 3)
     if len(points) % n:
-        raise refused(f"keypoints: {len(points)} poses are not whole people of {n} ({', '.join(keypoints)})")
+        raise MessageError(f"keypoints: {len(points)} poses are not whole people of {n} ({', '.join(keypoints)})")
     if np.isnan(points).any():
-        raise refused("keypoints: a keypoint not seen (NaN): the frame is a dropout", "partly seen")
+        raise MessageError("keypoints: a keypoint not seen (NaN): the frame is a dropout", "partly seen")
     if not np.all(np.isfinite(points)) or np.abs(points).max(initial=0.0) > CELL_SIZE:
-        raise refused(f"keypoints: a position is infinite or farther than {CELL_SIZE} m from the robot base")
+        raise MessageError(f"keypoints: a position is infinite or farther than {CELL_SIZE} m from the robot base")
     capsules = [c for k in range(0, len(points), n)
                 for c in body_capsules({name: points[k + i] for i, name in enumerate(keypoints)})]
     if len(capsules) > MAX_CAPSULES:
-        raise refused(f"keypoints: {len(capsules)} capsules, more than {MAX_CAPSULES}")
+        raise MessageError(f"keypoints: {len(capsules)} capsules, more than {MAX_CAPSULES}")
     if not capsules:
         return HumanCapsules.empty()
     seg = np.array([[a, b] for _, a, b, _ in capsules])
