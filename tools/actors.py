@@ -116,6 +116,7 @@ class HumanFeed(threading.Thread):
         self.rate = float(rate or getattr(human, "rate", None) or HUMAN_RATE)
         self.fault = FeedFault()
         self.skipped = 0                  # samples not sent because the feed was late for them
+        self.sent = 0                     # samples put
         self.last_sent = 0.0              # monotonic time (s) of the last sample put
 
     def run(self) -> None:
@@ -144,6 +145,7 @@ class HumanFeed(threading.Thread):
                                           seq=k, stamp=time.monotonic()))
             self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)
             self.last_sent = time.monotonic()
+            self.sent += 1
 
 
 class HeldHuman:

@@ -39,11 +39,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if args.duration is None:
         args.duration = max(human.duration, 1.0) if human is not None else 24.0
     if not args.sim:
-        return _demo_processes(args, human)
+        return _demo_processes(args)
     return _demo_sim(args, human)
 
 
-def _demo_processes(args: argparse.Namespace, human) -> int:
+def _demo_processes(args: argparse.Namespace) -> int:
     from shared.config import load_config
     from shared.robot.model import default_robot
     from tools import demo
@@ -75,7 +75,7 @@ def _demo_processes(args: argparse.Namespace, human) -> int:
             return code
         try:
             summary = demo.run(args.out, args.duration, args.phase_length, args.config, args.seed, args.no_beta,
-                               args.quiet, default_robot(), config, human, str(args.human or ""), args.view_fd)
+                               args.quiet, default_robot(), config, args.human, args.view_fd)
         except RuntimeError as exc:
             print(f"hrc demo: error: {exc}", file=sys.stderr)
             return 1

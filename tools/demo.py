@@ -3,8 +3,9 @@
 Starts the PRBT emulator and every service as child processes (tools.launch), on kernel CAN (vcan0)
 where there is one, else on udp_multicast inside a private network namespace that it makes for itself
 (it re-runs itself under `unshare -n`, or `-rn` when not root). Then, as the cell's operator and witness:
-* a scripted human (evidence.scenarios.paper_phases), or a recorded motion (--human FILE: several people,
-  dropouts; shared.tracking.motion), goes out as raw tracker data at 120 Hz;
+* a scripted human (evidence.scenarios.paper_phases, at 120 Hz), or a recorded motion (--human FILE: several
+  people, dropouts; shared.tracking.motion, at its own rate), goes out as raw tracker data from a process of
+  its own (tools.feed), as a camera's tracker would: the recorder's work here cannot delay it;
 * goals shuttle the robot between q_s and q_g: the next goal when the robot has arrived, the same goal
   again when the robot is not following a plan for it (refused, or dropped after a stop); see
   tools.actors;
@@ -15,6 +16,7 @@ where there is one, else on udp_multicast inside a private network namespace tha
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import time
@@ -22,11 +24,13 @@ from pathlib import Path
 
 from evidence.scenarios import paper_phases
 from shared.drives.bus import in_private_namespace
+from shared.tracking.motion import RecordedMotion
 from shared.transport.zenoh_session import open_session
 from shared.wire.keys import KeySpace
 from shared.wire.messages import JointState, ScalerStatus
-from tools.actors import HumanFeed, Recorder, Shuttle
+from tools.actors import Recorder, Shuttle
 from tools.cell import choose_bus
+from tools.feed import READY
 from tools.launch import CellProcesses, LaunchError, free_port
 from tools.report import Recording, write_report
 
@@ -51,9 +55,24 @@ def reexec_in_namespace(argv: list[str], pass_fds: tuple[int, ...] = ()) -> int 
 NO_BETA_ARGS = {"planner": ["--no-beta"], "scaler": ["--no-await"]}
 
 
+def start_feed(cell: CellProcesses, human_file: Path | None, phase_length: float, stats: Path):
+    """The person feed's process (tools.feed), connected and ready to start; its Popen."""
+    motion = ["--human", str(human_file)] if human_file is not None else ["--phase-length", repr(phase_length)]
+    return cell.spawn_helper("human_feed", ["tools.feed", "--connect", cell.endpoint, "--prefix", cell.prefix,
+                                            "--stats", str(stats), *motion], READY)
+
+
+def feed_figures(stats: Path) -> dict:
+    """What the feed process wrote at its end: rate_hz, skipped, sent; {"error": ...} when it wrote nothing."""
+    try:
+        return json.loads(stats.read_text())
+    except (OSError, ValueError) as exc:
+        return {"error": f"the feed wrote no figures ({exc.__class__.__name__}); see logs/human_feed.log"}
+
+
 def run(out: Path, duration: float, phase_length: float, config_path: Path | None, seed: int, no_beta: bool,
-        quiet: bool, robot, config, human=None, human_name: str = "", view_fd: int | None = None) -> dict:
-    """The experiment on the real processes; returns the summary (written to out/summary.json). human:
+        quiet: bool, robot, config, human_file: Path | None = None, view_fd: int | None = None) -> dict:
+    """The experiment on the real processes; returns the summary (written to out/summary.json). human_file:
     a recorded motion (shared.tracking.motion.RecordedMotion) in place of the paper's phases; view_fd: a pipe to a
     served 3D viewer (tools.view.ViewServer) to log every message into as it arrives."""
     interface, channel = choose_bus()
@@ -65,34 +84,33 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
         f"Zenoh {cell.endpoint}); logs in {out / 'logs'}")
     session = open_session("peer", listen=[f"tcp/127.0.0.1:{free_port()}"], connect=[cell.endpoint])
     rec = Recording(t0=time.monotonic())
-    recorder = feed = None
+    recorder = None
+    stats = out / "logs" / "human_feed.json"
+    human = RecordedMotion.load(human_file) if human_file is not None else paper_phases(phase_length)
     try:
         started = time.monotonic()
         cell.start(session)
-        what = f"the motion in {human_name}" if human is not None else "the paper's four phases"
+        feed = start_feed(cell, human_file, phase_length, stats)
+        what = f"the motion in {human_file}" if human_file is not None else "the paper's four phases"
         say(f"hrc demo: all services up in {time.monotonic() - started:.1f} s; {duration:.0f} s of {what}"
             f"{' (no beta replans)' if no_beta else ''}")
         recorder = Recorder(session, keys, rec)
-        human = human if human is not None else paper_phases(phase_length)
         rec.phase = human.phase
         rec.t0 = time.monotonic()
         if view_fd is not None:
             from tools.view import CellLogger, pipe_stream
 
             recorder.on_message = CellLogger(pipe_stream(view_fd), robot, config.ssm, rec.t0).dispatch
-        feed = HumanFeed(session, keys, human, rec.t0)
-        feed.start()
+        feed.stdin.write(f"{rec.t0!r}\n".encode())
+        feed.stdin.close()
         _direct(session, keys, recorder, rec, duration, say)
         # the monitor's last summary (once a second), the person still tracked: a feed stopped first would end
         # every run with a tracker dropout, a stopped robot and a second of states the monitor cannot check
         time.sleep(1.2)
-        feed.running = False
         alive, cpu = cell.alive(), cell.cpu_seconds()
     except LaunchError as exc:
         raise RuntimeError(f"the cell did not start: {exc}") from None
     finally:
-        if feed is not None:
-            feed.running = False
         if recorder is not None:
             recorder.close()
         codes = cell.stop()
@@ -101,8 +119,8 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     extra = {"mode": "processes", "can": interface, "services_alive_at_end": alive, "exit_codes": codes,
              "cpu_s": cpu, "cpus": os.cpu_count(),
              "bad_messages_seen": recorder.bad, "no_beta": no_beta,
-             "human_feed": {"rate_hz": round(feed.rate, 3), "skipped": feed.skipped},
-             "human": human_name or "built-in: the paper's four phases"}
+             "human_feed": feed_figures(stats),
+             "human": str(human_file or "built-in: the paper's four phases")}
     return write_report(out, robot, config, rec, extra)
 
 

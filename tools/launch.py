@@ -74,17 +74,26 @@ class CellProcesses:
         """The Zenoh endpoint a client of the cell connects to (the driver's)."""
         return f"tcp/127.0.0.1:{self.port}"
 
-    def _spawn(self, name: str, argv: list[str]) -> None:
+    def _spawn(self, name: str, argv: list[str], niceness: int | None = None, stdin=None) -> subprocess.Popen:
         env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
         log = open(self.run / f"{name}.log", "w")
-        niceness = BY_NAME[name].niceness
+        niceness = BY_NAME[name].niceness if niceness is None else niceness
 
         def prepare() -> None:
             die_with_parent()
             os.nice(niceness)
         self.procs[name] = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", *argv], cwd=ROOT, env=env,
-                                            stdout=log, stderr=subprocess.STDOUT, preexec_fn=prepare)
+                                            stdin=stdin, stdout=log, stderr=subprocess.STDOUT, preexec_fn=prepare)
         log.close()
+        return self.procs[name]
+
+    def spawn_helper(self, name: str, argv: list[str], ready: str, timeout: float = 40.0) -> subprocess.Popen:
+        """Start a process beside the cell that is not one of its programs (the demo's person feed): `python -m
+        argv`, its output in <run>/<name>.log, a pipe to its stdin; return once its output holds `ready`
+        (LaunchError with its log's tail when it does not). It is ended first in ``stop``."""
+        proc = self._spawn(name, argv, niceness=0, stdin=subprocess.PIPE)
+        self._wait_line(name, ready, timeout)
+        return proc
 
     def _tail(self, name: str, lines: int = 12) -> str:
         try:
@@ -161,8 +170,10 @@ class CellProcesses:
         return {name: proc.poll() is None for name, proc in self.procs.items()}
 
     def stop(self, timeout: float = 5.0) -> dict[str, int | None]:
-        """SIGTERM every child (services first, the emulator last), then SIGKILL what is left; exit codes."""
-        for name in [*reversed(self.services), "hwsim"]:
+        """SIGTERM every child (helpers first, then the services, the emulator last), then SIGKILL what is left;
+        exit codes."""
+        programs = [*reversed(self.services), "hwsim"]
+        for name in [*(n for n in self.procs if n not in programs), *programs]:
             proc = self.procs.get(name)
             if proc is not None and proc.poll() is None:
                 proc.send_signal(signal.SIGCONT)

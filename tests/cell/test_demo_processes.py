@@ -37,6 +37,8 @@ def test_runs_to_the_end_with_zero_violations(report):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["violations"] == 0, summary["violation_events"]
     assert summary["mode"] == "processes" and all(summary["services_alive_at_end"].values())
+    feed = summary["human_feed"]                   # the person came from a process of its own, at 120 Hz
+    assert feed["rate_hz"] == 120.0 and feed["sent"] > 2000 and summary["exit_codes"]["human_feed"] == 0, feed
     assert summary["cycles_completed"] > 2000 and abs(summary["mean_cycle_s"] - 0.01) < 0.002
     assert summary["shuttles_completed"] >= 5                                # goal after goal reached
     assert summary["min_margin_m"] is not None and summary["min_separation_m"] > 0.05
