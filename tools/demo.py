@@ -101,8 +101,12 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
             from tools.view import CellLogger, pipe_stream
 
             recorder.on_message = CellLogger(pipe_stream(view_fd), robot, config.ssm, rec.t0).dispatch
-        feed.stdin.write(f"{rec.t0!r}\n".encode())
-        feed.stdin.close()
+        try:
+            feed.stdin.write(f"{rec.t0!r}\n".encode())
+            feed.stdin.close()
+        except OSError:                                  # it ended after saying it was ready
+            raise LaunchError(f"the person feed ended before its start (exit {feed.poll()}); "
+                              f"see {out / 'logs' / 'human_feed.log'}") from None
         _direct(session, keys, recorder, rec, duration, say)
         # the monitor's last summary (once a second), the person still tracked: a feed stopped first would end
         # every run with a tracker dropout, a stopped robot and a second of states the monitor cannot check

@@ -5,7 +5,7 @@ are to a real cell, a separate sender the cell cannot slow down and that cannot 
 the cell publishes under the same interpreter lock; on a loaded machine the feed then fell behind, and
 tracker_ingest declared a dropout with the person in view. Here the same ``HumanFeed`` loop runs alone.
 
-The protocol with the parent (tools.demo.FeedProcess): the child opens its Zenoh session, waits until
+The protocol with the parent (``tools.demo.start_feed``): the child opens its Zenoh session, waits until
 tracker_ingest is reachable, prints READY, and reads one line from stdin: the monotonic time t0 (s; one
 clock for every process of the machine) the motion starts at. It then publishes until SIGTERM (or stdin
 closed before a start), and writes ``{"rate_hz", "skipped", "sent"}`` as JSON to --stats on the way out.
@@ -58,7 +58,13 @@ def main(argv: list[str] | None = None) -> int:
         line = sys.stdin.readline()
         if not line.strip():                          # the parent went away before the start
             return 0
-        feed = HumanFeed(session, keys, human, float(line), source=args.source)
+        try:
+            t0 = float(line)
+        except ValueError:
+            print(f"human_feed: error: the start must be a monotonic time in s, not {line.strip()[:40]!r}",
+                  file=sys.stderr)
+            return 2
+        feed = HumanFeed(session, keys, human, t0, source=args.source)
         signal.signal(signal.SIGTERM, lambda *_: setattr(feed, "running", False))
         print(f"human_feed: sending at {feed.rate:.1f} Hz", flush=True)
         feed.run()                                    # this thread, until SIGTERM

@@ -65,3 +65,20 @@ def test_a_bad_motion_file_is_a_clear_error(tmp_path):
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 2 and "human_feed: error:" in err and "Traceback" not in err, err
     assert not (tmp_path / "stats.json").exists()
+
+
+def test_a_start_that_is_not_a_time_is_refused(tmp_path):
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    session = open_session("peer", listen=[endpoint])
+    token = session.liveliness().declare_token(KEYS.alive("tracker_ingest"))
+    proc = _feed(endpoint, tmp_path / "stats.json")
+    try:
+        assert proc.stdout.readline().strip() == READY
+        out, err = proc.communicate("soon\n", timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        token.undeclare()
+        session.close()
+    assert proc.returncode == 2 and "'soon'" in err and "Traceback" not in err, err
