@@ -72,7 +72,14 @@ def test_a_ros_2_peer_finds_the_topics_and_reads_the_joint_states(bridge):
     sub = session.declare_subscriber(key, lambda s: got.append((s.payload.to_bytes(),
                                                                None if s.attachment is None else s.attachment.to_bytes())))
     pub = session.declare_publisher(keys.joint_state)
-    sent = []
+    sent = [np.full(6, -0.5)]
+    deadline = time.monotonic() + 10.0        # the new subscription reaches the bridge first: not counted
+    while not got and time.monotonic() < deadline:
+        pub.put(encode(JointState(q=sent[0], qd=np.zeros(6), drive_state="enabled", enabled=True, fault=False,
+                                  stamp=time.monotonic())))
+        time.sleep(0.05)
+    time.sleep(0.1)
+    got.clear()
     for k in range(40):
         q = np.full(6, 0.01 * k)
         sent.append(q)
