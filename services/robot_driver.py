@@ -13,8 +13,10 @@ Thin shell around ``shared.drives.driver_core.DriverCore`` (what to command) and
 * every first command computed from a new human sample closes a latency chain (sample into
   tracker_ingest -> target frame on the bus, see shared.safety.latency), and every SYNC answer measures how far
   the joints run behind the setpoints sent (the drive lag) and reads the drives' following error
-  (0x60F4, TPDO2, 10 Hz): once a second the chains go out as a LatencyReport on <prefix>/diag/latency and the
-  drive figures as a DriveLagReport on <prefix>/diag/drive_lag, with a warning event when the whole
+  (0x60F4, TPDO2, 10 Hz); every joint state carries the lag the scaler's tracking margin must cover now
+  (``DriveLagMeter.covering``: the worst of the last second, a SYNC a drive did not answer a period more,
+  so a drive that loses frames widens the margin within a few SYNCs); once a second the chains go out as
+  a LatencyReport on <prefix>/diag/latency and the drive figures as a DriveLagReport on <prefix>/diag/drive_lag, with a warning event when the whole
   chain (sample -> frame p99 + drive lag p99) exceeds the configured T_r or the lag exceeds ssm.drive_lag;
 * Zenoh subscriptions (joint commands, stop / recover requests), liveliness token once the drives are up,
   SIGTERM. A malformed message is logged and dropped; the service goes on.
@@ -57,7 +59,7 @@ class Driver:
                  latency: LatencyMeter, drive_lag: DriveLagMeter) -> None:
         self.master, self.core, self.shell, self.period = master, core, shell, period
         self.latency, self.latency_lock = latency, threading.Lock()
-        self.drive_lag = drive_lag
+        self.drive_lag, self.lag_lock = drive_lag, threading.Lock()   # the cycle feeds it, the CAN thread reads it
         self.drive_lag_pub = shell.session.declare_publisher(shell.keys.drive_lag)
         self._sent = None                  # (setpoints, their velocity) that went out with the last SYNC
         self.report_every = max(1, int(round(1.0 / period)))      # a latency report a second
@@ -100,9 +102,13 @@ class Driver:
             answered, self.master.completed = self.master.completed, False
         positions = np.array([fb.position for fb in feedback])
         if not answered:       # a drive did not answer the last SYNC: publish what there is, never go silent
+            with self.lag_lock:
+                if self._sent is not None:
+                    self.drive_lag.missed(self.period)
             self.publish_state(positions, np.array([fb.velocity for fb in feedback]))
         elif self._sent is not None:      # how far the joints are behind what went out with that SYNC
-            self.drive_lag.add(*self._sent, positions, self.master.following_errors())
+            with self.lag_lock:
+                self.drive_lag.add(*self._sent, positions, self.master.following_errors())
         with self.core_lock:
             out = self.core.cycle(now, feedback)
         self.master.send(out.controlwords, out.setpoints)
@@ -116,18 +122,22 @@ class Driver:
 
     def _report_latency(self) -> None:
         """The chains measured since the last report, and a warning when their p99 exceeds T_r."""
-        lag, samples, following_error = self.drive_lag.report()
+        with self.lag_lock:
+            lag, samples, following_error = self.drive_lag.report()
         with self.core_lock:
             stopped_by = self.core.stopped_by
         self._publish(self.drive_lag_pub, DriveLagReport(source="robot_driver", lag=lag, samples=samples,
                                                          following_error=following_error, bound=self.drive_lag.bound,
                                                          stopped_by=stopped_by))
-        lag_verdict = self.drive_lag.check()
+        with self.lag_lock:
+            lag_verdict = self.drive_lag.check()
         if lag_verdict is not None:
             self._publish_event(lag_verdict)
         with self.latency_lock:
             sample_to_frame, processing = self.latency.drain()
-            verdict = self.latency.check(self.drive_lag.worst() or 0.0)
+            with self.lag_lock:
+                worst = self.drive_lag.worst()
+            verdict = self.latency.check(worst or 0.0)
         if sample_to_frame.size:
             self._publish(self.latency_pub, LatencyReport(source="robot_driver", sample_to_frame=sample_to_frame,
                                                           processing=processing))
@@ -146,11 +156,14 @@ class Driver:
         if out is None or not np.all(np.isfinite(q)):
             return
         states = sorted({s.value for s in out.drive_states})
+        with self.lag_lock:
+            lag = self.drive_lag.covering()
         with self.pub_lock:
             self.seq += 1
             self.state_pub.put(encode(JointState(
                 q=q, qd=qd, drive_state=f"{out.mode.value}:{'/'.join(states)}", enabled=out.mode is Mode.RUNNING,
-                fault=any(s is State.FAULT for s in out.drive_states), seq=self.seq, stamp=time.monotonic())))
+                fault=any(s is State.FAULT for s in out.drive_states), drive_lag=lag, seq=self.seq,
+                stamp=time.monotonic())))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,7 +1,7 @@
 """ros2_bridge: the cell as ROS 2 topics (rmw_zenoh, Jazzy), and goals and people from ROS 2.
 
-Out, every 10 ms on what is new: /joint_states and /tf (the measured joints, every moving link from the
-world frame; the base, fixed to it, on /tf_static, transient local), /hrc/robot_capsules (20 Hz),
+Out, every 10 ms on what is new: /joint_states (every measured joint state, stamped when measured) and /tf
+(every moving link from the world frame, at the newest state; the base, fixed to it, on /tf_static, transient local), /hrc/robot_capsules (20 Hz),
 /hrc/people (the tracked people, at most 30 Hz: a viewer's rate), /speed_scaling_factor (alpha) and
 /hrc/replan_request (beta), /diagnostics (the safety events), /robot_description (the URDF, transient local:
 zenoh-ext's advanced publisher keeps it for late subscribers, as rmw_zenoh does; sent again every 10 s, with
@@ -48,7 +48,9 @@ class Ros2Bridge:
         self.goal_id = int(time.time() * 1000) % 2**31
         self.raw_seq = 0
         self.pubs = {e.topic: self._publisher(e) for e in ENDPOINTS if e.kind == PUBLISHER}
-        self.joints = shell.latest(shell.keys.joint_state, JointState)
+        # every joint state (a bag of /joint_states holds what the driver measured, 100 Hz, also when a tick
+        # is late under load); /tf and the capsules from the newest only
+        self.joints = shell.queue(shell.keys.joint_state, JointState, capacity=1000)
         self.people = shell.latest(shell.keys.human_state, HumanState)
         self.status = shell.latest(shell.keys.scaler_status, ScalerStatus)
         self.events = shell.queue(shell.keys.safety_events, SafetyEvent, capacity=1000)
@@ -81,10 +83,14 @@ class Ros2Bridge:
 
     def tick(self, now: float) -> None:
         t_ns = time.time_ns()
-        js = self.joints.take()
-        if js is not None and js.stamp != self.last_js:
+        states = [js for js in self.joints.drain() if js.stamp > self.last_js]
+        for js in states:          # each stamped when it was measured (the driver's clock is this host's monotonic one)
+            measured_ns = t_ns - int(max(0.0, now - js.stamp) * 1e9)
+            self.put("/joint_states", convert.joint_state(self.robot.joint_names, js.q, js.qd, measured_ns),
+                     convert.JOINT_STATE)
+        if states:
+            js = states[-1]
             self.last_js = js.stamp
-            self.put("/joint_states", convert.joint_state(self.robot.joint_names, js.q, js.qd, t_ns), convert.JOINT_STATE)
             self.put("/tf", convert.link_transforms(self.robot.link_poses(js.q, fixed=False), "world", t_ns),
                      convert.TF)
             if now - self.last_capsules >= convert.ROBOT_MARKER_PERIOD:

@@ -12,8 +12,9 @@ the braking that followed overshot the stop). Rules of the shell:
   its start; a merged one when the follower has not passed its junction (it continues at the same s);
 * a replan request raised while the robot crawls brings it to rest, where it awaits the plan (the status's
   stop_s says where; the core's rule, ``ScalingLayer._await``; not with --no-await);
-* the tracking margin covers the drive lag the robot driver measures (its DriveLagReport, once a second),
-  where that is longer than the configured ssm.drive_lag (``SsmParameters.covering_lag``);
+* the tracking margin covers the drive lag the robot driver measures (its DriveLagReport, once a second,
+  and the lag each joint state says to cover, every SYNC), where that is longer than the configured
+  ssm.drive_lag (``SsmParameters.covering_lag``);
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
   (the core's rule; the bound at a slow source's rate is shared.tracking.tracker.stale_bound); an invalid
   or malformed message counts as no message;
@@ -84,6 +85,8 @@ class Scaler:
         # the robot driver's drive lag (once a second): the tracking margin covers the lag measured
         self.configured_ssm = layer.ssm
         self.lag_in = shell.latest(keys.drive_lag, DriveLagReport)
+        self.reported_lag = 0.0            # s, the newest report's worst p99
+        self.state_lag = 0.0               # s, the newest joint state's drive_lag (0: it gave none)
         shell.subscribe(keys.joint_state, JointState, self.on_joints)
         shell.subscribe(keys.trajectory, TrajectoryMsg, self.on_trajectory)
 
@@ -100,12 +103,16 @@ class Scaler:
             self.stale_after = stale_bound(self.layer.params.human_timeout, newest.sample_interval)
 
     def cover_drive_lag(self) -> None:
-        """The scaling layer's margin from the newest drive lag report, if one came: the configured drive_lag
-        or the worst joint's measured p99, the longer (``SsmParameters.covering_lag``)."""
+        """The scaling layer's margin for the drive lag measured: the configured drive_lag, the worst joint's
+        p99 of the newest report (once a second) or the lag the newest joint state says to cover (the last
+        second's worst, every SYNC: a drive that loses frames widens the margin within a few SYNCs, not a
+        second later), the longest (``SsmParameters.covering_lag``)."""
         msg = self.lag_in.take()
-        if msg is None:
-            return
-        ssm = self.configured_ssm.covering_lag(float(np.max(msg.lag)))
+        if msg is not None:
+            self.reported_lag = float(np.max(msg.lag))
+        with self.lock:
+            state_lag = self.state_lag
+        ssm = self.configured_ssm.covering_lag(max(self.reported_lag, state_lag))
         if (ssm is self.configured_ssm) != (self.layer.ssm is self.configured_ssm):
             self.shell.log.warning("tracking margin %.3f m/s for a drive lag of %.1f ms (configured %.1f ms)",
                                    ssm.tracking_margin, ssm.drive_lag * 1e3, self.configured_ssm.drive_lag * 1e3)
@@ -115,6 +122,7 @@ class Scaler:
         with self.lock:
             self.joint_q = np.asarray(msg.q)
             self.robot_following = msg.enabled
+            self.state_lag = msg.drive_lag or 0.0
         self.joint_state_arrived.set()
 
     def on_trajectory(self, msg: TrajectoryMsg) -> None:

@@ -194,7 +194,9 @@ def recording_from_report(folder: Path) -> Recording:
             if row.get("q_meas_1", "") != "":
                 rec.joint_states.append(JointState(q=j6(row, "q_meas"), qd=j6(row, "qd_meas"),
                                                    drive_state=row["drive_state"] or "unknown", enabled=True,
-                                                   fault=False, stamp=t))
+                                                   fault=False, stamp=t,
+                                                   drive_lag=None if (lag := num(row, "drive_lag_ms")) is None
+                                                   else lag / 1e3))
         people: dict[tuple[str, str], list[dict]] = {}
         for n, row in enumerate(_rows(folder / "humans.csv"), start=2):
             where = f"humans.csv line {n}"

@@ -295,7 +295,7 @@ def write_trace(out: Path, rec: Recording) -> None:
     js_stamps = np.array([m.stamp for m in js])
     j6 = lambda name: [f"{name}_{k}" for k in range(1, 7)]
     header = ["t", "seq", "trajectory_version", "s", "alpha", "safe_alpha", "beta", "status", "min_separation_m",
-              *j6("q_cmd"), *j6("qd_cmd"), *j6("q_meas"), *j6("qd_meas"), "drive_state", "phase"]
+              *j6("q_cmd"), *j6("qd_cmd"), *j6("q_meas"), *j6("qd_meas"), "drive_state", "drive_lag_ms", "phase"]
     rows = []
     for st in rec.statuses:
         cmd = commands.get(st.seq)
@@ -308,7 +308,9 @@ def write_trace(out: Path, rec: Recording) -> None:
                      *(map(_fmt, cmd.qd.tolist()) if cmd else [""] * 6),
                      *(map(_fmt, meas.q.tolist()) if meas else [""] * 6),
                      *(map(_fmt, meas.qd.tolist()) if meas else [""] * 6),
-                     meas.drive_state if meas else "", rec.phase(t) if rec.phase else ""])
+                     meas.drive_state if meas else "",
+                     f"{meas.drive_lag * 1e3:.1f}" if meas and meas.drive_lag is not None else "",
+                     rec.phase(t) if rec.phase else ""])
     _write_csv(out / "trace.csv", header, rows)
     rows = []
     for h in rec.human_states:

@@ -199,6 +199,8 @@ class CanMaster:
                 self.network.send_message(layout.cob_id, frame)
                 self._since_sync[k] = frame
             if sync:
+                with self.lock:         # the answers counted from here are this SYNC's: a drive that missed the
+                    self._fresh.clear()     # last one does not complete it with the others' older positions
                 self.network.sync.transmit()
                 self._since_sync = {}
 

@@ -105,13 +105,21 @@ class DriveLagMeter:
     drive that reaches each setpoint at the next SYNC is exactly one period behind. Slower joints give no
     lag sample (the ratio is noise there) but their following error counts. ``report`` drains the window's
     figures; ``check`` compares the p99 with the configured bound, a verdict per change (as LatencyMeter).
+
+    ``covering`` is the lag the scaling layer's tracking margin must cover now, at once rather than a report
+    a second later: a drive that loses frames falls behind its setpoints (a lost SYNC), or overshoots them
+    (a lost setpoint while braking makes the next one twice as far, which a linear interpolator runs at twice
+    the speed), or its position is a period old (a lost answer, ``missed``); within a few SYNCs of the
+    first lost frame. The worst joint's |lag| of every SYNC (ahead counts as behind: either way the measured
+    speed is not the commanded one), held for `hold` SYNCs, since a link that loses one frame loses more.
     """
 
     def __init__(self, bound: float, dof: int = 6, min_speed: float = 0.2, window: int = 1000,
-                 min_samples: int = 50) -> None:
+                 min_samples: int = 50, hold: int = 100) -> None:
         if not bound > 0:
             raise ValueError(f"drive lag bound must be positive, got {bound}")
         self.bound, self.min_speed, self.min_samples = bound, min_speed, min_samples
+        self._recent: deque[float] = deque(maxlen=hold)      # the worst joint's |lag| (s) of each recent SYNC
         self._lags = [deque(maxlen=window) for _ in range(dof)]
         self._pending_lag = [[] for _ in range(dof)]
         self._pending_error = np.zeros(dof)
@@ -123,12 +131,24 @@ class DriveLagMeter:
         setpoint, velocity, measured = (np.asarray(a, dtype=float) for a in (setpoint, velocity, measured))
         with np.errstate(divide="ignore", invalid="ignore"):
             lag = (setpoint - measured) / velocity
-        for j in np.flatnonzero((np.abs(velocity) >= self.min_speed) & np.isfinite(lag)):
+        moving = np.flatnonzero((np.abs(velocity) >= self.min_speed) & np.isfinite(lag))
+        for j in moving:
             self._lags[j].append(float(lag[j]))
             self._pending_lag[j].append(float(lag[j]))
+        self._recent.append(float(np.max(np.abs(lag[moving]))) if moving.size else 0.0)
         if following_error is not None:
             err = np.abs(np.asarray(following_error, dtype=float))
             self._pending_error = np.fmax(self._pending_error, np.where(np.isfinite(err), err, 0.0))
+
+    def missed(self, period: float) -> None:
+        """A SYNC that some drive did not answer: the position published for it is a period (s) older than
+        the others' and than its setpoint, on top of the lag it had (at least the bound)."""
+        self._recent.append(max(self._recent[-1] if self._recent else 0.0, self.bound) + period)
+
+    def covering(self) -> float:
+        """The lag (s) the tracking margin must cover now: the bound, or the worst joint's |lag| of any of
+        the last `hold` SYNCs (a missed answer counted as ``missed`` says) where that is longer."""
+        return max(self.bound, max(self._recent, default=0.0))
 
     def p99(self) -> np.ndarray:
         """Per joint p99 lag (s) over the window; NaN for a joint with fewer than min_samples."""

@@ -205,15 +205,20 @@ class ScalerStatus(Message):
 
 @dataclass(frozen=True)
 class JointState(Message):
-    """Measured joint state from the driver: position (rad), velocity (rad/s), drive state summary."""
+    """Measured joint state from the driver: position (rad), velocity (rad/s), drive state summary, and
+    drive_lag (s): how far behind (or ahead of) their setpoints the joints have run over the last second, the
+    worst joint, at least the configured ssm.drive_lag (``DriveLagMeter.covering``), which the scaler's
+    tracking margin covers from the next tick; None from a source that does not measure it."""
 
     KIND: ClassVar[str] = "joint_state"
-    SPEC: ClassVar[dict[str, Spec]] = {"q": Q, "qd": Q, "drive_state": S, "enabled": B, "fault": B}
+    SPEC: ClassVar[dict[str, Spec]] = {"q": Q, "qd": Q, "drive_state": S, "enabled": B, "fault": B,
+                                       "drive_lag": Spec("float", optional=True, minimum=0.0)}
     q: np.ndarray
     qd: np.ndarray
     drive_state: str
     enabled: bool
     fault: bool
+    drive_lag: float | None = None
 
 
 @dataclass(frozen=True)

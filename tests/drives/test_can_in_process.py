@@ -125,3 +125,41 @@ def test_the_following_error_comes_every_tenth_sync_and_is_counted_once(drives):
     driver._report_latency()
     report = shell.published(shell.keys.drive_lag, DriveLagReport)[-1]
     assert report.following_error.shape == (6,) and np.all(np.isfinite(report.following_error))
+
+
+def test_a_drive_that_loses_frames_widens_the_margin_and_no_state_mixes_two_syncs(drives):
+    """Node 4 (joint 2) loses a tenth of its frames both ways (the emulator's injection, seeded) while
+    joints 2 and 3 move. Every joint state holds the positions of one SYNC: joint 3's, on a healthy drive,
+    is where that drive is (before, once node 4 had missed one answer, each later state was completed by
+    node 4's answer while joints 3-6 still held the SYNC before's). Every state after a SYNC that a drive
+    did not answer says to cover at least a period more than the configured drive lag, and the margin
+    stays wide while the frames go missing."""
+    master, nodes = drives
+    shell, driver, answered = enabled_driver(master)
+    bound = CellConfig().ssm.drive_lag
+    where = []                          # (joint 3 published, joint 3 as the drive has it) at each complete answer
+    publish = driver.publish_state
+    master.on_complete = lambda q, qd: (where.append((q[2], nodes[2].drive.position)), publish(q, qd),
+                                        answered.set())
+    nodes[1].drop = 0.1
+    q, v = Q_START.copy(), np.array([0.0, 0.6, 0.5, 0.0, 0.0, 0.0])
+    missed = []                         # the published-state counts right after each unanswered SYNC
+    for k in range(200):
+        q = q + np.minimum(v, 6.0 * PERIOD * (k + 1)) * PERIOD           # a followable start, then 0.5-0.6 rad/s
+        shell.deliver(shell.keys.command, JointCommand(q=q, qd=v, trajectory_version=1, s=0.0, stamp=time.monotonic()))
+        answered.clear()
+        before = len(shell.published(shell.keys.joint_state, JointState))
+        with master.lock:
+            unanswered = not master.completed
+        driver.cycle(time.monotonic())
+        if unanswered and k > 0:
+            missed.append(before)
+        answered.wait(0.05)
+    states = shell.published(shell.keys.joint_state, JointState)
+    assert driver.core.mode is Mode.RUNNING or nodes[1].drive.fault_code, "the robot neither followed nor faulted"
+    assert len(missed) >= 5, "the injection lost too few answers to say anything"
+    assert all(states[n].drive_lag >= bound + PERIOD - 1e-9 for n in missed)
+    assert all(s.drive_lag >= bound for s in states)
+    assert max(s.drive_lag for s in states[-100:]) > bound
+    assert len(where) > 100 and all(abs(a - b) < 1e-4 for a, b in where), \
+        [(a - b) for a, b in where if abs(a - b) >= 1e-4][:5]

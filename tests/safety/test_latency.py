@@ -86,6 +86,32 @@ def test_drive_lag_meter_measures_the_lag_of_moving_joints_only():
     assert meter.report()[2].max() == 0.0                          # the report drained
 
 
+def test_the_lag_to_cover_rises_with_one_sync_and_is_held():
+    """covering: the configured bound while the joints follow; the worst joint's |lag| of a single SYNC at
+    once, ahead of the setpoint as well as behind it; held for `hold` SYNCs; a SYNC not answered a period
+    more than the lag before it."""
+    import numpy as np
+
+    from shared.safety.latency import DriveLagMeter
+    meter = DriveLagMeter(0.012, hold=5)
+    v = np.array([1.0, 0.05, 0.0, 0.0, 0.0, 0.0])
+    assert meter.covering() == 0.012                                 # nothing measured yet
+    meter.add(v * 0.01, v, np.zeros(6))                               # 10 ms behind: within the bound
+    assert meter.covering() == 0.012
+    meter.add(v * 0.01, v, v * 0.035)                                 # 25 ms ahead (an overshoot)
+    assert abs(meter.covering() - 0.025) < 1e-9
+    meter.add(np.array([0.0, 1.0, 0, 0, 0, 0]), v, np.zeros(6))       # joint 2 too slow to give a lag
+    for _ in range(3):
+        meter.add(v * 0.01, v, np.zeros(6))
+    assert abs(meter.covering() - 0.025) < 1e-9                       # still within the hold
+    meter.add(v * 0.01, v, np.zeros(6))
+    assert meter.covering() == 0.012                                  # the hold has passed
+    meter.missed(0.01)
+    assert abs(meter.covering() - 0.022) < 1e-9                       # bound + a period
+    meter.missed(0.01)
+    assert abs(meter.covering() - 0.032) < 1e-9                       # two in a row: two periods
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.floats(0.0, 2.0), min_size=1, max_size=400), st.sampled_from([50.0, 90.0, 99.0, 100.0]))
 def test_the_delay_histogram_gives_the_percentile_to_one_bin(delays, q):

@@ -115,6 +115,31 @@ def test_the_scaler_keeps_its_margin_over_the_drive_lag_the_driver_measures():
     assert scaler.layer.ssm is scaler.configured_ssm and scaler.layer.ssm.drive_lag == CONFIG.ssm.drive_lag
 
 
+def test_the_scaler_widens_its_margin_on_the_next_tick_after_a_joint_state_says_so():
+    """A joint state whose drive_lag is 32 ms (a drive losing frames) raises the tracking margin at the next
+    tick, without waiting for a report; the larger of the state's lag and the newest report's is covered;
+    a state back at the configured lag, with no report above it, brings the margin back."""
+    shell, scaler, keys = scaler_at_start()
+
+    def state(lag):
+        return JointState(q=Q_START, qd=np.zeros(6), drive_state="running:operation_enabled", enabled=True,
+                          fault=False, drive_lag=lag)
+
+    now = time.monotonic()
+    shell.deliver(keys.joint_state, state(0.032))
+    scaler.tick(now)
+    assert scaler.layer.ssm.drive_lag == pytest.approx(0.032)
+    shell.deliver(keys.drive_lag, DriveLagReport(source="robot_driver", lag=np.full(6, 0.040), samples=np.full(6, 100.0),
+                                                 following_error=np.zeros(6), bound=0.012, stopped_by=""))
+    scaler.tick(now + 0.01)
+    assert scaler.layer.ssm.drive_lag == pytest.approx(0.040)
+    shell.deliver(keys.drive_lag, DriveLagReport(source="robot_driver", lag=np.full(6, 0.010), samples=np.full(6, 100.0),
+                                                 following_error=np.zeros(6), bound=0.012, stopped_by=""))
+    shell.deliver(keys.joint_state, state(CONFIG.ssm.drive_lag))
+    scaler.tick(now + 0.02)
+    assert scaler.layer.ssm is scaler.configured_ssm
+
+
 def test_a_camera_rate_source_is_stale_after_its_own_bound():
     """A 30 Hz source (HumanState.sample_interval 1/30): 70 ms without a sample is one lost frame, not stale
     data; 90 ms is (2.5 intervals, 83 ms)."""
