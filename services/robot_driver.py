@@ -17,7 +17,8 @@ Thin shell around ``shared.drives.driver_core.DriverCore`` (what to command) and
   (``DriveLagMeter.covering``: the worst of the last second, a SYNC a drive did not answer a period more,
   so a drive that loses frames widens the margin within a few SYNCs); once a second the chains go out as
   a LatencyReport on <prefix>/diag/latency and the drive figures as a DriveLagReport on
-  <prefix>/diag/drive_lag, with a warning event when the whole chain (sample -> frame p99 + drive lag p99) exceeds the configured T_r or the lag exceeds ssm.drive_lag;
+  <prefix>/diag/drive_lag, with a warning event when the whole chain (sample -> frame p99 + drive lag p99)
+  exceeds the configured T_r or the lag exceeds ssm.drive_lag;
 * Zenoh subscriptions (joint commands, stop / recover requests), liveliness token once the drives are up,
   SIGTERM. A malformed message is logged and dropped; the service goes on.
 
