@@ -6,7 +6,8 @@ local), /hrc/robot_capsules (20 Hz), /hrc/people (the tracked people, at most 30
 /speed_scaling_factor (alpha) and /hrc/replan_request (beta), /diagnostics (the safety events),
 /robot_description (the URDF, transient local: zenoh-ext's advanced publisher keeps it for late subscribers,
 as rmw_zenoh does; sent again every 10 s, with /tf_static). Each sample carries rmw_zenoh's attachment; the
-node and every endpoint declare their liveliness tokens, so `ros2 topic list` and rviz2 see them (shared.ros2.graph, shared.ros2.bridge).
+node and every endpoint declare their liveliness tokens, so `ros2 topic list` and rviz2 see them
+(shared.ros2.graph, shared.ros2.bridge).
 
 In: /hrc/goal (sensor_msgs/JointState) becomes a Goal for the planner; /hrc/perception/people
 (visualization_msgs/MarkerArray of CYLINDER capsules) and /hrc/perception/keypoints, .../arm_keypoints
