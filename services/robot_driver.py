@@ -159,11 +159,13 @@ class Driver:
         states = sorted({s.value for s in out.drive_states})
         with self.lag_lock:
             lag = self.drive_lag.covering()
+        with self.master.lock:
+            sync = self.master.syncs            # the SYNC answered (complete), or the one not answered (the cycle's)
         with self.pub_lock:
             self.seq += 1
             self.state_pub.put(encode(JointState(
                 q=q, qd=qd, drive_state=f"{out.mode.value}:{'/'.join(states)}", enabled=out.mode is Mode.RUNNING,
-                fault=any(s is State.FAULT for s in out.drive_states), drive_lag=lag, seq=self.seq,
+                fault=any(s is State.FAULT for s in out.drive_states), drive_lag=lag, sync=sync, seq=self.seq,
                 stamp=time.monotonic())))
 
 

@@ -6,7 +6,11 @@ ScalingLayer.step, and publishes the joint command and its status. It ticks on e
 driver publishes one a SYNC, 100 Hz), falling back to 1.5 control periods without one (services.common.
 run_synced): locked to the drives' clock, its path never runs ahead of the robot (on its own clock, a
 SYNC cycle lost under load left the robot one period behind a command at full speed, for good, and
-the braking that followed overshot the stop). Rules of the shell:
+the braking that followed overshot the stop). Once per SYNC (``shared.scaling.sync_clock.SyncClock``, by
+the state's SYNC number): a SYNC one drive did not answer is published a period late, just before the next
+one, and a fallback tick has already stood in for it; ticking on both stepped the path a period ahead of
+the drives for every frame a drive lost (a drive losing a tenth of its frames put a healthy joint 130 mrad
+behind the commands at its velocity limit, and the catch-up overshot a stop towards a person). Rules of the shell:
 * no trajectory yet, or none taken: it commands the measured position (hold), so the driver can enable;
 * a new trajectory version is taken without a jump: a fresh plan (base_version -1) when the robot is at
   its start; a merged one when the follower has not passed its junction (it continues at the same s);
@@ -38,6 +42,7 @@ from services.common import ServiceShell, open_service, run_synced, serve, servi
 from shared.core.humans import HumanCapsules
 from shared.robot.model import default_robot
 from shared.scaling.layer import ScalingInputs, ScalingLayer
+from shared.scaling.sync_clock import SyncClock
 from shared.tracking.tracker import stale_bound
 from shared.wire.convert import humans_from_msg, status_from_step, trajectory_from_msg
 from shared.wire.messages import (
@@ -72,6 +77,7 @@ class Scaler:
         self.joint_q = None
         self.robot_following = False       # the driver runs and follows commands (JointState.enabled)
         self.joint_state_arrived = threading.Event()       # wakes the tick: one a SYNC
+        self.clock = SyncClock()
         self.pending: TrajectoryMsg | None = None
         self.version = -1
         self.received = -1                 # the newest trajectory version decided on (followed, stopped for, refused)
@@ -119,11 +125,15 @@ class Scaler:
         self.layer.ssm = ssm
 
     def on_joints(self, msg: JointState) -> None:
+        """The newest measured state; it wakes the tick when it ends a SYNC the path has not stepped for yet
+        (``SyncClock``)."""
         with self.lock:
             self.joint_q = np.asarray(msg.q)
             self.robot_following = msg.enabled
             self.state_lag = msg.drive_lag or 0.0
-        self.joint_state_arrived.set()
+            due = self.clock.arrived(msg.sync)
+        if due:
+            self.joint_state_arrived.set()
 
     def on_trajectory(self, msg: TrajectoryMsg) -> None:
         with self.lock:
@@ -150,6 +160,7 @@ class Scaler:
     def tick(self, now: float) -> None:
         self.cover_drive_lag()
         with self.lock:
+            self.clock.ticked()
             self.take_humans()
             if self.pending is not None:
                 self._take_pending()

@@ -81,7 +81,10 @@ def follow_step(command: np.ndarray, command_velocity: np.ndarray, setpoint: np.
 
     The setpoint moves with the command's own velocity (feed-forward) plus a braking-aware correction of
     what is left between them (at most the rest in one period, never faster than a stop at the drive's
-    acceleration allows, so it lands on a command that stopped instead of overshooting it), then the
+    acceleration allows, so it lands on a command that stopped instead of overshooting it), never so fast
+    that it could not stop where the command would if it braked now at that acceleration (a setpoint left
+    behind a command at the velocity limit, which a drive never makes up, meets it at its stop when it
+    brakes: before, 130 mrad behind, it overshot the stop by 104 mrad and came back towards a person), then the
     velocity is limited to the joint's velocity limit and its change to the drive's acceleration
     (``limits.monitor_acceleration``) and to what still stops before a position limit. A command that is
     itself followable is reproduced exactly: setpoint == command. `clamped`: the setpoint is further than
@@ -131,6 +134,14 @@ def _follow_kernel(command, command_velocity, setpoint, velocity, lower, upper, 
         sign = math.nan if rest != rest else (1.0 if rest > 0.0 else (-1.0 if rest < 0.0 else 0.0))
         correction = sign * _minimum(abs(rest) / period, math.sqrt(2.0 * a[j] * abs(rest)))
         wanted = w + correction
+        # never past where the command stops if it brakes now at the drives' deceleration (plus its period's
+        # travel and a[j] T^2 of slack, which no followable command reaches): a setpoint behind a command that
+        # brakes meets it at its stop instead of overshooting it and coming back
+        step = a[j] * period
+        ahead = target + w * abs(w) / (2.0 * a[j]) + w * period - setpoint[j]
+        forward = math.sqrt(step * step + 2.0 * a[j] * _maximum(ahead + step * period, 0.0)) - step
+        backward = math.sqrt(step * step + 2.0 * a[j] * _maximum(step * period - ahead, 0.0)) - step
+        wanted = _minimum(_maximum(wanted, -backward), forward)
         new_v = _minimum(_maximum(wanted, velocity[j] - a[j] * period), velocity[j] + a[j] * period)
         # still able to stop inside the position limits (this wins over the acceleration limit)
         room_up = math.sqrt(2.0 * a[j] * _maximum(upper[j] - setpoint[j], 0.0))

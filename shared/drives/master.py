@@ -77,6 +77,7 @@ class CanMaster:
         self._since_sync: dict[int, bytes] = {}       # node -> the RPDO1 data sent to it since the last SYNC
         self.on_complete = None            # called (from the CAN thread) once every drive answered a SYNC
         self.completed = False             # set with each complete answer; the cycle clears it
+        self.syncs = 0                     # SYNCs sent so far: the latest one's number
 
     def bring_up(self, timeout: float = 10.0) -> None:
         for k, node in enumerate(self.nodes):
@@ -201,6 +202,7 @@ class CanMaster:
             if sync:
                 with self.lock:         # the answers counted from here are this SYNC's: a drive that missed the
                     self._fresh.clear()     # last one does not complete it with the others' older positions
+                    self.syncs += 1
                 self.network.sync.transmit()
                 self._since_sync = {}
 

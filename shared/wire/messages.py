@@ -34,7 +34,7 @@ DOF = 6
 @dataclass(frozen=True)
 class Spec:
     """How one field travels. kind: 'float', 'int', 'bool', 'str', 'farray', 'barray'.
-    shape: array shape, -1 for the one variable (first) dimension. optional: None allowed (floats)."""
+    shape: array shape, -1 for the one variable (first) dimension. optional: None allowed (floats, ints)."""
 
     kind: str
     shape: tuple[int, ...] = ()
@@ -208,17 +208,22 @@ class JointState(Message):
     """Measured joint state from the driver: position (rad), velocity (rad/s), drive state summary, and
     drive_lag (s): how far behind (or ahead of) their setpoints the joints have run over the last second, the
     worst joint, at least the configured ssm.drive_lag (``DriveLagMeter.covering``), which the scaler's
-    tracking margin covers from the next tick; None from a source that does not measure it."""
+    tracking margin covers from the next tick; sync: the number of the SYNC whose period the state ends (the
+    driver's count since it started), so that the scaler steps its path once per SYNC however the states
+    come (a SYNC one drive did not answer is published late, its next one just after). Both None from a
+    source that does not measure them."""
 
     KIND: ClassVar[str] = "joint_state"
     SPEC: ClassVar[dict[str, Spec]] = {"q": Q, "qd": Q, "drive_state": S, "enabled": B, "fault": B,
-                                       "drive_lag": Spec("float", optional=True, minimum=0.0)}
+                                       "drive_lag": Spec("float", optional=True, minimum=0.0),
+                                       "sync": Spec("int", optional=True, minimum=0)}
     q: np.ndarray
     qd: np.ndarray
     drive_state: str
     enabled: bool
     fault: bool
     drive_lag: float | None = None
+    sync: int | None = None
 
 
 @dataclass(frozen=True)
@@ -332,7 +337,7 @@ def _encode_value(spec: Spec, value):
     if spec.kind == "float":
         return None if value is None else float(value)
     if spec.kind == "int":
-        return int(value)
+        return None if value is None else int(value)
     if spec.kind == "bool":
         return bool(value)
     return str(value)
@@ -434,6 +439,8 @@ def _decode_checked(kind: str, name: str, spec: Spec, raw):
             raise MessageError(f"{where}: {value} is below the minimum {spec.minimum}")
         return value
     if spec.kind == "int":
+        if raw is None and spec.optional:
+            return None
         if isinstance(raw, bool) or not isinstance(raw, int):
             raise MessageError(f"{where}: expected an integer, got {type(raw).__name__}")
         if spec.minimum is not None and raw < spec.minimum:

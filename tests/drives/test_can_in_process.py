@@ -133,7 +133,8 @@ def test_a_drive_that_loses_frames_widens_the_margin_and_no_state_mixes_two_sync
     is where that drive is (before, once node 4 had missed one answer, each later state was completed by
     node 4's answer while joints 3-6 still held the SYNC before's). Every state after a SYNC that a drive
     did not answer says to cover at least a period more than the configured drive lag, and the margin
-    stays wide while the frames go missing."""
+    stays wide while the frames go missing; states come in SYNC order, each naming its SYNC (a SYNC not
+    answered is named twice at most: its late state, then its own answer if that comes)."""
     master, nodes = drives
     shell, driver, answered = enabled_driver(master)
     bound = CellConfig().ssm.drive_lag
@@ -163,3 +164,5 @@ def test_a_drive_that_loses_frames_widens_the_margin_and_no_state_mixes_two_sync
     assert max(s.drive_lag for s in states[-100:]) > bound
     assert len(where) > 100 and all(abs(a - b) < 1e-4 for a, b in where), \
         [(a - b) for a, b in where if abs(a - b) >= 1e-4][:5]
+    syncs = [s.sync for s in states]          # each state names its SYNC: the scaler steps once per SYNC by it
+    assert None not in syncs and syncs == sorted(syncs) and len(set(syncs)) >= len(syncs) - len(missed)

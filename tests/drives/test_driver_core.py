@@ -252,6 +252,31 @@ def test_a_scaler_on_its_own_clock_is_followed_without_clamping():
     assert np.abs(cell.q - Q_GOAL).max() < 1e-3
 
 
+def test_a_setpoint_left_behind_meets_a_braking_command_at_its_stop_without_overshooting():
+    """Joint 1's setpoint 130 mrad behind a command at the velocity limit (a drive never makes that up while
+    the command runs there): when the command brakes at the drives' deceleration to rest, the setpoint brakes
+    later but no harder, and stops where the command stopped, never beyond it and back (before: 104 mrad
+    past the stop, then back at 0.78 rad/s, towards the person the scaler had braked for)."""
+    a, v_max = LIM.monitor_acceleration[0], LIM.velocity[0]
+    q0 = (LIM.lower + LIM.upper) / 2
+    command, w = q0.copy(), np.zeros(6)
+    setpoint, velocity = q0.copy(), np.zeros(6)
+    command[0], w[0] = q0[0] + 0.13, v_max
+    setpoint[0], velocity[0] = q0[0], v_max
+    path, speeds = [], []
+    for k in range(200):
+        if k > 0:                                             # the command: at v_max for 5 periods, then braking
+            w[0] = v_max if k < 5 else max(w[0] - a * T, 0.0)
+            command[0] += w[0] * T if k < 5 else (w[0] + min(w[0] + a * T, v_max)) / 2 * T
+        setpoint, velocity, _ = follow_step(command, w, setpoint, velocity, LIM, T)
+        path.append(setpoint[0])
+        speeds.append(velocity[0])
+    rest = command[0]
+    assert w[0] == 0.0 and max(path) <= rest + 1e-3, (max(path) - rest)
+    assert abs(path[-1] - rest) < 1e-6
+    assert np.abs(np.diff(speeds)).max() <= a * T + 1e-9 and max(speeds) <= v_max + 1e-9
+
+
 def follow_step_reference(command, command_velocity, setpoint, velocity, limits, period):
     """follow_step's definition in numpy, vectorised (what the compiled kernel must reproduce exactly)."""
     lower, upper = limits.lower, limits.upper
@@ -261,7 +286,12 @@ def follow_step_reference(command, command_velocity, setpoint, velocity, limits,
         w = np.clip(np.nan_to_num(command_velocity), -v_max, v_max)
         rest = target - setpoint - w * period
         correction = np.sign(rest) * np.minimum(np.abs(rest) / period, np.sqrt(2.0 * a * np.abs(rest)))
-        new_v = np.clip(w + correction, velocity - a * period, velocity + a * period)
+        step = a * period
+        ahead = target + w * np.abs(w) / (2.0 * a) + w * period - setpoint
+        forward = np.sqrt(step * step + 2.0 * a * np.maximum(ahead + step * period, 0.0)) - step
+        backward = np.sqrt(step * step + 2.0 * a * np.maximum(step * period - ahead, 0.0)) - step
+        wanted = np.clip(w + correction, -backward, forward)
+        new_v = np.clip(wanted, velocity - a * period, velocity + a * period)
         room_up = np.sqrt(2.0 * a * np.maximum(upper - setpoint, 0.0))
         room_down = np.sqrt(2.0 * a * np.maximum(setpoint - lower, 0.0))
         new_v = np.clip(new_v, -np.minimum(v_max, room_down), np.minimum(v_max, room_up))

@@ -140,6 +140,29 @@ def test_the_scaler_widens_its_margin_on_the_next_tick_after_a_joint_state_says_
     assert scaler.layer.ssm is scaler.configured_ssm
 
 
+def test_the_scaler_is_woken_once_per_sync_of_the_drives():
+    """A joint state for a SYNC the path has already stepped for (after a fallback tick stood in for it, or
+    a second answer) wakes no tick; the next SYNC's does. Its position is still taken."""
+    shell, scaler, keys = scaler_at_start()
+
+    def state(sync, q=Q_START):
+        return JointState(q=q, qd=np.zeros(6), drive_state="running:operation_enabled", enabled=True, fault=False,
+                          drive_lag=0.012, sync=sync)
+
+    now = time.monotonic()
+    scaler.joint_state_arrived.clear()
+    shell.deliver(keys.joint_state, state(7))
+    assert scaler.joint_state_arrived.is_set()
+    scaler.joint_state_arrived.clear()
+    scaler.tick(now)                                     # steps for SYNC 7
+    scaler.tick(now + 0.015)                             # the fallback: stands in for SYNC 8
+    shell.deliver(keys.joint_state, state(8, Q_START + 0.001))        # SYNC 8's state, late
+    assert not scaler.joint_state_arrived.is_set()
+    assert np.allclose(scaler.joint_q, Q_START + 0.001)
+    shell.deliver(keys.joint_state, state(9))
+    assert scaler.joint_state_arrived.is_set()
+
+
 def test_a_camera_rate_source_is_stale_after_its_own_bound():
     """A 30 Hz source (HumanState.sample_interval 1/30): 70 ms without a sample is one lost frame, not stale
     data; 90 ms is (2.5 intervals, 83 ms)."""
