@@ -4,7 +4,10 @@ statusword, position, velocity and following error in drive units and the EMCY c
 
 Time: ``position`` is where the joint is at the last SYNC (or watchdog) instant; ``velocity`` is the speed
 it moves at from then on, ``velocity_actual`` the speed of the period that just ended (what an encoder
-difference reports). A SYNC first completes the period that ended, then takes the new setpoint.
+difference reports). A SYNC first completes the period that ended, then takes the new setpoint. A SYNC the
+drive does not receive (a lost frame) ends its period on the drive's own clock all the same, holding the
+last setpoint (``on_missed_sync``); before, the joint stood still for that period and then went on, a stop
+and a restart in an instant that no motor makes.
 
 Interpolated position mode (7), as CiA 402 describes it: in operation enabled with controlword bit 4 set,
 each SYNC takes the latest setpoint (0x60C1:1, 0.001 degree per count) and moves to it over the
@@ -87,6 +90,7 @@ class Drive:
     _outside_window_since: float | None = None
     last_sync: float | None = None
     _moved_at: float | None = None             # the last braking step without SYNC (watchdog)
+    _missed: int = 0                           # periods run on the drive's own clock since the last SYNC received
     fault_code: int = 0
 
     def boot(self, position: float) -> None:
@@ -155,7 +159,7 @@ class Drive:
         codes = self.raise_fault(EMCY_SYNC_TIMEOUT) if self.state in POWERED else []
         if self.state is State.FAULT_REACTION_ACTIVE:
             if self._moved_at is None:            # until the watchdog fired it went on at its speed
-                self.position += self.velocity * (now - self.last_sync)
+                self.position += self.velocity * (now - self.last_sync - self._missed * self.limits.period)
             else:
                 self._brake_for(now - self._moved_at)
             self._moved_at = now
@@ -174,7 +178,7 @@ class Drive:
         """One SYNC: the period that ended is completed (the joint moved at `velocity`), the following error
         is checked, the newest setpoint taken, and the motion of the next period chosen. Returns EMCY codes."""
         watchdog_moved = self._moved_at is not None
-        self.last_sync, self._moved_at = now, None
+        self.last_sync, self._moved_at, self._missed = now, None, 0
         lim = self.limits
         if not watchdog_moved:
             self.position += self.velocity * lim.period
@@ -202,6 +206,22 @@ class Drive:
         if not self.interpolating:
             self._brake()
         return emcy
+
+    def on_missed_sync(self) -> None:
+        """A SYNC that this drive did not receive (a lost frame): its own clock still ends the period (the
+        joint moves on at its velocity: a motor does not stop and restart in an instant), and with no SYNC
+        to take the newest setpoint it holds the last one, within its acceleration limit, as for a missing
+        setpoint; the next SYNC takes the newest. Nothing is reported (the TPDOs answer SYNCs), and the
+        watchdog still counts from the last SYNC received."""
+        if self.last_sync is None or self._moved_at is not None:      # not started, or the watchdog's to move
+            return
+        self._missed += 1
+        self.position += self.velocity * self.limits.period
+        self.velocity_actual = self.velocity
+        if self.interpolating and self.demand is not None:
+            self._plan(self.demand)
+        elif not self.interpolating:
+            self._brake()
 
     def _check_following(self, now: float) -> list[int]:
         """A following error beyond the window for longer than the time-out is a fault (0x8611)."""

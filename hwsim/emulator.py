@@ -10,7 +10,8 @@ runs the SYNC watchdog between SYNCs. The following error window (0x6065, counts
 ms) are read and written over SDO. Every fault is announced by an EMCY with the error register (0x1001)
 set; a frozen node sends the EMCYs of faults it entered while frozen when it is unfrozen. Fault injection
 through SDO writes to 0x2F00 (any time):
-:1 drop that many per mille of the node's frames, :2 heartbeat off, :3 freeze the node (no PDO, no
+:1 drop that many per mille of the node's frames (a SYNC it loses: its drive runs that period on its own clock,
+holding the last setpoint; ``Drive.on_missed_sync``), :2 heartbeat off, :3 freeze the node (no PDO, no
 heartbeat; SDO still answers so it can be unfrozen), :4 raise a drive fault.
 
     python -m hwsim --interface udp_multicast            # only inside a private network namespace
@@ -189,7 +190,10 @@ class EmulatedNode:
             return self._reported().get((index, subindex))
 
     def on_sync(self, now: float) -> None:
-        if self._lost():
+        if self._lost():                  # a SYNC this node did not receive: its drive's own clock goes on
+            if not self.frozen:
+                with self.lock:
+                    self.drive.on_missed_sync()
             return
         with self.lock:
             self._emcy(self.drive.on_sync(now))

@@ -227,3 +227,38 @@ def test_without_sync_the_fault_reaction_brakes_on_the_drives_own_clock():
     p_rest = d.position
     d.on_sync(2.0)                                        # a new master: nothing left to move
     assert d.velocity == 0.0 and d.position == p_rest
+
+
+def test_a_sync_the_drive_does_not_receive_is_a_period_on_its_own_clock_holding_the_last_setpoint():
+    """At 1 rad/s, one SYNC lost: the joint moves on through that period (it does not stop and restart in an
+    instant), then brakes at most a T towards the held setpoint; the next SYNC takes the newest setpoint and
+    the drive is back on the setpoints within a few periods, its velocity never changing faster than its
+    acceleration limit. Six lost in a row are the SYNC time-out, and the position is counted once."""
+    d = enabled_drive()
+    v, a = 1.0, d.limits.acceleration
+    setpoints = trapezoid(2.0, v, 3.0, 60)                           # at 1 rad/s from 0.33 s on
+    positions, velocities = [], []
+    for k in range(1, 61):
+        d.on_setpoint(to_counts(setpoints[k - 1]))
+        if k == 45:
+            before = d.position
+            d.on_missed_sync()
+            assert d.position == pytest.approx(before + d.velocity_actual * T)
+            assert d.position > before + 0.9 * v * T                  # it went on through the lost period
+        else:
+            d.on_sync(k * T)
+        positions.append(d.position)
+        velocities.append(d.velocity_actual)
+    assert np.abs(np.diff(velocities)).max() <= a * T + 2 * (2.0 / COUNTS_PER_RAD / T) + 1e-9
+    assert positions[-1] == pytest.approx(setpoints[-2], abs=2e-5)    # one period behind again
+    assert not d.fault_code
+    d2 = enabled_drive()
+    d2.on_setpoint(0)
+    d2.on_sync(0.0)
+    d2.velocity = 0.5
+    for k in range(1, 7):
+        d2.on_missed_sync()
+    p6, v6 = d2.position, d2.velocity
+    assert p6 > 0.0                                                    # it moved through the six periods
+    assert d2.watchdog(0.065) == [EMCY_SYNC_TIMEOUT]
+    assert d2.position == pytest.approx(p6 + v6 * 0.005)               # the last 5 ms only, not all 65 again
