@@ -75,7 +75,7 @@ class CanMaster:
         self._fresh: set[int] = set()
         self._fresh_error = False          # a following error arrived since following_errors() last asked
         self._since_sync: dict[int, bytes] = {}       # node -> the RPDO1 data sent to it since the last SYNC
-        self.on_complete = None            # called (from the CAN thread) once every drive answered a SYNC
+        self.on_complete = None            # called (from the CAN thread) once every drive answered the latest SYNC
         self.completed = False             # set with each complete answer; the cycle clears it
         self.syncs = 0                     # SYNCs sent so far: the latest one's number
 
