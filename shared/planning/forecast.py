@@ -116,6 +116,28 @@ class DampedVelocity:
                               fading * humans.velocities[None], horizon / self.frames)
 
 
+@dataclass(frozen=True)
+class WalksOrStops:
+    """People who may do one of two things (issue 38, item 6; after Faroni et al., RA-L 2022, time-optimal
+    planning under an uncertain human state): walk on along their tracked velocity (``ConstantVelocity``),
+    with weight walk_weight, or stop where they are now. ``hypotheses`` gives both; the time cost takes the
+    expected time over them (``SsmTimeCost.stretched``); ``forecast`` (what everything else takes: the
+    scaling layer's forward run, the reach along a trajectory) is the walk."""
+
+    walk_weight: float = 0.5
+    drift_speed: float = STANDING_SPEED
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.walk_weight <= 1.0:
+            raise ValueError(f"walk_weight must be within [0, 1], not {self.walk_weight}")
+
+    def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
+        return ConstantVelocity(self.drift_speed).forecast(humans, horizon)
+
+    def hypotheses(self, humans: HumanCapsules, horizon: float) -> list[tuple[float, PeopleForecast]]:
+        return [(self.walk_weight, self.forecast(humans, horizon)), (1.0 - self.walk_weight, PeopleForecast.still(humans))]
+
+
 def load_forecaster(spec: str) -> Forecaster:
     """The forecaster named `spec`, ``package.module:attribute``: an object with ``forecast``, or a class or
     factory called with no arguments that returns one. ValueError saying what is wrong otherwise (the

@@ -198,6 +198,7 @@ class SsmTimeCost:
         self.limits = robot.limits
         self.evaluations = 0
         self._forecasts: tuple[HumanCapsules, float, PeopleForecast] | None = None    # the latest, see forecast
+        self._hypotheses: tuple[HumanCapsules, list[tuple[float, PeopleForecast]]] | None = None
 
     # ------------------------------------------------------------------------------------ sampling
     def segment_time(self, q0: np.ndarray, q1: np.ndarray) -> float:
@@ -236,7 +237,25 @@ class SsmTimeCost:
         self.evaluations += 1
         if humans is None or humans.count == 0 or samples.q.shape[0] == 0:
             return samples.nominal
+        if moving and callable(getattr(self.forecaster, "hypotheses", None)):     # the expected time over them
+            return sum(weight * float(self._walk(samples, humans, stay, moving, ahead)[-1])
+                       for weight, ahead in self.hypotheses(humans)) + samples.overhead
         return float(self._walk(samples, humans, stay, moving)[-1]) + samples.overhead
+
+    def hypotheses(self, humans: HumanCapsules) -> list[tuple[float, PeopleForecast]]:
+        """(weight, forecast) of each thing the people may do, from a forecaster with ``hypotheses(humans,
+        horizon)`` (weights summing to 1; kept for the same HumanCapsules object, as ``forecast``)."""
+        kept = self._hypotheses
+        if kept is not None and kept[0] is humans:
+            return kept[1]
+        made = list(self.forecaster.hypotheses(humans, self.options.extrapolation))
+        total = sum(w for w, _ in made)
+        if not made or not all(w >= 0.0 for w, _ in made) or abs(total - 1.0) > 1e-6:
+            raise ValueError(f"forecast hypotheses need weights >= 0 summing to 1, got {[w for w, _ in made]}")
+        if any(f.frames.shape[1] != humans.count for _, f in made):
+            raise ValueError(f"a forecast hypothesis does not have the tracked people's {humans.count} capsules")
+        self._hypotheses = (humans, made)
+        return made
 
     def forecast(self, humans: HumanCapsules, moving: bool = True) -> PeopleForecast:
         """The forecaster's frames of these people over the options' extrapolation (moving=False: held where
@@ -252,12 +271,14 @@ class SsmTimeCost:
         self._forecasts = (humans, horizon, made)
         return made
 
-    def _walk(self, samples: PathSamples, humans: HumanCapsules, stay: float, moving: bool) -> np.ndarray:
-        """When the robot is predicted to reach the end of each sample (s from the first one's start)."""
+    def _walk(self, samples: PathSamples, humans: HumanCapsules, stay: float, moving: bool,
+              ahead: PeopleForecast | None = None) -> np.ndarray:
+        """When the robot is predicted to reach the end of each sample (s from the first one's start), the
+        people as `ahead` has them (None: the forecaster's forecast)."""
         r = self.robot
         placement, parent, local, joint = r.chain
         ssm, o = self.ssm, self.options
-        ahead = self.forecast(humans, moving)
+        ahead = self.forecast(humans, moving) if ahead is None else ahead
         ends = np.empty(samples.q.shape[0])
         _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
                         placement, parent, local, joint, r.ancestry, r.radii, ahead.frames, ahead.velocities,

@@ -204,6 +204,34 @@ def test_one_forecast_serves_a_search_and_a_wrong_one_is_refused():
         PeopleForecast(NEAR.segments[None], NEAR.velocities, 1.0)
 
 
+def test_people_who_may_walk_on_or_stop_cost_the_expected_time_over_both():
+    """WalksOrStops: the time cost is the weighted mean of the time with the person walking on (the default
+    forecast) and with them stopped where they are; weight 1 is the default forecast's time exactly; bad
+    weights are refused."""
+    from shared.planning.forecast import WalksOrStops
+
+    class Still:
+        def forecast(self, humans, horizon):
+            return PeopleForecast.still(humans)
+
+    walking = COST.trajectory_time(OLD, 0.0, WALKING)
+    stopped = SsmTimeCost(ROBOT, SSM, forecaster=Still()).trajectory_time(OLD, 0.0, WALKING)
+    assert abs(walking - stopped) > 0.05                   # the two hypotheses differ here
+    for weight in (0.0, 0.3, 1.0):
+        cost = SsmTimeCost(ROBOT, SSM, forecaster=WalksOrStops(weight))
+        assert cost.trajectory_time(OLD, 0.0, WALKING) == pytest.approx(weight * walking + (1 - weight) * stopped,
+                                                                         rel=1e-9)
+    with pytest.raises(ValueError, match="walk_weight"):
+        WalksOrStops(1.5)
+
+    class Unweighted(WalksOrStops):
+        def hypotheses(self, humans, horizon):
+            return [(0.7, self.forecast(humans, horizon)), (0.7, PeopleForecast.still(humans))]
+
+    with pytest.raises(ValueError, match="summing to 1"):
+        SsmTimeCost(ROBOT, SSM, forecaster=Unweighted()).trajectory_time(OLD, 0.0, WALKING)
+
+
 def test_reached_is_where_the_bound_lets_a_crawling_robot_get_in_that_time():
     # nobody near: full speed, never past the end
     assert COST.reached(OLD, 0.5, None, 0.3) == pytest.approx(0.8)
