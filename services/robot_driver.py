@@ -124,12 +124,12 @@ class Driver:
     def _report_latency(self) -> None:
         """The chains measured since the last report, and a warning when their p99 exceeds T_r."""
         with self.lag_lock:
-            lag, samples, following_error = self.drive_lag.report()
+            lag, samples, following_error, missed = self.drive_lag.report()
         with self.core_lock:
             stopped_by = self.core.stopped_by
         self._publish(self.drive_lag_pub, DriveLagReport(source="robot_driver", lag=lag, samples=samples,
                                                          following_error=following_error, bound=self.drive_lag.bound,
-                                                         stopped_by=stopped_by))
+                                                         stopped_by=stopped_by, missed=missed))
         with self.lag_lock:
             lag_verdict = self.drive_lag.check()
         if lag_verdict is not None:

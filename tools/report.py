@@ -171,7 +171,8 @@ def tracker_summary(rec: Recording) -> dict:
 
 def drive_summary(rec: Recording) -> dict:
     """The drives as the robot driver reported them: the worst per-joint lag p99 (ms) over the reports, the
-    largest following error (rad), and the drive faults announced (EMCY events)."""
+    largest following error (rad), the SYNCs some drive did not answer in time (all, and the most in one
+    report, about a second), and the drive faults announced (EMCY events)."""
     reports = rec.drive_lag
     lag = np.max([r.lag for r in reports], axis=0) if reports else None
     faults = [e.text for e in rec.events if e.source == "robot_driver" and e.event in ("emcy", "drive_fault")]
@@ -179,6 +180,8 @@ def drive_summary(rec: Recording) -> dict:
             "following_error_max_rad": None if not reports else round(float(max(r.following_error.max()
                                                                                    for r in reports)), 5),
             "drive_lag_bound_ms": None if not reports else round(reports[-1].bound * 1e3, 2),
+            "missed_answers": sum(r.missed for r in reports),
+            "missed_answers_most_in_a_report": max((r.missed for r in reports), default=0),
             "faults": faults}
 
 

@@ -123,6 +123,7 @@ class DriveLagMeter:
         self._lags = [deque(maxlen=window) for _ in range(dof)]
         self._pending_lag = [[] for _ in range(dof)]
         self._pending_error = np.zeros(dof)
+        self._pending_missed = 0
         self.episode = Episode()
 
     def add(self, setpoint: np.ndarray, velocity: np.ndarray, measured: np.ndarray,
@@ -144,6 +145,7 @@ class DriveLagMeter:
         """A SYNC that some drive did not answer: the position published for it is a period (s) older than
         the others' and than its setpoint, on top of the lag it had (at least the bound)."""
         self._recent.append(max(self._recent[-1] if self._recent else 0.0, self.bound) + period)
+        self._pending_missed += 1
 
     def covering(self) -> float:
         """The lag (s) the tracking margin must cover now: the bound, or the worst joint's |lag| of any of
@@ -160,15 +162,17 @@ class DriveLagMeter:
         p99 = self.p99()
         return float(np.nanmax(p99)) if np.any(np.isfinite(p99)) else None
 
-    def report(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Since the last report: per joint lag p99 (s, 0 where not measured), how many lag samples, and
-        the largest |following error| the drives reported (rad)."""
+    def report(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """Since the last report: per joint lag p99 (s, 0 where not measured), how many lag samples, the
+        largest |following error| the drives reported (rad), and how many SYNCs some drive did not answer
+        within its period (``missed``)."""
         count = np.array([len(p) for p in self._pending_lag], dtype=float)
         lag = np.array([np.percentile(p, 99) if p else 0.0 for p in self._pending_lag])
         error = self._pending_error.copy()
+        missed, self._pending_missed = self._pending_missed, 0
         self._pending_lag = [[] for _ in self._pending_lag]
         self._pending_error[:] = 0.0
-        return lag, count, error
+        return lag, count, error, missed
 
     def check(self) -> LatencyCheck | None:
         """A LatencyCheck when the verdict (worst joint's p99 lag > bound, or not) changes, else None."""

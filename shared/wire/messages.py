@@ -283,18 +283,21 @@ class DriveLagReport(Message):
     samples (how many lag measurements), following_error (rad, the largest |0x60F4| the drive reported),
     bound (s, the configured ssm.drive_lag the lag is checked against), and stopped_by: why the driver
     holds the drives stopped ('' while it does not; the stop's own event is sent once, this every second,
-    so `hrc status` can say it at any time)."""
+    so `hrc status` can say it at any time), missed: how many SYNCs some drive did not answer within its
+    period (lost frames, or a bus or host too slow)."""
 
     KIND: ClassVar[str] = "drive_lag"
     SPEC: ClassVar[dict[str, Spec]] = {"source": S, "lag": Q, "samples": Spec("farray", (DOF,), minimum=0.0),
                                        "following_error": Spec("farray", (DOF,), minimum=0.0),
-                                       "bound": Spec("float", minimum=0.0), "stopped_by": S}
+                                       "bound": Spec("float", minimum=0.0), "stopped_by": S,
+                                       "missed": Spec("int", minimum=0)}
     source: str
     lag: np.ndarray
     samples: np.ndarray
     following_error: np.ndarray
     bound: float
     stopped_by: str = ""
+    missed: int = 0
 
 
 @dataclass(frozen=True)

@@ -164,5 +164,7 @@ def test_a_drive_that_loses_frames_widens_the_margin_and_no_state_mixes_two_sync
     assert max(s.drive_lag for s in states[-100:]) > bound
     assert len(where) > 100 and all(abs(a - b) < 1e-4 for a, b in where), \
         [(a - b) for a, b in where if abs(a - b) >= 1e-4][:5]
+    driver._report_latency()                  # and the report counts the SYNCs not answered
+    assert shell.published(shell.keys.drive_lag, DriveLagReport)[-1].missed >= 5
     syncs = [s.sync for s in states]          # each state names its SYNC: the scaler steps once per SYNC by it
     assert None not in syncs and syncs == sorted(syncs) and len(set(syncs)) >= len(syncs) - len(missed)

@@ -76,7 +76,8 @@ def test_drive_lag_meter_measures_the_lag_of_moving_joints_only():
     assert p99[0] == np.float64(p99[0]) and abs(p99[0] - 0.01) < 1e-9 and abs(p99[2] - 0.01) < 1e-9
     assert np.isnan(p99[1]) and np.isnan(p99[3])                  # too slow to say
     assert meter.check() is None                                   # 10 ms is within 12 ms
-    lag, samples, error = meter.report()
+    lag, samples, error, missed = meter.report()
+    assert missed == 0
     assert samples.tolist() == [10, 0, 10, 0, 0, 0] and abs(lag[0] - 0.01) < 1e-9 and lag[1] == 0.0
     assert error[2] == 2e-5
     for k in range(10):                                            # now 30 ms behind
@@ -110,6 +111,7 @@ def test_the_lag_to_cover_rises_with_one_sync_and_is_held():
     assert abs(meter.covering() - 0.022) < 1e-9                       # bound + a period
     meter.missed(0.01)
     assert abs(meter.covering() - 0.032) < 1e-9                       # two in a row: two periods
+    assert meter.report()[3] == 2 and meter.report()[3] == 0          # counted in the report, once
 
 
 @settings(max_examples=60, deadline=None)
