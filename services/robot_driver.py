@@ -111,7 +111,7 @@ class Driver:
             with self.lag_lock:
                 self.drive_lag.add(*self._sent, positions, self.master.following_errors())
         with self.core_lock:
-            out = self.core.cycle(now, feedback)
+            out = self.core.cycle(now, feedback, answered)
         self.master.send(out.controlwords, out.setpoints)
         self._sent = (out.setpoints, out.setpoint_velocity) if out.mode is Mode.RUNNING else None
         self.last_output = out

@@ -106,7 +106,8 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
         "heartbeat_stop": Expectation("stop", hb + 2 * p + brake, f"heartbeat timeout {hb * 1e3:.0f} ms + SYNC and "
                                                                   f"report + braking {brake * 1e3:.0f} ms"),
         "kill_planner": carry_on, "kill_safety_monitor": carry_on,
-        "can_drop": Expectation("any", None, "lost frames: the drive lags or faults; either is safe"),
+        "can_drop": Expectation("any", None, "lost frames: the driver stops for them (frames_lost), or the drive lags "
+                                               "or faults; either is safe"),
         "human_jump": Expectation("slow", config.ssm.reaction_time,
                                   "the scaler takes the nearer person within T_r = "
                                   f"{config.ssm.reaction_time * 1e3:.0f} ms"),

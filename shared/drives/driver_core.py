@@ -11,15 +11,19 @@ plus safety events. States:
   command, however abrupt, gives the drive a setpoint it cannot follow (each clamp is a 'warning' safety
   event, reported once per episode); a stop the scaler commands becomes the fastest stop the drive can make.
 * STOPPED: quick stop on every drive, setpoints held at the actual positions. Entered on a command older
-  than command_timeout, a drive in fault, an EMCY, a heartbeat older than heartbeat_timeout, or a
-  drive leaving operation enabled; each with a 'stop' safety event. Left only on request() of
-  'recover', and only when no drive is in fault, all heartbeats are fresh and no EMCY is pending.
+  than command_timeout, a drive in fault, an EMCY, a heartbeat older than heartbeat_timeout, a drive
+  leaving operation enabled, or frames being lost (MISSED_LIMIT of the last MISSED_WINDOW SYNCs not
+  answered by every drive within their period: a drive that loses frames falls behind its setpoints,
+  overshoots them, and is reported late, beyond what the tracking margin covers); each with a 'stop' safety
+  event. Left only on request() of 'recover', and only when no drive is in fault, all heartbeats are fresh
+  and no EMCY is pending.
 """
 
 from __future__ import annotations
 
 import enum
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numba
@@ -66,6 +70,10 @@ class CycleOutput:
 
 COMMAND_TIMEOUT = 0.05         # s: a command older than this stops the drives
 HEARTBEAT_TIMEOUT = 0.3        # s: a drive's heartbeat older than this stops the drives
+# SYNCs not answered by every drive in their period, of the last MISSED_WINDOW, that stop the drives: frames
+# are being lost. A healthy cell misses 0-3 in a 24 s demo, loaded (docs/measurements.md); a drive that loses
+# a tenth of its frames misses about one SYNC in five.
+MISSED_LIMIT, MISSED_WINDOW = 5, 100
 
 
 EXACT = 1e-9                  # rad: a setpoint this close to the command is the command
@@ -173,6 +181,7 @@ class DriverCore:
         self._clamping = False
         self._recover = False
         self.stop_reason = ""
+        self._answers: deque[bool] = deque(maxlen=MISSED_WINDOW)      # while running: each SYNC answered or not
 
     @property
     def stopped_by(self) -> str:
@@ -219,7 +228,9 @@ class DriverCore:
                 return "drive_fault", f"joint {k + 1}: drive in {st.value}"
         return None
 
-    def cycle(self, now: float, feedback: list[Feedback]) -> CycleOutput:
+    def cycle(self, now: float, feedback: list[Feedback], answered: bool = True) -> CycleOutput:
+        """One SYNC period. answered: every drive answered the last SYNC within its period (the master's
+        word; False: some drive's frames did not come, and `feedback` holds its older ones)."""
         states = [state_from_statusword(fb.statusword) if fb.statusword is not None else State.NOT_READY
                   for fb in feedback]
         actual = np.array([fb.position for fb in feedback])
@@ -232,7 +243,13 @@ class DriverCore:
         if fault is not None and (self.mode is Mode.RUNNING or fault[0] in ("heartbeat_lost", "emcy")):
             events += self._stop(*fault)
         if self.mode is Mode.RUNNING:
-            if now - self._command_time > self.command_timeout:
+            self._answers.append(answered)
+            missed = len(self._answers) - sum(self._answers)
+            if missed >= MISSED_LIMIT:
+                self._answers.clear()
+                events += self._stop("frames_lost", f"{missed} of the last {MISSED_WINDOW} SYNCs not answered by "
+                                                    f"every drive in time: frames are being lost")
+            elif now - self._command_time > self.command_timeout:
                 events += self._stop("stale_command", f"no command for {(now - self._command_time) * 1000:.0f} ms")
             elif any(st is not State.OPERATION_ENABLED for st in states):
                 events += self._stop("drive_disabled", "a drive left operation enabled")

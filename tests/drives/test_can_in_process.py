@@ -18,7 +18,7 @@ from hwsim.emulator import EmulatedNode, build_limits
 from services.robot_driver import Driver
 from shared.config import CellConfig
 from shared.drives.bus import open_bus
-from shared.drives.driver_core import DriverCore, Mode
+from shared.drives.driver_core import MISSED_LIMIT, DriverCore, Mode
 from shared.drives.master import CanMaster
 from shared.drives.prbt import DIAGNOSTIC_EVERY, FAULT_INJECTION, INJECT_DRIVE_FAULT, NODE_IDS, PERIOD
 from shared.robot.model import default_robot
@@ -132,8 +132,8 @@ def test_a_drive_that_loses_frames_widens_the_margin_and_no_state_mixes_two_sync
     joints 2 and 3 move. Every joint state holds the positions of one SYNC: joint 3's, on a healthy drive,
     is where that drive is (before, once node 4 had missed one answer, each later state was completed by
     node 4's answer while joints 3-6 still held the SYNC before's). Every state after a SYNC that a drive
-    did not answer says to cover at least a period more than the configured drive lag, and the margin
-    stays wide while the frames go missing; states come in SYNC order, each naming its SYNC (a SYNC not
+    did not answer says to cover at least a period more than the configured drive lag, until the driver
+    stops the drives for the frames being lost (or the drive faults); states come in SYNC order, each naming its SYNC (a SYNC not
     answered is named twice at most: its late state, then its own answer if that comes)."""
     master, nodes = drives
     shell, driver, answered = enabled_driver(master)
@@ -157,14 +157,16 @@ def test_a_drive_that_loses_frames_widens_the_margin_and_no_state_mixes_two_sync
             missed.append(before)
         answered.wait(0.05)
     states = shell.published(shell.keys.joint_state, JointState)
-    assert driver.core.mode is Mode.RUNNING or nodes[1].drive.fault_code, "the robot neither followed nor faulted"
-    assert len(missed) >= 5, "the injection lost too few answers to say anything"
-    assert all(states[n].drive_lag >= bound + PERIOD - 1e-9 for n in missed)
+    assert len(missed) >= MISSED_LIMIT, "the injection lost too few answers to say anything"
+    stops = [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
+    assert stops and stops[0].event in ("frames_lost", "emcy", "drive_fault"), stops   # frames lost: a stop
+    running = [n for n in missed if states[n - 1].enabled] if missed else []
+    assert all(states[n].drive_lag >= bound + PERIOD - 1e-9 for n in running)
     assert all(s.drive_lag >= bound for s in states)
-    assert max(s.drive_lag for s in states[-100:]) > bound
+    assert max(s.drive_lag for s in states) > bound
     assert len(where) > 100 and all(abs(a - b) < 1e-4 for a, b in where), \
         [(a - b) for a, b in where if abs(a - b) >= 1e-4][:5]
     driver._report_latency()                  # and the report counts the SYNCs not answered
-    assert shell.published(shell.keys.drive_lag, DriveLagReport)[-1].missed >= 5
+    assert sum(r.missed for r in shell.published(shell.keys.drive_lag, DriveLagReport)) >= MISSED_LIMIT
     syncs = [s.sync for s in states]          # each state names its SYNC: the scaler steps once per SYNC by it
     assert None not in syncs and syncs == sorted(syncs) and len(set(syncs)) >= len(syncs) - len(missed)

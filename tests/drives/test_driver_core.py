@@ -123,6 +123,31 @@ def test_faults_stop_all_drives(fault):
     assert all(d.state.value in ("quick_stop_active", "fault", "switch_on_disabled") for d in cell.drives)
 
 
+def test_frames_lost_stop_the_drives_and_a_late_answer_now_and_then_does_not():
+    """Four SYNCs of every hundred not answered in time (a busy host): the drives go on. Five within a
+    hundred: frames are being lost, a stop with its event; a recovery request enables them again."""
+    from shared.drives.driver_core import MISSED_LIMIT, MISSED_WINDOW
+    cell = Cell()
+    enable(cell)
+    for k in range(3 * MISSED_WINDOW):
+        out = cell.core.cycle(cell.t, cell.feedback(), answered=k % (MISSED_WINDOW // (MISSED_LIMIT - 1)) != 0)
+        cell.core.command(cell.q, cell.t)
+        cell.t += T
+        assert out.mode is Mode.RUNNING, k
+    events = []
+    for k in range(MISSED_LIMIT):
+        cell.core.command(cell.q, cell.t)
+        out = cell.core.cycle(cell.t, cell.feedback(), answered=False)
+        events += out.events
+        cell.t += T
+    assert out.mode is Mode.STOPPED and [e.event for e in events] == ["frames_lost"]
+    assert events[0].severity == "stop" and f"{MISSED_LIMIT} of the last {MISSED_WINDOW}" in events[0].text
+    cell.core.request("recover")
+    for _ in range(30):
+        out = cell.step(cell.q)
+    assert out.mode is Mode.RUNNING
+
+
 def test_recovery_only_when_asked_and_safe():
     cell = Cell()
     enable(cell)
