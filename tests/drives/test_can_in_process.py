@@ -133,8 +133,8 @@ def test_a_drive_that_loses_frames_widens_the_margin_and_no_state_mixes_two_sync
     is where that drive is (before, once node 4 had missed one answer, each later state was completed by
     node 4's answer while joints 3-6 still held the SYNC before's). Every state after a SYNC that a drive
     did not answer says to cover at least a period more than the configured drive lag, until the driver
-    stops the drives for the frames being lost (or the drive faults); states come in SYNC order, each naming its SYNC (a SYNC not
-    answered is named twice at most: its late state, then its own answer if that comes)."""
+    stops the drives for the frames being lost (or the drive faults); states come in SYNC order, each naming
+    its SYNC (a SYNC not answered is named twice at most: its late state, then its own answer if that comes)."""
     master, nodes = drives
     shell, driver, answered = enabled_driver(master)
     bound = CellConfig().ssm.drive_lag
