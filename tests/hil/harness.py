@@ -255,7 +255,9 @@ def fast_following(cell: Cell) -> dict:
 
 
 def stale_command(cell: Cell) -> dict:
+    t_start = time.monotonic()
     cell.hold_until(lambda s: False, 0.5)                   # steady, then moving: a ramp on joint 1
+    running_at_start = cell.latest().enabled
     q = cell.latest().q.copy()
     for k in range(50):
         q[0] -= 0.012
@@ -267,8 +269,10 @@ def stale_command(cell: Cell) -> dict:
     with cell.lock:
         moving_after = [t - t_last for t, s in cell.states if t > t_last and np.abs(s.qd).max() > 1e-3]
     stop_time = max(moving_after) if moving_after else 0.0
+    earlier = [e.event for _, e in cell.events_since(t_start) if e.severity == "stop" and e.event != "stale_command"]
     return {"ok": bool(events) and events[0][0] <= 0.1 and stop_time <= 0.6 and not cell.latest().enabled,
-            "event_after_s": events[0][0] if events else None, "standstill_after_s": stop_time}
+            "event_after_s": events[0][0] if events else None, "standstill_after_s": stop_time,
+            "running_at_start": running_at_start, "stops_before": earlier}
 
 
 def _fault_scenario(cell: Cell, node_id: int, sub: int, expect: tuple[str, ...], within: float,
