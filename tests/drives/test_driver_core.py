@@ -130,7 +130,7 @@ def test_frames_lost_stop_the_drives_and_a_late_answer_now_and_then_does_not():
     cell = Cell()
     enable(cell)
     for k in range(3 * MISSED_WINDOW):
-        out = cell.core.cycle(cell.t, cell.feedback(), answered=k % (MISSED_WINDOW // (MISSED_LIMIT - 1)) != 0)
+        out = cell.core.cycle(cell.t, cell.feedback(), answered=k % (MISSED_WINDOW // (MISSED_LIMIT - 1) + 1) != 0)
         cell.core.command(cell.q, cell.t)
         cell.t += T
         assert out.mode is Mode.RUNNING, k

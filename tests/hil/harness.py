@@ -251,7 +251,8 @@ def fast_following(cell: Cell) -> dict:
     return {"ok": bool(lags) and max(lags) <= 2 * PERIOD and max(errors) < 0.01 and not emcy and final < 0.005
             and cell.latest().enabled,
             "lag_p99_ms": [round(x * 1e3, 2) for x in lags], "following_error_max_rad": max(errors, default=None),
-            "emcy": emcy, "final_error_rad": final}
+            "emcy": emcy, "final_error_rad": final,
+            "stops": [e.event for _, e in cell.events_since(t0) if e.severity == "stop"]}
 
 
 def stale_command(cell: Cell) -> dict:
