@@ -268,6 +268,7 @@ class DriverCore:
             if all(st is State.OPERATION_ENABLED for st in states) and self._fresh(now):
                 if np.abs(self._command - actual).max() <= self.start_tolerance:
                     self.mode, self._setpoint = Mode.RUNNING, actual.copy()
+                    self._answers.clear()           # the frames lost are counted while it runs, from now
                     events.append(Event("running", "info", "all drives enabled, following commands"))
         if self.mode is Mode.RUNNING:
             events += self._follow()
