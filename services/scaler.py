@@ -93,6 +93,7 @@ class Scaler:
         self.lag_in = shell.latest(keys.drive_lag, DriveLagReport)
         self.reported_lag = 0.0            # s, the newest report's worst p99
         self.state_lag = 0.0               # s, the newest joint state's drive_lag (0: it gave none)
+        self.covered_lag = 0.0             # s, the lag the layer's margin was last set for (0: as configured)
         shell.subscribe(keys.joint_state, JointState, self.on_joints)
         shell.subscribe(keys.trajectory, TrajectoryMsg, self.on_trajectory)
 
@@ -117,8 +118,11 @@ class Scaler:
         if msg is not None:
             self.reported_lag = float(np.max(msg.lag))
         with self.lock:
-            state_lag = self.state_lag
-        ssm = self.configured_ssm.covering_lag(max(self.reported_lag, state_lag))
+            lag = max(self.reported_lag, self.state_lag)
+        if lag == self.covered_lag:          # as last tick: the margin stands (no new parameters each tick)
+            return
+        self.covered_lag = lag
+        ssm = self.configured_ssm.covering_lag(lag)
         if (ssm is self.configured_ssm) != (self.layer.ssm is self.configured_ssm):
             self.shell.log.warning("tracking margin %.3f m/s for a drive lag of %.1f ms (configured %.1f ms)",
                                    ssm.tracking_margin, ssm.drive_lag * 1e3, self.configured_ssm.drive_lag * 1e3)
