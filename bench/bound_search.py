@@ -1,13 +1,21 @@
-"""Does the oracle bound rise with its own search? (issue 38, item 7; not a test: it prints figures.) A bound on
-what any planning layer could add must not fall when it is allowed to search more: run the oracle strategy
+"""Does a bound rise with its own search? (issue 38, item 7; not a test: it prints figures.) A bound on
+what any planning layer could add must not fall when it is allowed to search more.
+
+--bound oracle (the default): run the oracle strategy
 (``evidence.foresight.oracle_options``: the people's future known, planning free of time) with its search 1, 2,
 4 and 8 times the planning layer's, on the same seeded scenarios, and print per kind the shuttles of each and
 how many scenarios got fewer shuttles with the larger search. Where it falls, the "bound" is not one: its
 choices are ranked by the time cost's prediction, not by what the scaling layer then executes (the
 calibration benchmark, bench/calibration.py, measures that misranking).
 
+--bound clairvoyant: the clairvoyant bound of ``evidence.clairvoyant`` (the best sequence of fixed leg shapes,
+found by running the whole scenario with each) at 2, 4, 8 and 16 shapes, beside scale_only, fixed_path and full on
+the same scenarios: per kind the shuttles of each, the scenarios where a larger search fell (0 by construction:
+a check), the runs it took, the shapes its best sequences use, and the share of the bound's room over
+scale_only that full and fixed_path use ((x - scale_only) / (bound - scale_only)).
+
     python bench/bound_search.py [--seeds 6] [--kinds two_humans,random_walk,paper] [--duration 12] [--paper]
-                                 [--judge cost|scaling]
+                                 [--judge cost|scaling] [--bound oracle|clairvoyant]
 """
 
 from __future__ import annotations
@@ -46,6 +54,47 @@ def one(job: tuple[int, bool, str, str, int, float]) -> tuple[int, str, int, flo
     return times, kind, seed, float(summary["shuttle_progress"]), int(summary["violations"])
 
 
+def clairvoyant_one(job: tuple[bool, str, int, float]) -> dict:
+    """The clairvoyant bound's nested searches and the strategies beside it on one scenario."""
+    paper, kind, seed, duration = job
+    s = strategies(1, paper, "cost")
+    choices, runs = s.clairvoyant(kind, seed, duration)
+    beside = {name: s.run(name, kind, seed, duration).progress for name in ("scale_only", "fixed_path", "full")}
+    return {"kind": kind, "seed": seed, "runs": runs, "beside": beside,
+            "bound": {size: (c.shuttles, c.shapes[:c.legs]) for size, c in choices.items()}}
+
+
+def clairvoyant_report(got: list[dict], kinds: list[str], args) -> dict:
+    from collections import Counter
+
+    from evidence.clairvoyant import SEARCHES, SHAPES
+
+    out = {"bench": "bound_search", "bound": "clairvoyant", "paper_formula": args.paper, "seeds": args.seeds,
+           "duration": args.duration, "searches": list(SEARCHES), "kinds": {}}
+    for kind in kinds:
+        rows = [g for g in got if g["kind"] == kind]
+        totals = {size: sum(r["bound"][size][0] for r in rows) for size in SEARCHES}
+        falls = {f"{a}->{b}": sum(r["bound"][b][0] < r["bound"][a][0] - 1e-9 for r in rows)
+                 for a, b in zip(SEARCHES, SEARCHES[1:])}
+        beside = {name: sum(r["beside"][name] for r in rows) for name in ("scale_only", "fixed_path", "full")}
+        room = totals[max(SEARCHES)] - beside["scale_only"]
+        share = {name: round((beside[name] - beside["scale_only"]) / room, 3) if room > 1e-9 else None
+                 for name in ("fixed_path", "full")}
+        used = Counter(SHAPES[k].name for r in rows for k in r["bound"][max(SEARCHES)][1])
+        runs = [r["runs"] for r in rows]
+        out["kinds"][kind] = {"bound": {str(k): round(v, 3) for k, v in totals.items()}, "fell_in": falls,
+                              "beside": {k: round(v, 3) for k, v in beside.items()}, "share_of_room": share,
+                              "shapes_used": dict(used.most_common()), "runs_median": float(sorted(runs)[len(runs) // 2])}
+        print(f"{kind:<12} shuttles over {len(rows)} scenarios: scale_only {beside['scale_only']:.2f}, fixed_path "
+              f"{beside['fixed_path']:.2f}, full {beside['full']:.2f}; the bound at "
+              + ", ".join(f"{k} shapes {v:.2f}" for k, v in totals.items())
+              + f" (fell in {sum(falls.values())}); of its room over scale_only fixed_path uses "
+              f"{share['fixed_path']}, full {share['full']}; runs per scenario (median) "
+              f"{out['kinds'][kind]['runs_median']:.0f}", flush=True)
+        print(f"{'':<12} the bound's legs: " + ", ".join(f"{n} {c}" for n, c in used.most_common()), flush=True)
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=6)
@@ -57,10 +106,19 @@ def main() -> int:
     parser.add_argument("--judge", choices=("cost", "scaling"), default="cost",
                         help="what the oracle's decisions are predicted by: the time cost, or a forward run of the "
                              "scaling layer against the known future (shared.planning.executed)")
+    parser.add_argument("--bound", choices=("oracle", "clairvoyant"), default="oracle",
+                        help="the oracle (the planning layer told the future) or the clairvoyant sequence of fixed "
+                             "leg shapes (evidence.clairvoyant)")
     args = parser.parse_args()
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     if any(k not in SCENARIO_KINDS for k in kinds) or args.seeds < 1 or not args.duration > 0 or args.workers < 1:
         parser.error(f"--kinds from {sorted(SCENARIO_KINDS)}; --seeds, --workers >= 1; --duration > 0")
+    if args.bound == "clairvoyant":
+        cjobs = [(args.paper, k, s, args.duration) for k in kinds for s in range(args.seed, args.seed + args.seeds)]
+        with ProcessPoolExecutor(args.workers) as pool:
+            got = list(pool.map(clairvoyant_one, cjobs))
+        print(json.dumps(clairvoyant_report(got, kinds, args)))
+        return 0
     jobs = [(t, args.paper, args.judge, k, s, args.duration) for t in SEARCHES for k in kinds
             for s in range(args.seed, args.seed + args.seeds)]
     with ProcessPoolExecutor(args.workers) as pool:

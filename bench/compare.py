@@ -19,11 +19,11 @@ it is used).
 layer told the scripted people's own future instead of its constant-velocity forecast. Its ratios
 "foresight/scale_only" and "full/foresight" and "won_back_foresight" say how much of the room a perfect
 prediction of human motion would use, so what is left beyond it is the planner's search and rules, or
-physics (the people simply in the way). --oracle adds the bound on the planning layer itself
+physics (the people simply in the way). --oracle adds the planning layer at its most
 (evidence.foresight.oracle_options): foresight with a search eight times as large, planning free of time and
-every predicted gain taken; "oracle/scale_only", "full/oracle" and "won_back_oracle" say how much of the
-room any forecast, computer or search of this planning layer could use: what the oracle leaves is the
-people in the way, under the SSM. --forecaster runs full with another forecast of the people (a
+every predicted gain taken; "oracle/scale_only", "full/oracle" and "won_back_oracle". It is a reference, not a
+bound: it ranks its choices by a prediction, and bench/bound_search.py shows it falling as its search grows
+(--clairvoyant below is the bound). --forecaster runs full with another forecast of the people (a
 researcher's predictor, ``shared.planning.forecast.load_forecaster``); the JSON line names it. --paper adds
 scale_only and full under the paper's formula (the measured human speed held: ``deploy/cell-paper.yaml``),
 judged like every run by the shipped model's monitor: "scale_only/scale_only_paper" and "full/full_paper" are
@@ -31,6 +31,10 @@ what the shipped model of a person who may speed up costs, and the *_paper viola
 through. --fixed-path adds the strongest simple baseline (``evidence.fixed_path``): the scaling layer on one fixed
 path, the shuttle with the elbow folded over the middle of the sweep, no planning; "full/fixed_path" says whether
 the planning layer earns its place, "won_back_fixed_path" how much of the room that path alone uses.
+--clairvoyant adds a bound that runs the real scaling layer (``evidence.clairvoyant``): the best sequence of fixed
+leg shapes, one per leg, found with the people's future known by running the whole scenario with each; never below
+scale_only or fixed_path on a scenario, and rising with its search; "full/clairvoyant" and "won_back_clairvoyant"
+say how much of the room these shapes hold the planning layer uses.
 
 Each (scenario, strategy) is one ``evidence.sweep.run_scenario``; they run in chunks on a local process pool,
 or on dask.distributed with --dask [tcp://SCHEDULER:8786] (tools.sweep, docs/sweeps.md), each chunk's records
@@ -40,7 +44,7 @@ every figure is computed from those files.
 
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare] [--dask]
                             [--kinds two_humans,random_walk] [--seed 0] [--foresight] [--oracle]
-                            [--forecaster mypackage.predict:MyForecaster] [--fixed-path]
+                            [--forecaster mypackage.predict:MyForecaster] [--fixed-path] [--clairvoyant]
 
 (--kinds: only these kinds, in turn, seeds counted from --seed: `--scenarios 200 --kinds two_humans` runs
 200 two-person scenarios.)
@@ -145,8 +149,11 @@ def main() -> int:
                         help="also run the scaling layer on one fixed folded path, no planning "
                              "(evidence.fixed_path): the strongest simple baseline the planning layer must beat")
     parser.add_argument("--oracle", action="store_true",
-                        help="also run the oracle (foresight, 8x the search, planning free of time): the bound on "
-                             "the planning layer itself (several times full's run time)")
+                        help="also run the oracle (foresight, 8x the search, planning free of time): a reference "
+                             "for the planning layer at its most, not a bound (several times full's run time)")
+    parser.add_argument("--clairvoyant", action="store_true",
+                        help="also run the clairvoyant bound (evidence.clairvoyant: the best sequence of fixed leg "
+                             "shapes, found by running the whole scenario with each; about a hundred runs a scenario)")
     args = parser.parse_args()
     if args.scenarios < 1 or args.duration <= 0 or args.workers < 1:
         parser.error("--scenarios and --workers must be >= 1, --duration > 0")

@@ -176,14 +176,17 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     if leg_path is None:
         def leg_path(start, goal, version):
             return straight_line_trajectory(start, goal, lim.velocity, lim.acceleration, version=version)
-    first = leg_path(ends[0], ends[1], 0)
+    # with a planning layer the first leg is its plan too, as in the cell (until it comes, the robot stands at
+    # its start: a trajectory of one knot period that stays there); without one, the fixed path's
+    first = leg_path(ends[0], ends[1], 0) if loop is None else \
+        straight_line_trajectory(ends[0], ends[0], lim.velocity, lim.acceleration)
     layer.set_trajectory(first)
     handed = {first.version: first}   # the trajectories handed to the scaling layer, by version (the service's too)
     in_flight = False                 # one was handed since the last step: not reported on yet
     report: ScalerReport | None = None   # what the planning layer reads of the last step (the service: its status)
     q_now = ends[0]                   # where the robot is: the last command (the simulated drives follow exactly)
     held = HoldClock()                # how long the scaling layer has been asking for a replan
-    pending_leg = False               # a shuttle ended: the next one waits for its plan
+    pending_leg = loop is not None    # a shuttle ended (or the run began): the next one waits for its plan
     busy_until = -1.0                 # charge_planning: the planner is computing until then
     waiting: tuple | None = None      # (ready at, PlanningOutcome, compute ms)
 

@@ -11,6 +11,9 @@
 * oracle (a bound too; ``bench/compare.py --oracle``): foresight with a search eight times as large,
   planning free of time and every predicted gain taken (``evidence.foresight.oracle_options``): the most
   this planning layer could add at all, so that what it leaves is the people in the way, under the SSM.
+* clairvoyant (a bound that runs the real scaling layer; ``bench/compare.py --clairvoyant``): the best sequence of
+  fixed leg shapes, one per leg, found by running the whole scenario with each (``evidence.clairvoyant``): never
+  below scale_only or fixed_path on the same scenario, and rising with its search by construction;
 * fixed_path (``bench/compare.py --fixed-path``): the scaling layer on one fixed path chosen once, the shuttle with
   the elbow folded over the middle of the sweep (``evidence.fixed_path``), no planning: the strongest simple
   baseline the planning layer must beat;
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from evidence.clairvoyant import SEARCHES, Choice, EpisodeRuns, LegSequence, ShapedLegs, nested_searches
 from evidence.fixed_path import FixedPath
 from evidence.foresight import ORACLE_SEARCH, Foresight, foresight_options, oracle_options
 from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
@@ -44,7 +48,7 @@ from shared.safety.monitor import SafetyMonitor
 from shared.scaling.layer import ScalingLayer
 
 STRATEGIES = ("zones", "scale_only", "full")
-BOUNDS = ("foresight", "oracle")
+BOUNDS = ("foresight", "oracle", "clairvoyant")
 # the same two layers under the paper's formula (the measured human speed held; ``bench/compare.py --paper``),
 # judged by the shipped model's monitor: what the shipped model costs, and what the formula lets through
 PAPER = ("scale_only_paper", "full_paper")
@@ -83,10 +87,28 @@ class Strategies:
         self.robot_speed = max(fastest_point_speed(self.robot, q[k], dq[k]) for k in range(s.size))
         self.zones = SpeedZones.sized(self.config.ssm, self.robot_speed)
         self.fixed_path = FixedPath(self.collision)
+        self.shaped = ShapedLegs(self.collision)
+        self.usable_shapes = [k for k in range(len(self.shaped.shapes)) if self.shaped.usable(k, (Q_START, Q_GOAL))]
 
     def run(self, strategy: str, kind: str, seed: int, duration: float) -> SimResult:
         """One strategy on one seeded scenario."""
         return self._run(strategy, make_scenario(kind, seed, duration), duration)
+
+    def clairvoyant(self, kind: str, seed: int, duration: float,
+                    sizes: tuple[int, ...] = SEARCHES) -> tuple[dict[int, Choice], int]:
+        """The clairvoyant bound's nested searches on one seeded scenario (``evidence.clairvoyant``): ({number
+        of shapes: the best sequence found}, the runs it took)."""
+        return self._clairvoyant(make_scenario(kind, seed, duration), duration, sizes)
+
+    def _clairvoyant(self, human, duration: float, sizes: tuple[int, ...]) -> tuple[dict[int, Choice], int]:
+        runs = EpisodeRuns(lambda legs: self.shaped_run(human, duration, legs), self.shaped)
+        return nested_searches(runs, self.usable_shapes, sizes), runs.runs
+
+    def shaped_run(self, human, duration: float, legs: LegSequence) -> SimResult:
+        """The scaling layer alone, each leg the shape the sequence names."""
+        layer = ScalingLayer(self.robot, self.config.ssm, self.config.scaling)
+        return run_shuttle(self.robot, self.config, human, Q_START, Q_GOAL, duration, layer=layer,
+                           monitor=self.monitor, leg_path=legs)
 
     def empty_cell(self, duration: float) -> SimResult:
         """The shuttle with nobody in the cell for `duration` s (the scaling layer, at full speed): what the
@@ -109,6 +131,9 @@ class Strategies:
         if strategy == "full":
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
                                charge_planning=CELL_BUDGET, monitor=self.monitor)
+        if strategy == "clairvoyant":           # the largest search's sequence, run once more for its record
+            best = self._clairvoyant(human, duration, SEARCHES)[0][max(SEARCHES)]
+            return self.shaped_run(human, duration, LegSequence(self.shaped, best.shapes))
         if strategy in BOUNDS:
             foreseen = Foresight(human)
             planner = self.foreseeing if strategy == "foresight" else self.oracle

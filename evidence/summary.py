@@ -59,7 +59,8 @@ def aggregate(rows: list[dict], horizon: float) -> dict:
 
 PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"), ("full", "foresight"),
          ("oracle", "scale_only"), ("full", "oracle"), ("scale_only", "scale_only_paper"), ("full", "full_paper"),
-         ("full_paper", "zones"), ("fixed_path", "scale_only"), ("full", "fixed_path"))
+         ("full_paper", "zones"), ("fixed_path", "scale_only"), ("full", "fixed_path"),
+         ("clairvoyant", "scale_only"), ("full", "clairvoyant"))
 
 
 def columns(rows: list[dict]) -> tuple[str, ...]:

@@ -142,7 +142,7 @@ def test_the_foresight_bound_runs_safe_and_repeatably(strategies):
     first.pop("compute_us"), second.pop("compute_us")
     assert first == second and first["violations"] == 0 and first["command_exceedances"] == 0
     with pytest.raises(ValueError, match="foresight"):
-        strategies.run("clairvoyant", "paper", 0, 1.0)
+        strategies.run("psychic", "paper", 0, 1.0)
 
 
 def test_the_oracle_is_foresight_searching_more_and_taking_every_gain():

@@ -1,0 +1,107 @@
+"""The clairvoyant bound (evidence.clairvoyant): its search keeps only what does better, so it never ends below
+a constant shape or a smaller search; its held legs stand still; on a real scenario it runs the scaling layer
+safely, is at least scale_only and fixed_path, and replays to what it reports."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from evidence.clairvoyant import SHAPES, Choice, EpisodeRuns, LegSequence, best_sequence, held, nested_searches
+from evidence.scenarios import make_scenario
+from evidence.strategies import Strategies
+from shared.config import CellConfig
+from shared.core.trajectory import straight_line_trajectory
+
+LEGS = 6
+
+
+def separable(values: np.ndarray):
+    """An evaluate whose shuttles are each leg's value for its shape, summed: the best sequence is known."""
+    def evaluate(shapes: tuple[int, ...]) -> tuple[float, int]:
+        return float(sum(values[leg, shape] for leg, shape in enumerate(shapes[:LEGS]))), LEGS
+    return evaluate
+
+
+def entangled(seed: int):
+    """An evaluate where every sequence's worth is arbitrary (a hash of it): no structure the search could lean on."""
+    def evaluate(shapes: tuple[int, ...]) -> tuple[float, int]:
+        rng = np.random.default_rng([seed, *shapes[:LEGS]])
+        return float(rng.uniform(0.0, 3.0)), LEGS
+    return evaluate
+
+
+def test_on_separable_legs_the_search_finds_each_legs_best_shape():
+    values = np.random.default_rng(0).uniform(0.0, 1.0, size=(LEGS, 5))
+    best = best_sequence(separable(values), range(5), legs=LEGS)
+    assert best.shapes == tuple(int(k) for k in values.argmax(axis=1))
+    assert best.shuttles == pytest.approx(values.max(axis=1).sum())
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_larger_search_never_ends_lower_and_never_below_a_constant_shape(seed):
+    evaluate = entangled(seed)
+    found = nested_searches(evaluate, range(8), sizes=(2, 4, 8), legs=LEGS)
+    assert found[2].shuttles <= found[4].shuttles <= found[8].shuttles
+    for size, choice in found.items():
+        constants = max(evaluate((k,) * LEGS)[0] for k in range(size))
+        assert choice.shuttles >= constants
+        assert evaluate(choice.shapes)[0] == choice.shuttles      # what it reports is what its sequence does
+
+
+def test_a_search_started_from_a_better_choice_keeps_it():
+    evaluate = entangled(1)
+    start = Choice((0,) * LEGS, 10.0, LEGS)        # better than anything the evaluate gives
+    assert best_sequence(evaluate, range(4), start, legs=LEGS) == start
+    with pytest.raises(ValueError):
+        best_sequence(evaluate, [], legs=LEGS)
+
+
+def test_a_held_leg_stands_at_its_start_and_then_drives_the_same_leg():
+    from shared.robot.model import default_robot
+
+    limits = default_robot().limits
+    leg = straight_line_trajectory(np.zeros(6), np.full(6, 0.5), limits.velocity, limits.acceleration)
+    hold = held(leg, 0.25)
+    assert hold.duration == pytest.approx(leg.duration + 0.25)
+    q, dq, _ = hold.sample(np.linspace(0.0, 0.25, 11))
+    assert np.allclose(q, leg.positions[0]) and np.allclose(dq, 0.0)
+    s = np.linspace(0.0, leg.duration, 37)
+    assert np.allclose(hold.sample(s + 0.25)[0], leg.sample(s)[0])
+    assert held(leg, 0.0) is leg
+
+
+@pytest.fixture(scope="module")
+def strategies():
+    return Strategies(CellConfig())
+
+
+def test_on_two_people_the_bound_runs_safe_beats_both_fixed_paths_and_replays(strategies):
+    kind, seed, duration = "two_humans", 301, 8.0
+    choices, runs = strategies.clairvoyant(kind, seed, duration, sizes=(2, 4))
+    straight = strategies.run("scale_only", kind, seed, duration).progress
+    folded = strategies.run("fixed_path", kind, seed, duration).progress
+    assert choices[2].shuttles >= max(straight, folded) - 1e-9      # both are constant sequences of the first two
+    assert choices[4].shuttles >= choices[2].shuttles
+    assert runs >= 4
+    replay = strategies.shaped_run(make_scenario(kind, seed, duration), duration,
+                                    LegSequence(strategies.shaped, choices[4].shapes))
+    assert replay.progress == pytest.approx(choices[4].shuttles)
+    assert replay.violations == 0
+    assert all(0 <= k < len(SHAPES) for k in choices[4].shapes)
+
+
+def test_episode_runs_run_each_sequence_once():
+    made = []
+
+    class Result:
+        progress = 1.5
+
+    def run(legs):
+        made.append(legs.shapes)
+        legs.begun = 3
+        return Result()
+
+    runs = EpisodeRuns(run, legs=None)
+    assert runs((0, 1)) == (1.5, 3) and runs((0, 1)) == (1.5, 3)
+    assert runs.runs == 1 and made == [(0, 1)]
