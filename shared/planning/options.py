@@ -39,7 +39,7 @@ class ReplanOptions:
     gives the same path in any order, see ``Replanner._rng``); search, cost:
     the search's bounds and the time cost's sampling; posture_gap (m): while someone is nearer than this to the
     robot's reach, a new goal's default leg is the folded one (``shared.planning.postures``, which suggests
-    POSTURE_GAP; None, the default: never. Not on by default yet: it changes the paper's story, issue 38);
+    POSTURE_GAP; None, the default: never. Not on by default: see ``PlanningParameters``);
     judge: what a decision's trajectories are predicted by, "cost" (the time cost's model,
     ``shared.planning.time_cost``) or "scaling" (a forward run of the scaling layer itself against the same
     forecast, ``shared.planning.executed``: slower, for a bound or a cell with the budget for it)."""
