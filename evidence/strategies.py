@@ -8,9 +8,9 @@
 * foresight (a bound, not a strategy a cell can run; ``bench/compare.py --foresight``): full, with the
   planning layer told the scripted people's own future instead of its constant-velocity forecast
   (``evidence.foresight``): the most a better prediction of human motion could add to full;
-* oracle (a bound too; ``bench/compare.py --oracle``): foresight with a search eight times as large,
-  planning free of time and every predicted gain taken (``evidence.foresight.oracle_options``): the most
-  this planning layer could add at all, so that what it leaves is the people in the way, under the SSM.
+* oracle (``bench/compare.py --oracle``): foresight with a search eight times as large, planning free of time and
+  every predicted gain taken (``evidence.foresight.oracle_options``): this planning layer at its most. A reference,
+  not a bound: it ranks its choices by a prediction and falls as its search grows (``bench/bound_search.py``);
 * clairvoyant (a bound that runs the real scaling layer; ``bench/compare.py --clairvoyant``): the best sequence of
   fixed leg shapes, one per leg, found by running the whole scenario with each (``evidence.clairvoyant``): never
   below scale_only or fixed_path on the same scenario, and rising with its search by construction;

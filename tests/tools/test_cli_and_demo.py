@@ -87,9 +87,9 @@ def test_the_paper_phases_with_both_layers():
     # (the replan comes while the arm reaches into the path, 12-13.8 s, or once it is there: the scaling layer's stop
     # run ahead sees the arm coming by its tracked velocity and holds the robot from 13.48 s; without it, 14.5 s)
     assert any(12.0 <= t < 18.0 for t, _ in done) and legs_between(result, 13.8, 18.0) >= 1, done
-    # the paper's replan request answered: a beta replan taken while the arm stays (it is, in every one of 15
-    # runs with the phase period 0.5 % longer or shorter and planning charged 0 to 90 ms; the 12 s phases
-    # below need none)
+    # the paper's replan request answered: a beta replan taken while the arm is in the path, phase 3 (it was, in
+    # every one of 15 runs with the phase period 0.5 % longer or shorter and planning charged 0 to 90 ms, measured
+    # before the stop run ahead; the 12 s phases below need none)
     assert any(12.0 <= t < 18.0 and why == "beta" for t, why in done), done
     assert legs_between(result, 19.2, 22.8) >= 1
     def holds_answered(run, start, end):    # every hold below alpha_min from start to end: short, or a beta replan
