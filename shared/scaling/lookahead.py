@@ -39,14 +39,14 @@ def stop_stays_safe(times, positions, velocities, s, sdot, period, acceleration,
     would take more than MAX_STEPS periods. times, positions, velocities: the trajectory's knots; the rest:
     ``motion_alpha_bound``'s."""
     end = times[-1]
+    q, dq, ddq = _hermite_one(times, positions, velocities, s)
     for k in range(1, MAX_STEPS + 1):
-        q, dq, ddq = _hermite_one(times, positions, velocities, s)
         sdot = max(0.0, sdot - path_deceleration(dq, ddq, sdot, acceleration) * period)
         s = min(s + sdot * period, end)
         if sdot <= 0.0 or s >= end:
             return True
+        q, dq, ddq = _hermite_one(times, positions, velocities, s)     # once a period: the check's and the next step's
         if k % every == 0:
-            q, dq, ddq = _hermite_one(times, positions, velocities, s)
             moved = human_seg.copy()            # the people moved on along their tracked velocities meanwhile
             for m in range(human_seg.shape[0]):
                 if human_known[m]:
