@@ -36,8 +36,8 @@ import numpy as np
 
 from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.collision import CollisionModel
-from shared.planning.postures import ELBOW, FOLD, FOLD_SPAN, folded_waypoints
-from shared.planning.timing import TimingError, parameterize
+from shared.planning.postures import ELBOW, FOLD, FOLD_SPAN, FoldedLegs
+from shared.planning.timing import TimingError
 
 SHOULDER, BASE = 1, 0       # joint indices (0-based): the PRBT's shoulder and base
 LEGS = 24                   # legs a sequence names (12 s make at most about 8); later legs repeat the last
@@ -91,36 +91,24 @@ def held(trajectory: Trajectory, wait: float) -> Trajectory:
 
 
 class ShapedLegs:
-    """The legs of each shape between two ends, timed once and kept (TOPP-RA through the shape's waypoints,
-    checked free of the static scene; the straight line gets the exact trapezoid)."""
+    """The legs of each shape between two ends: a folded shape's timed once by the planning layer's own
+    ``FoldedLegs`` (TOPP-RA through its waypoints, checked free of the static scene), the straight line the exact
+    trapezoid, either after its hold (``held``)."""
 
     def __init__(self, collision: CollisionModel, shapes: Sequence[LegShape] = SHAPES) -> None:
         self.collision, self.shapes = collision, tuple(shapes)
-        self._legs: dict[tuple[int, bytes, bytes], Trajectory | TimingError] = {}
+        self._folds = {k: FoldedLegs(collision, shape.offset, shape.span, shape.joint)
+                       for k, shape in enumerate(self.shapes) if shape.offset != 0.0}
 
     def leg(self, shape: int, start: np.ndarray, goal: np.ndarray, version: int) -> Trajectory:
         """Shape number `shape`'s leg from start to goal, numbered `version` (TimingError where it cannot be
         timed)."""
-        start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
-        key = (shape, start.tobytes(), goal.tobytes())
-        if key not in self._legs:
-            self._legs[key] = self._time(self.shapes[shape], start, goal)
-        made = self._legs[key]
-        if isinstance(made, TimingError):
-            raise made
-        return made.with_version(version)
-
-    def _time(self, shape: LegShape, start: np.ndarray, goal: np.ndarray) -> Trajectory | TimingError:
-        limits = self.collision.robot.limits
-        try:
-            if shape.offset == 0.0:
-                leg = straight_line_trajectory(start, goal, limits.velocity, limits.acceleration)
-            else:
-                leg = parameterize(folded_waypoints(start, goal, limits, shape.offset, shape.span, shape.joint),
-                                   limits, collision=self.collision)
-        except TimingError as exc:
-            return exc
-        return held(leg, shape.wait)
+        if shape in self._folds:
+            leg = self._folds[shape].leg(start, goal, version)
+        else:
+            limits = self.collision.robot.limits
+            leg = straight_line_trajectory(start, goal, limits.velocity, limits.acceleration, version=version)
+        return held(leg, self.shapes[shape].wait)
 
     def usable(self, shape: int, ends: Sequence[np.ndarray]) -> bool:
         """Whether the shape's legs can be timed both ways between the two ends."""
@@ -156,11 +144,10 @@ class Choice:
 
 
 def best_sequence(evaluate: Callable[[tuple[int, ...]], tuple[float, int]], candidates: Sequence[int],
-                  start: Choice | None = None, legs: int = LEGS, passes: int = 1) -> Choice:
+                  start: Choice | None = None, legs: int = LEGS) -> Choice:
     """The best sequence of leg shapes from `candidates` found by the module's search. evaluate(shapes) ->
     (shuttles, legs begun) runs a sequence (``legs`` long). start: a smaller search's result to start from;
-    the result is never below it, nor below any constant sequence of the candidates. passes: how many times
-    the legs are gone through (stopping early once a pass changes nothing). Pure given evaluate."""
+    the result is never below it, nor below any constant sequence of the candidates. Pure given evaluate."""
     if not candidates:
         raise ValueError("no candidate shapes")
     best = start
@@ -172,20 +159,16 @@ def best_sequence(evaluate: Callable[[tuple[int, ...]], tuple[float, int]], cand
         if best is None or shuttles > best.shuttles + BETTER:
             best = Choice(shapes, shuttles, begun)
     assert best is not None
-    for _ in range(passes):
-        changed = False
-        leg = 0
-        while leg < min(best.legs, legs):           # the legs the best run begins (it may begin more as it gets faster)
-            for shape in candidates:
-                if shape == best.shapes[leg]:
-                    continue
-                shapes = best.shapes[:leg] + (shape,) + best.shapes[leg + 1:]
-                shuttles, begun = evaluate(shapes)
-                if shuttles > best.shuttles + BETTER:
-                    best, changed = Choice(shapes, shuttles, begun), True
-            leg += 1
-        if not changed:
-            break
+    leg = 0
+    while leg < min(best.legs, legs):               # the legs the best run begins (it may begin more as it gets faster)
+        for shape in candidates:
+            if shape == best.shapes[leg]:
+                continue
+            shapes = best.shapes[:leg] + (shape,) + best.shapes[leg + 1:]
+            shuttles, begun = evaluate(shapes)
+            if shuttles > best.shuttles + BETTER:
+                best = Choice(shapes, shuttles, begun)
+        leg += 1
     return best
 
 
