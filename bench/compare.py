@@ -25,12 +25,13 @@ every predicted gain taken; "oracle/scale_only", "full/oracle" and "won_back_ora
 bound: it ranks its choices by a prediction, and bench/bound_search.py shows it falling as its search grows
 (--clairvoyant below is the bound). --forecaster runs full with another forecast of the people (a
 researcher's predictor, ``shared.planning.forecast.load_forecaster``); the JSON line names it. --paper adds
-scale_only and full under the paper's formula (the measured human speed held: ``deploy/cell-paper.yaml``),
-judged like every run by the shipped model's monitor: "scale_only/scale_only_paper" and "full/full_paper" are
-what the shipped model of a person who may speed up costs, and the *_paper violations what the formula lets
-through. --fixed-path adds the strongest simple baseline (``evidence.fixed_path``): the scaling layer on one fixed
-path, the shuttle with the elbow folded over the middle of the sweep, no planning; "full/fixed_path" says whether
-the planning layer earns its place, "won_back_fixed_path" how much of the room that path alone uses.
+scale_only and full under the paper's formula (the measured human speed held: ``SsmParameters.paper_formula``;
+the planning layer as shipped, so the pair isolates the model of the person), judged like every run by the
+shipped model's monitor: "scale_only/scale_only_paper" and "full/full_paper" are what the shipped model of a
+person who may speed up costs, and the *_paper violations what the formula lets through. --fixed-path adds the
+strongest simple baseline (``evidence.fixed_path``): the scaling layer on one fixed path, the shuttle with the
+elbow folded over the middle of the sweep, no planning; "full/fixed_path" says whether the planning layer earns its
+place, "won_back_fixed_path" how much of the room that path alone uses.
 --clairvoyant adds a bound that runs the real scaling layer (``evidence.clairvoyant``): the best sequence of fixed
 leg shapes, one per leg, found with the people's future known by running the whole scenario with each; never below
 scale_only or fixed_path on a scenario, and rising with its search; "full/clairvoyant" and "won_back_clairvoyant"

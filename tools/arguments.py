@@ -80,8 +80,9 @@ def _add_demo(sub) -> None:
     demo.add_argument("--config", type=Path, default=None, metavar="FILE",
                       help="cell configuration YAML (default: built-in, same as deploy/cell.yaml)")
     demo.add_argument("--paper-formula", action="store_true",
-                      help="the paper's SSM formula (a person's measured speed held over T_r + T_s; "
-                           "deploy/cell-paper.yaml) in place of the shipped model of a person who may speed up")
+                      help="the paper's configuration (deploy/cell-paper.yaml): its SSM formula (a person's measured "
+                           "speed held over T_r + T_s) in place of the shipped model of a person who may speed "
+                           "up, and its planner (no folded posture)")
     demo.add_argument("--scene", type=Path, default=None, metavar="FILE",
                       help="static cell (floor, table, fixtures) for the planner (default deploy/scene.yaml)")
     demo.add_argument("--no-beta", action="store_true",

@@ -38,8 +38,8 @@ class ReplanOptions:
     search's seed (each goal gets its own stream, derived from the seed and the goal, so the same query
     gives the same path in any order, see ``Replanner._rng``); search, cost:
     the search's bounds and the time cost's sampling; posture_gap (m): while someone is nearer than this to the
-    robot's reach, a new goal's default leg is the folded one (``shared.planning.postures``, which suggests
-    POSTURE_GAP; None, the default: never. Not on by default: see ``PlanningParameters``);
+    robot's reach, a new goal's default leg is the folded one (``shared.planning.postures``; None: never; the
+    shipped 2.5 m and why: ``PlanningParameters``);
     judge: what a decision's trajectories are predicted by, "cost" (the time cost's model,
     ``shared.planning.time_cost``) or "scaling" (a forward run of the scaling layer itself against the same
     forecast, ``shared.planning.executed``: slower, for a bound or a cell with the budget for it)."""

@@ -8,10 +8,11 @@ patience (s): how long people in the way are expected to stay before the robot h
 prediction assumes patience + the time already held). min_gain: the fraction of predicted time a replan must
 save, or min_saving (s) where that is less. slow_excess (s): the planning layer asks itself for a replan where
 the rest of the path is predicted to lose more than this to the SSM. posture_gap (m): while someone is
-nearer than this to the robot's reach, a new goal's default leg is the folded one
-(``shared.planning.postures``; None or negative: never, the default). At 2.5 m (anyone who could reach the robot
-within a leg) full is above the fixed path in every walking kind, side by side on 200 scenarios, but the paper's
-phase-3 replan is gone (the fold already clears the arm): docs/measurements.md, "the fold as a new goal's leg".
+nearer than this to the robot's reach, a new goal's default leg is the folded one (``shared.planning.postures``;
+None or negative: never). Shipped at 2.5 m (anyone who could reach the robot within a leg): side by side on the
+same scenarios it is above the straight line in every walking kind and on the paper's own phases under the
+paper's formula, where the folded leg already clears the reaching arm and the paper's phase-3 replan is not
+needed (docs/measurements.md). The paper's planner had no posture: ``deploy/cell-paper.yaml`` sets null.
 judge: what a decision's trajectories are predicted by, "cost" (the time cost's model) or "scaling" (a
 forward run of the scaling layer itself, ``shared.planning.executed``).
 """
@@ -33,7 +34,7 @@ class PlanningParameters:
     min_gain: float = 0.10
     min_saving: float = 0.25
     slow_excess: float = 1.0
-    posture_gap: float | None = None
+    posture_gap: float | None = 2.5
     judge: str = "cost"
 
     def __post_init__(self) -> None:

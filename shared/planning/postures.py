@@ -3,9 +3,9 @@ the middle of the sweep, in parallel with the base's turn. A folded arm keeps ev
 at the table's edge are farther from every link and every link is slower, and the SSM lets the robot go faster;
 with nobody near it costs a little (a longer path). People walking near the cell cannot be forecast seconds ahead
 (``bench/calibration.py``: the cost's choice among candidates is the executed fastest in about half the choices
-where people walk), and the fold pays wherever they turn out to be. With ``ReplanOptions.posture_gap`` set
-(``POSTURE_GAP`` suggested; off by default) it is a new goal's default leg while someone is that near the
-robot's reach (``Replanner.plan_goal``); the search may still find a faster one."""
+where people walk), and the fold pays wherever they turn out to be. It is a new goal's default leg while someone
+is within ``ReplanOptions.posture_gap`` of the robot's reach (``Replanner.plan_goal``; shipped at 2.5 m,
+``PlanningParameters``); the search may still find a faster one."""
 
 from __future__ import annotations
 
@@ -22,8 +22,6 @@ ELBOW = 2                   # joint 3 (0-based index): the PRBT's elbow
 FOLD = 0.8                  # rad: the elbow's fold over the middle of the sweep
 FOLD_SPAN = (0.35, 0.65)    # the fractions of the straight line between which the fold is held
 LEGS_KEPT = 16              # timed folded legs kept (a shuttle needs two)
-POSTURE_GAP = 1.0           # m beyond the robot's reach (``shared.planning.horizon.reach_gap``): a person nearer
-                            # takes the folded leg by default (at 2 m/s they are within reach in half a second)
 
 
 def folded_waypoints(start: np.ndarray, goal: np.ndarray, limits: JointLimits, fold: float = FOLD,

@@ -385,14 +385,15 @@ def test_a_person_blocking_every_way_is_waited_for_and_a_robot_in_reach_is_not_r
 
 
 def test_a_new_goal_takes_the_direct_line_unless_the_searched_path_is_predicted_faster():
-    replanner = Replanner(CM, PLANNER, PAPER_SSM)
+    """The paper's planner (no posture; the shipped folded leg in the direct line's place: below)."""
+    replanner = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(posture_gap=None))
     # nobody near: the exact trapezoid, no search
     assert replanner.plan_goal(Q_START, Q_GOAL, ASIDE, 7).duration == pytest.approx(OLD.duration, abs=1e-9)
     # an arm that blocks every way: the direct line (the scaling layer holds the robot until it moves)
     direct = replanner.plan_goal(Q_START, Q_GOAL, ARM_ACROSS, 5)
     assert direct.version == 5 and np.allclose(direct.sample(1.0)[0], OLD.sample(1.0)[0])
     # a person reaching over the path who stays: the searched way round, predicted faster
-    stays = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=5.0))
+    stays = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=5.0, posture_gap=None))
     chosen = stays.plan_goal(Q_START, Q_GOAL, STANDING, 6)
     assert not np.allclose(chosen.sample(1.0)[0], OLD.sample(1.0)[0])
     assert stays.predicted_time(chosen, 0.0, STANDING) < stays.predicted_time(OLD, 0.0, STANDING)
@@ -454,9 +455,10 @@ def test_a_path_predicted_slow_ahead_of_a_robot_at_speed_is_replanned_by_the_pla
     while they stand in its way. The longer they stand, the longer the prediction has them stay; once the
     rest of the path is predicted more than slow_excess over its nominal time, the planning layer asks
     itself for a replan (on_slow) and takes the merge round them, which is faster against the person as
-    they really stay, too."""
+    they really stay, too. (The paper's planner: the shipped one's folded leg already clears this person.)"""
     phases = paper_phases(6.0)
-    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=1)), PAPER_SSM, options=ReplanOptions(seed=2))
+    replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=1)), PAPER_SSM,
+                          options=ReplanOptions(seed=2, posture_gap=None))
     plan = replanner.plan_goal(Q_GOAL, Q_START, phases.at(19.16), 9)
     standing = phases.at(19.3)
 
@@ -477,19 +479,21 @@ def test_a_path_predicted_slow_ahead_of_a_robot_at_speed_is_replanned_by_the_pla
     assert replanner.on_slow(plan, 0.9, Q_START, ASIDE, speed(0.9), 0.8) is None
 
 
-def test_a_new_goal_takes_the_folded_leg_by_default_while_someone_is_near_when_asked_to():
-    """ReplanOptions.posture_gap (off by default): a new goal's default leg is the folded one
+def test_a_new_goal_takes_the_folded_leg_by_default_while_someone_is_near():
+    """ReplanOptions.posture_gap (2.5 m as shipped): a new goal's default leg is the folded one
     (shared.planning.postures) while someone is that near the robot's reach and it is free of them; nobody
-    near, or the option off, the straight line as before."""
+    near, or the option off (the paper's planner), the straight line as before."""
     from shared.planning.horizon import reach_gap
-    from shared.planning.postures import ELBOW, POSTURE_GAP
+    from shared.planning.postures import ELBOW
 
-    near = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(posture_gap=POSTURE_GAP))
-    assert reach_gap(CM, STANDING) < POSTURE_GAP
+    near = Replanner(CM, PLANNER, PAPER_SSM)
+    assert near.options.posture_gap == 2.5 and reach_gap(CM, STANDING) < 2.5
     leg = near._posture(Q_START, Q_GOAL, STANDING, 5)
     assert leg is not None and leg.version == 5 and np.allclose(leg.positions[[0, -1]], [Q_START, Q_GOAL])
     assert leg.positions[:, ELBOW].max() > Q_START[ELBOW] + 0.5                   # folded on the way
     assert CM.path_free(leg.positions, STANDING, CM.capped_inflation(0.0, leg.positions[[0, -1]], STANDING))
-    far = HumanCapsules.from_arrays([[[-4.0, 0.0, 0.0], [-4.0, 0.0, 1.7]]], [0.2], np.zeros((1, 2, 3)), [True])
+    far = HumanCapsules.from_arrays([[[-5.0, 0.0, 0.0], [-5.0, 0.0, 1.7]]], [0.2], np.zeros((1, 2, 3)), [True])
+    assert reach_gap(CM, far) > 2.5
     assert near._posture(Q_START, Q_GOAL, far, 5) is None                          # nobody near: no posture
-    assert Replanner(CM, PLANNER, PAPER_SSM)._posture(Q_START, Q_GOAL, STANDING, 5) is None     # off by default
+    paper = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(posture_gap=None))
+    assert paper._posture(Q_START, Q_GOAL, STANDING, 5) is None                    # the paper's planner: none

@@ -73,7 +73,10 @@ def test_the_planning_section_reaches_the_planners_options(tmp_path):
     assert (options.patience, options.min_gain, options.posture_gap, options.judge) == (3.0, 0.2, 1.0, "scaling")
     full = Strategies(config).replanner
     assert full.options.patience == 3.0 and full.options.posture_gap == 1.0 and full.executed is not None
-    assert CellConfig().planning.replan_fields()["posture_gap"] is None
+    shipped = load_config(ROOT / "deploy" / "cell.yaml").planning.posture_gap
+    assert CellConfig().planning.replan_fields()["posture_gap"] == 2.5 == shipped
+    paper = load_config(ROOT / "deploy" / "cell-paper.yaml")        # the paper's planner takes no posture
+    assert paper.planning.replan_fields()["posture_gap"] is None and paper.ssm.human_acceleration == 0.0
     path.write_text("planning: {posture_gap: -1}")
     assert load_config(path).planning.replan_fields()["posture_gap"] is None
     assert ReplanOptions().patience == CellConfig().planning.patience      # one default, written once
