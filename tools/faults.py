@@ -40,6 +40,7 @@ from shared.drives import driver_core
 from shared.drives.prbt import EMCY_SYNC_TIMEOUT, FAULT_INJECTION, INJECT_DROP, INJECT_HEARTBEAT_OFF, PERIOD
 from shared.robot.model import RobotModel
 from shared.safety.monitor import SafetyMonitor
+from shared.tracking.tracker import stale_bound
 from shared.transport.zenoh_session import await_liveliness, open_session
 from shared.wire.keys import KeySpace
 from shared.wire.messages import JointState, ScalerStatus
@@ -72,6 +73,9 @@ JUMP = 0.3
 JUMP_FROM = 1.6
 
 
+HUMAN_STOPS = ("kill_tracker_ingest", "tracker_silent", "tracker_nan")    # faults of the human data: a stale-data stop
+
+
 @dataclass(frozen=True)
 class Expectation:
     expect: str              # stop | slow | any
@@ -79,29 +83,44 @@ class Expectation:
     why: str
 
 
+def braking_time(robot: RobotModel) -> float:
+    """s: the longest stop from full speed at the drives' deceleration (the fastest joint's)."""
+    return float(np.max(robot.limits.velocity / robot.limits.monitor_acceleration))
+
+
+def human_stop(config: CellConfig, robot: RobotModel, interval: float = 0.0) -> Expectation:
+    """The stop a human-data fault must cause: the data's stale bound (the cell's rule, ``stale_bound``: the
+    configured 50 ms, or 2.5 of the source's measured sample interval where that is longer, as under load when
+    the feed skips samples), a scaler tick, a SYNC and a report, and the braking."""
+    p, brake = PERIOD, braking_time(robot)
+    human = stale_bound(max(config.scaling.human_timeout, 0.05), interval)
+    source = f" (the source's measured interval {interval * 1e3:.1f} ms)" if human > config.scaling.human_timeout else ""
+    return Expectation("stop", human + 3 * p + brake,
+                       f"human data timeout {human * 1e3:.0f} ms{source} + tick, SYNC and report {3 * p * 1e3:.0f} ms + "
+                       f"braking {brake * 1e3:.0f} ms")
+
+
 def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation]:
-    """What each fault must cause, with its bound stated from the configuration and the drives' timings."""
-    brake = float(np.max(robot.limits.velocity / robot.limits.monitor_acceleration))
+    """What each fault must cause, with its bound stated from the configuration and the drives' timings (a
+    human-data fault's again at its injection, from the source's measured rate: ``human_stop``)."""
+    brake = braking_time(robot)
     # the robot driver's and the emulated drives' own defaults, as the cell runs them (hrc up)
     p, ct, hb = PERIOD, driver_core.COMMAND_TIMEOUT, driver_core.HEARTBEAT_TIMEOUT
     # the drives look when the time-out is due; a wake-up up to a braking step late is allowed
     wd = DriveLimits(lower=0.0, upper=0.0).sync_timeout + WATCHDOG_STEP
-    human = max(config.scaling.human_timeout, 0.05)
     horizon = config.ssm.reaction_time + config.ssm.stopping_time
     # + one SYNC more everywhere the drives keep reporting: a drive reports the position of the SYNC
     # instant, so a standstill reached between two SYNCs is seen at the next one
     command_stop = Expectation("stop", ct + 2 * p + brake, f"command timeout {ct * 1e3:.0f} ms + SYNC and report "
                                                            f"{2 * p * 1e3:.0f} ms + braking from full speed "
                                                            f"{brake * 1e3:.0f} ms")
-    human_stop = Expectation("stop", human + 3 * p + brake,
-                             f"human data timeout {human * 1e3:.0f} ms + tick, SYNC and report {3 * p * 1e3:.0f} ms + "
-                             f"braking {brake * 1e3:.0f} ms")
+    human_data = human_stop(config, robot)
     driver_stop = Expectation("stop", wd + brake, f"drives' SYNC watchdog {wd * 1e3:.0f} ms (timeout and poll) + braking "
                                                   f"{brake * 1e3:.0f} ms")
     carry_on = Expectation("any", None, "not in the chain that stops the robot: the motion stays scaled")
     return {
         "kill_scaler": command_stop, "freeze_scaler": command_stop,
-        "kill_tracker_ingest": human_stop, "tracker_silent": human_stop, "tracker_nan": human_stop,
+        **{name: human_data for name in HUMAN_STOPS},
         "kill_robot_driver": driver_stop, "freeze_robot_driver": driver_stop,
         "heartbeat_stop": Expectation("stop", hb + 2 * p + brake, f"heartbeat timeout {hb * 1e3:.0f} ms + SYNC and "
                                                                   f"report + braking {brake * 1e3:.0f} ms"),
@@ -305,6 +324,12 @@ class Campaign:
             verdict.notes.append(f"{service} was not running under supervisord: nothing injected")
             return verdict
         before = self.recorder.get(ScalerStatus)
+        if name in HUMAN_STOPS:    # the stale bound at the source's rate as the cell measured it in the last 0.1 s
+            now = time.monotonic()
+            with self.recorder.lock:
+                recent = [h.sample_interval for h in self.rec.human_states[-64:] if h.stamp >= now - 0.1]
+            exp = human_stop(self.config, self.robot, max(recent, default=0.0))
+            verdict.bound_s, verdict.bound_why = exp.bound_s, exp.why
         self.shuttle.recovering = False
         t_inject = time.monotonic()
         try:

@@ -116,3 +116,22 @@ def test_a_campaign_with_a_failed_verdict_keeps_its_trace(monkeypatch, tmp_path)
     faults.run_campaign("t/x", "tcp/127.0.0.1:9", "virtual", None, None, default_robot(), ["can_drop"],
                         tmp_path / "bad", say=said.append)
     assert (tmp_path / "bad" / "trace" / "trace.csv").exists() and "trace is in" in said[-1]
+
+
+def test_a_human_data_faults_bound_is_the_cells_stale_bound_at_the_sources_measured_rate():
+    """The scaler stops for stale human data at the cell's own rule (shared.tracking.tracker.stale_bound): 50 ms,
+    or 2.5 of the source's measured sample interval where that is longer (a feed that skips samples under load,
+    a camera), at most 100 ms. The campaign's bound for a human-data fault is stated from the same rule at the
+    interval measured at the injection, not from 50 ms alone (a stop at 344 ms against a 342 ms bound, the
+    scaler's stop 85 ms after the fault, where the tracker measured a longer interval)."""
+    from shared.config import CellConfig
+    from shared.robot.model import default_robot
+    from tools.faults import braking_time, expectations, human_stop
+
+    config, robot = CellConfig(), default_robot()
+    rest = 0.03 + braking_time(robot)                     # tick, SYNC and report, and the braking
+    assert expectations(config, robot)["tracker_silent"].bound_s == pytest.approx(0.05 + rest)
+    assert human_stop(config, robot, 1 / 120).bound_s == pytest.approx(0.05 + rest)
+    at_30_hz = human_stop(config, robot, 1 / 30)
+    assert at_30_hz.bound_s == pytest.approx(2.5 / 30 + rest) and "measured interval 33.3 ms" in at_30_hz.why
+    assert human_stop(config, robot, 0.2).bound_s == pytest.approx(0.1 + rest)      # never past the ceiling
