@@ -110,8 +110,9 @@ class Driver:
         elif self._sent is not None:      # how far the joints are behind what went out with that SYNC
             with self.lag_lock:
                 self.drive_lag.add(*self._sent, positions, self.master.following_errors())
+        judged = self.master.answers_judged()
         with self.core_lock:
-            out = self.core.cycle(now, feedback, answered)
+            out = self.core.cycle(now, feedback, answered, judged)
         self.master.send(out.controlwords, out.setpoints)
         self._sent = (out.setpoints, out.setpoint_velocity) if out.mode is Mode.RUNNING else None
         self.last_output = out

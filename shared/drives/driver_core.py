@@ -229,9 +229,13 @@ class DriverCore:
                 return "drive_fault", f"joint {k + 1}: drive in {st.value}"
         return None
 
-    def cycle(self, now: float, feedback: list[Feedback], answered: bool = True) -> CycleOutput:
-        """One SYNC period. answered: every drive answered the last SYNC within its period (the master's
-        word; False: some drive's frames did not come, and `feedback` holds its older ones)."""
+    def cycle(self, now: float, feedback: list[Feedback], answered: bool = True,
+              judged: list[bool] | None = None) -> CycleOutput:
+        """One SYNC period. answered: every drive's answer to the last SYNC has been read (the master's word;
+        False: some drive's frames did not come, or not yet, and `feedback` holds its older ones). judged: the
+        SYNCs the master has judged since the last cycle by their frames' stamps (``AnswerWindows``: an
+        answer read late is not a lost one), counted for frames being lost in `answered`'s place; None: count
+        `answered`."""
         states = [state_from_statusword(fb.statusword) if fb.statusword is not None else State.NOT_READY
                   for fb in feedback]
         actual = np.array([fb.position for fb in feedback])
@@ -244,7 +248,7 @@ class DriverCore:
         if fault is not None and (self.mode is Mode.RUNNING or fault[0] in ("heartbeat_lost", "emcy")):
             events += self._stop(*fault)
         if self.mode is Mode.RUNNING:
-            self._answers.append(answered)
+            self._answers.extend([answered] if judged is None else judged)
             missed = len(self._answers) - sum(self._answers)
             if missed >= MISSED_LIMIT:
                 self._answers.clear()

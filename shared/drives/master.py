@@ -22,6 +22,7 @@ import canopen
 import numpy as np
 
 from shared.core.errors import HrcError
+from shared.drives.answer_windows import AnswerWindows
 from shared.drives.driver_core import Feedback
 from shared.drives.pdo_layout import PdoLayout, PdoLayoutError
 from shared.drives.prbt import (
@@ -78,6 +79,7 @@ class CanMaster:
         self.on_complete = None            # called (from the CAN thread) once every drive answered the latest SYNC
         self.completed = False             # set with each complete answer; the cycle clears it
         self.syncs = 0                     # SYNCs sent so far: the latest one's number
+        self.windows = AnswerWindows(len(node_ids), PERIOD)   # which SYNC each answer belongs to, by its stamp
 
     def bring_up(self, timeout: float = 10.0) -> None:
         for k, node in enumerate(self.nodes):
@@ -142,7 +144,8 @@ class CanMaster:
                     fb.statusword = int(value)
                 elif index == 0x6064:
                     fb.position = to_rad(int(value))
-                    self._fresh.add(k)
+                    if not self._answered_before(k, getattr(pdo_map, "timestamp", None)):
+                        self._fresh.add(k)
                 elif index == 0x606C:
                     fb.velocity = to_rad(int(value))
                 elif index == 0x60F4:
@@ -155,6 +158,21 @@ class CanMaster:
                 velocities = np.array([f.velocity for f in self.feedback_raw])
         if complete and self.on_complete is not None:
             self.on_complete(positions, velocities)
+
+    def _answered_before(self, k: int, stamp: float | None) -> bool:
+        """Node k's position answer, stamped `stamp`, answers a SYNC before the latest one (it was read late):
+        counted for its own SYNC (``AnswerWindows``), never towards the latest one's state. Called with the lock."""
+        if not self.windows.usable:
+            return False
+        number = self.windows.answer(k, stamp)
+        return number is not None and number < self.syncs
+
+    def answers_judged(self) -> list[bool] | None:
+        """The SYNCs judged since the last call, in order: True where every drive's answer reached the machine
+        within its period, however late it was read (``AnswerWindows``); None where the interface's stamps do
+        not fit the SYNCs' clock (then only whether the answers had been read by the next SYNC can say)."""
+        with self.lock:
+            return self.windows.take() if self.windows.usable else None
 
     def _on_heartbeat(self, k: int) -> None:
         with self.lock:
@@ -203,6 +221,7 @@ class CanMaster:
                 with self.lock:         # the answers counted from here are this SYNC's: a drive that missed the
                     self._fresh.clear()     # last one does not complete it with the others' older positions
                     self.syncs += 1
+                    self.windows.sync(self.syncs, time.time())     # its window opens before it goes out
                 self.network.sync.transmit()
                 self._since_sync = {}
 

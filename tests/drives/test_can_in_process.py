@@ -20,6 +20,7 @@ from shared.config import CellConfig
 from shared.drives.bus import open_bus
 from shared.drives.driver_core import MISSED_LIMIT, DriverCore, Mode
 from shared.drives.master import CanMaster
+from shared.drives.pdo_layout import PdoLayout
 from shared.drives.prbt import DIAGNOSTIC_EVERY, FAULT_INJECTION, INJECT_DRIVE_FAULT, NODE_IDS, PERIOD
 from shared.robot.model import default_robot
 from shared.safety.latency import DriveLagMeter, LatencyMeter
@@ -170,3 +171,50 @@ def test_a_drive_that_loses_frames_widens_the_margin_and_no_state_mixes_two_sync
     assert sum(r.missed for r in shell.published(shell.keys.drive_lag, DriveLagReport)) >= MISSED_LIMIT
     syncs = [s.sync for s in states]          # each state names its SYNC: the scaler steps once per SYNC by it
     assert None not in syncs and syncs == sorted(syncs) and len(set(syncs)) >= len(syncs) - len(missed)
+
+
+def test_answers_read_late_by_a_starved_receive_thread_are_not_frames_lost(drives):
+    """The driver's receive thread reads every other SYNC's answers only after the next SYNC has gone out (a
+    loaded machine, a cold start), for 60 SYNCs: by whether the answers had been read in time, 30 were missed
+    and the driver stopped the drives for frames being lost; by the frames' own stamps (AnswerWindows) every
+    SYNC was answered in its period, the drives keep running, and no late answer completes the next SYNC's
+    state (each state's joint 3 is where that drive was at one SYNC)."""
+    master, nodes = drives
+    shell, driver, answered = enabled_driver(master)
+    held, starving = [], threading.Event()        # while starving, the frames wait unread
+    on_tpdo = master._on_tpdo
+
+    def receive(k, layout, pdo_map):              # the frame as it came (its data and stamp), read now or later
+        frame = type("Frame", (), {"data": bytes(pdo_map.data), "timestamp": pdo_map.timestamp})()
+        if starving.is_set():
+            held.append((k, layout, frame))
+        else:
+            on_tpdo(k, layout, frame)
+    for k, node in enumerate(master.nodes):
+        for n in (1, 2, 3):
+            node.tpdo[n].callbacks.clear()
+            layout = PdoLayout.of(node.tpdo[n])
+            node.tpdo[n].add_callback(lambda m, k=k, layout=layout: receive(k, layout, m))
+    where = []
+    publish = driver.publish_state
+    master.on_complete = lambda q, qd: (where.append((q[2], nodes[2].drive.position)), publish(q, qd), answered.set())
+    master.answers_judged()                       # what was judged while enabling
+    judged, take = [], master.answers_judged
+    master.answers_judged = lambda: (lambda got: (judged.extend(got or []), got)[1])(take())   # as the core saw it
+    starving.set()
+    start = time.monotonic()
+    for k in range(60):
+        time.sleep(max(0.0, start + k * PERIOD - time.monotonic()))           # SYNC every period, as the cell's
+        shell.deliver(shell.keys.command, JointCommand(q=Q_START, qd=np.zeros(6), trajectory_version=1, s=0.0,
+                                                       stamp=time.monotonic()))
+        answered.clear()
+        driver.cycle(time.monotonic())
+        time.sleep(0.004)                          # the drives answer at once; the starved thread reads later
+        if k % 2 == 1:                             # every frame read at last, in the order they came: the
+            late, held[:] = list(held), []         # last SYNC's answers after this one went out
+            for call in late:
+                on_tpdo(*call)
+    stops = [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
+    assert not stops and driver.core.mode is Mode.RUNNING, stops
+    assert len(judged) >= 50 and all(judged), [k for k, ok in enumerate(judged) if not ok]
+    assert where and all(abs(a - b) < 1e-4 for a, b in where)
