@@ -48,9 +48,10 @@ class AnswerWindows:
         if not self._sent:
             self._judged_to = number - 1
         self._sent.append((number, wall))
-        closed_by = wall - JUDGE_AFTER * self.period
+        closed_by = wall - JUDGE_AFTER * self.period       # a window closes when the next SYNC is sent
         last = None
-        for (n, _), (_, closed) in zip(self._sent, list(self._sent)[1:]):
+        for k in range(max(0, self._judged_to + 1 - self._sent[0][0]), len(self._sent) - 1):   # the unjudged ones
+            n, closed = self._sent[k][0], self._sent[k + 1][1]
             if closed > closed_by:
                 break
             last = n
