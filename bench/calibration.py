@@ -8,7 +8,14 @@ error (predicted / executed - 1: its median, the median and p95 of its size), an
 predicted fastest is the one executed fastest (a cost that misranks shows there), with what choosing by the
 cost loses against choosing by the execution.
 
+Two sources of error are apart here: the cost's timeline (how the robot's motion under the scaling layer is
+modelled: ramps, corners, alpha's limits, waiting) and the forecast of the people. ``--truth`` predicts with the
+scripted people's own future (``evidence.foresight.Foresight``, nobody assumed to stay or go): what is left is the
+timeline's error alone. ``--judge scaling`` predicts by a forward run of the product's scaling layer against the
+forecast (``ReplanOptions.judge``) instead of the cost's kernel.
+
     python bench/calibration.py [--seeds 20] [--kinds two_humans,random_walk] [--seed 0] [--moments 3] [--stay inf]
+                                [--truth] [--judge cost|scaling]
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -24,12 +32,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from evidence.fixed_path import FixedPath  # noqa: E402
+from evidence.foresight import Foresight, foresight_options  # noqa: E402
 from evidence.scenarios import Q_GOAL, Q_START, SCENARIO_KINDS, make_scenario  # noqa: E402
 from shared.config import CellConfig  # noqa: E402
 from shared.core.trajectory import Trajectory, straight_line_trajectory  # noqa: E402
 from shared.planning.collision import CollisionModel  # noqa: E402
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions  # noqa: E402
-from shared.planning.replanner import Replanner  # noqa: E402
+from shared.planning.replanner import Replanner, ReplanOptions  # noqa: E402
 from shared.planning.scene import DEFAULT_SCENE, load_scene  # noqa: E402
 from shared.robot.model import default_robot  # noqa: E402
 from shared.scaling.layer import ScalingInputs, ScalingLayer, StepStatus  # noqa: E402
@@ -56,23 +65,38 @@ def main() -> int:
     parser.add_argument("--moments", type=int, default=3, help="moments per scenario a leg starts at")
     parser.add_argument("--stay", type=float, default=None,
                         help="s the prediction has the people stay (default: the planner's patience; inf: for good)")
+    parser.add_argument("--truth", action="store_true",
+                        help="predict with the people's own future (the timeline's error alone, no forecast's)")
+    parser.add_argument("--judge", choices=("cost", "scaling"), default="cost",
+                        help="what predicts: the time cost's kernel, or a forward run of the scaling layer")
     args = parser.parse_args()
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     unknown = [k for k in kinds if k not in SCENARIO_KINDS]
     if unknown or not kinds or args.seeds < 1 or args.moments < 1:
         parser.error(f"--kinds: unknown {unknown}; known: {', '.join(sorted(SCENARIO_KINDS))}; "
                      "--seeds and --moments >= 1")
+    if args.truth and args.stay is not None:
+        parser.error("--truth knows when the people go: it takes no --stay")
     robot, config = default_robot(), CellConfig()
     collision = CollisionModel(robot, load_scene(DEFAULT_SCENE), config.ssm.min_separation)
-    replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm)
+    options = replace(ReplanOptions(**config.planning.replan_fields()), judge=args.judge)
+    if args.truth:       # the future over the longest leg counted (after its horizon a forecast holds its last frame)
+        options = foresight_options(options)
+        options = replace(options, cost=replace(options.cost, extrapolation=LONGEST))
+    if args.stay is not None:
+        options = replace(options, patience=args.stay)
+    replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm, options=options,
+                          scaling=config.scaling)
     fixed = FixedPath(collision)
-    stay = replanner.stay(0.0) if args.stay is None else args.stay
+    stay = replanner.stay(0.0)
     lim = robot.limits
     summary = {}
     for kind in kinds:
         errors, ranked, loss = [], [], []
         for seed in range(args.seed, args.seed + args.seeds):
             human = make_scenario(kind, seed, 12.0 + LONGEST)
+            if args.truth:
+                human = replanner.cost.forecaster = Foresight(human)
             for t0 in np.linspace(0.0, 10.0, args.moments):
                 for a, b in ((Q_START, Q_GOAL), (Q_GOAL, Q_START)):
                     people = human.at(float(t0))
@@ -83,7 +107,7 @@ def main() -> int:
                         legs["searched"] = replanner.plan_fresh(a, b, people, 0)
                     except Exception as exc:          # noqa: BLE001 (a search may find nothing: said, not fatal)
                         print(f"{kind} {seed} t={t0:.1f}: no search ({type(exc).__name__})", file=sys.stderr)
-                    predicted = {n: replanner.cost.trajectory_time(t, 0.0, people, stay) for n, t in legs.items()}
+                    predicted = {n: replanner.predicted_time(t, 0.0, people) for n, t in legs.items()}
                     done = {n: executed(robot, config, t, human, float(t0)) for n, t in legs.items()}
                     errors += [predicted[n] / done[n] - 1.0 for n in legs if done[n] < LONGEST]
                     chosen, best = min(predicted, key=predicted.get), min(done, key=done.get)
@@ -104,7 +128,7 @@ def main() -> int:
               f"the cost's choice the executed fastest in "
               f"{100 * s['ranked_right']:.0f} %, {s['loss_by_the_cost_s']:.3f} s lost a leg on average", flush=True)
     print(json.dumps({"bench": "calibration", "seeds": args.seeds, "moments": args.moments, "stay_s": stay,
-                      "kinds": summary}))
+                      "truth": args.truth, "judge": args.judge, "kinds": summary}))
     return 0
 
 

@@ -538,7 +538,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                            meta={"bench": "sweep", "code": sweep.code_version(Path(__file__).resolve().parents[1])})
     points = per_point(sweep.read_records(args.out), SsmParameters().horizon)
     for p in points:
-        where = ", ".join(f"{k}={v:g}" for k, v in sorted(p["point"].items()))
+        where = grids.point_label(sorted(p["point"].items()))
         figures = "  ".join(f"{s} {p['strategies'][s]['shuttles_per_min']:.2f}/min (viol {p['strategies'][s]['violations']})"
                             for s in grid.strategies if s in p["strategies"])
         pairs = "  ".join(f"{pair} {r.describe().split(' (')[0]}" for pair, r in p["ratios"].items()

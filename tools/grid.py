@@ -17,14 +17,14 @@ class Grid:
     """A sweep: every combination of the values in `values` (dotted configuration keys), each with every
     strategy on the same `scenarios` seeded scenarios (kinds in turn, seeds from `seed`, `duration` s)."""
 
-    values: dict[str, list[float]]
+    values: dict[str, list[float | str]]
     strategies: list[str]
     kinds: list[str]
     scenarios: int
     duration: float
     seed: int = 0
 
-    def points(self) -> list[tuple[tuple[str, float], ...]]:
+    def points(self) -> list[tuple[tuple[str, float | str], ...]]:
         import itertools
 
         keys = sorted(self.values)
@@ -41,16 +41,27 @@ class GridError(HrcError, ValueError):
     """A sweep's grid is not usable (a bad key, value, strategy or kind), with what is wrong."""
 
 
-def parse_values(text: str) -> tuple[str, list[float]]:
-    """``ssm.reaction_time=0.1,0.15,0.2`` -> ("ssm.reaction_time", [0.1, 0.15, 0.2])."""
-    key, sep, values = text.partition("=")
-    if not sep or not key.strip() or not values.strip():
-        raise GridError(f"--set {text!r}: expected KEY=V1,V2,... (e.g. ssm.reaction_time=0.1,0.15)")
+def _value(text: str) -> float | str:
+    """A number where the text is one, else the word itself (a choice: ``planning.judge=cost,scaling``)."""
     try:
-        numbers = [float(v) for v in values.split(",")]
+        return float(text)
     except ValueError:
-        raise GridError(f"--set {text!r}: the values must be numbers") from None
-    return key.strip(), numbers
+        return text
+
+
+def point_label(items) -> str:
+    """``key=value, ...`` of a grid point's (key, value) pairs: numbers as %g, words as they are."""
+    return ", ".join(f"{k}={v:g}" if not isinstance(v, str) else f"{k}={v}" for k, v in items)
+
+
+def parse_values(text: str) -> tuple[str, list[float | str]]:
+    """``ssm.reaction_time=0.1,0.15,0.2`` -> ("ssm.reaction_time", [0.1, 0.15, 0.2]); words stay words
+    (``planning.judge=cost,scaling``); whether a key takes them, ``check_grid`` says."""
+    key, sep, values = text.partition("=")
+    words = [v.strip() for v in values.split(",")]
+    if not sep or not key.strip() or not all(words):
+        raise GridError(f"--set {text!r}: expected KEY=V1,V2,... (e.g. ssm.reaction_time=0.1,0.15)")
+    return key.strip(), [_value(v) for v in words]
 
 
 def load_grid(path: Path) -> dict:
@@ -66,7 +77,7 @@ def load_grid(path: Path) -> dict:
         raise GridError(f"{path}: expected a mapping with some of {sorted(known)}")
     values = doc.get("set") or {}
     if not isinstance(values, dict) or not all(isinstance(v, list) and v for v in values.values()):
-        raise GridError(f"{path}: set: expected a mapping of keys to non-empty lists of numbers")
+        raise GridError(f"{path}: set: expected a mapping of keys to non-empty lists of numbers or words")
     return doc
 
 
@@ -89,8 +100,10 @@ def check_grid(grid: Grid) -> None:
     if grid.scenarios < 1 or not (grid.duration > 0 and math.isfinite(grid.duration)):
         raise GridError("scenarios must be >= 1 and duration a positive number of seconds")
     for key, values in grid.values.items():
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-            raise GridError(f"{key}: the values must be numbers, got {values}")
+        if not all(isinstance(v, (int, float, str)) and not isinstance(v, bool) for v in values):
+            raise GridError(f"{key}: the values must be numbers or words, got {values}")
+        if len({type(v) is str for v in values}) > 1:
+            raise GridError(f"{key}: the values must be all numbers or all words, got {values}")
     for point in grid.points():
         try:
             config_of(point)
@@ -114,7 +127,7 @@ def plot_sweep(points: list[dict], grid: Grid, out: Path) -> list[Path]:
                 line = sorted((p["point"][key], p["strategies"][strategy]["shuttles_per_min"]) for p in points
                               if tuple((k, v) for k, v in sorted(p["point"].items()) if k != key) == rest
                               and strategy in p["strategies"])
-                label = strategy + ("" if not rest else " (" + ", ".join(f"{k}={v:g}" for k, v in rest) + ")")
+                label = strategy + ("" if not rest else f" ({point_label(rest)})")
                 ax.plot([x for x, _ in line], [y for _, y in line], "o-", label=label)
         ax.set_xlabel(key)
         ax.set_ylabel("shuttles per minute")

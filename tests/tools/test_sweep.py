@@ -71,9 +71,17 @@ def test_the_grid_is_every_combination_and_bad_grids_are_refused():
         with pytest.raises(grids.GridError, match=what):
             grids.check_grid(grids.Grid(**{**grid.__dict__, **bad}))
     assert grids.parse_values("ssm.reaction_time=0.1,0.15") == ("ssm.reaction_time", [0.1, 0.15])
-    for text in ("ssm.reaction_time", "=1", "ssm.reaction_time=fast"):
+    assert grids.parse_values("planning.judge=cost, scaling") == ("planning.judge", ["cost", "scaling"])
+    for text in ("ssm.reaction_time", "=1", "ssm.reaction_time=0.1,"):
         with pytest.raises(grids.GridError):
             grids.parse_values(text)
+    # a choice is swept by its words; a number's key refuses a word, a choice an unknown word, and a key
+    # refuses numbers and words mixed
+    grids.check_grid(grids.Grid(**{**grid.__dict__, "values": {"planning.judge": ["cost", "scaling"]}}))
+    for values, what in (({"ssm.reaction_time": ["fast"]}, "reaction_time"), ({"planning.judge": ["oracle"]}, "judge"),
+                         ({"ssm.reaction_time": [0.1, "fast"]}, "all numbers or all words")):
+        with pytest.raises(grids.GridError, match=what):
+            grids.check_grid(grids.Grid(**{**grid.__dict__, "values": values}))
 
 
 def test_a_grid_file_is_read_and_a_broken_one_refused(tmp_path):
