@@ -125,7 +125,7 @@ def main() -> int:
         errors_said = (f"error median {s['error_median']:+.3f}, |error| median {s['abs_error_median']:.3f} p95 "
                        f"{s['abs_error_p95']:.3f}" if s["finished"] else f"no leg finished within {LONGEST:.0f} s")
         print(f"{kind:<12} {s['legs']} choices, {s['finished']} legs finished: {errors_said}; "
-              f"the cost's choice the executed fastest in "
+              f"the predicted fastest the executed fastest in "
               f"{100 * s['ranked_right']:.0f} %, {s['loss_by_the_cost_s']:.3f} s lost a leg on average", flush=True)
     print(json.dumps({"bench": "calibration", "seeds": args.seeds, "moments": args.moments, "stay_s": stay,
                       "truth": args.truth, "judge": args.judge, "kinds": summary}))

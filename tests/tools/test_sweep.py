@@ -2,6 +2,7 @@
 that keeps a folder to one sweep, progress lines, a chunk retried and then reported (tools.sweep with an
 in-process stand-in for the pool is in tests/cell/test_sweep.py, with the real pool and Dask)."""
 
+import csv
 import io
 import math
 
@@ -136,3 +137,20 @@ def test_hrc_sweep_refuses_bad_grids_with_a_message_and_exit_2(tmp_path):
         done = run_hrc("sweep", "--out", str(tmp_path / "out"), *args)
         assert done.returncode == 2 and says in done.stderr, (args, done.stderr)
     assert not (tmp_path / "out" / "records").exists()                     # nothing ran
+
+
+def test_hrc_sweep_sweeps_a_choice_by_its_words(tmp_path):
+    """A word-valued key (the planning layer's judge) runs, is printed and written as its word, and plotted."""
+    from tests.util import run_hrc
+
+    assert grids.point_label([("planning.judge", "scaling"), ("ssm.reaction_time", 0.1)]) == \
+        "planning.judge=scaling, ssm.reaction_time=0.1"
+    out = tmp_path / "out"
+    done = run_hrc("sweep", "--set", "planning.judge=cost,scaling", "--strategies", "scale_only", "--kinds", "standing",
+                   "--scenarios", "1", "--duration", "0.5", "--workers", "1", "--out", str(out))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "planning.judge=cost:" in done.stdout and "planning.judge=scaling:" in done.stdout, done.stdout
+    with open(out / "sweep.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["planning.judge"] for r in rows] == ["cost", "scaling"]
+    assert (out / "sweep-planning.judge.png").stat().st_size > 0
