@@ -67,7 +67,7 @@ class Strategies:
         self.robot = default_robot()
         self.monitor = SafetyMonitor(self.robot, self.config.ssm)
         self.collision = CollisionModel(self.robot, scene or Scene(floor_z=0.0), self.config.ssm.min_separation)
-        # the planning layer as the cell configures it (the planning section: patience, gains, posture, judge)
+        # the planning layer as the cell configures it (its planning section: patience, gains, posture, judge, horizon)
         options = ReplanOptions(**self.config.planning.replan_fields())
         self.replanner = Replanner(self.collision, JointPlanner(self.collision, PlannerOptions(seed=planner_seed)),
                                    self.config.ssm, options=options, forecaster=forecaster, scaling=self.config.scaling)

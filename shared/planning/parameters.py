@@ -14,7 +14,10 @@ same scenarios it is above the straight line in every walking kind and on the pa
 paper's formula, where the folded leg already clears the reaching arm and the paper's phase-3 replan is not
 needed (docs/measurements.md). The paper's planner had no posture: ``deploy/cell-paper.yaml`` sets null.
 judge: what a decision's trajectories are predicted by, "cost" (the time cost's model) or "scaling" (a
-forward run of the scaling layer itself, ``shared.planning.executed``).
+forward run of the scaling layer itself, ``shared.planning.executed``). forecast_horizon (s): how far ahead the
+planning layer's forecast moves the tracked people on along their velocities, then holds them (the time cost's
+``extrapolation``; 0: held where they are now). 2 s shipped: swept from 1 to 6 s, with the patience, it trades
+the two-person scenarios against the random walk by about 1 % either way (docs/measurements.md, 2026-12-03).
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ class PlanningParameters:
     slow_excess: float = 1.0
     posture_gap: float | None = 2.5
     judge: str = "cost"
+    forecast_horizon: float = 2.0
 
     def __post_init__(self) -> None:
         check_numbers(self, "planning", skip=("posture_gap", "judge"), non_negative=True)
@@ -51,7 +55,11 @@ class PlanningParameters:
         return None if self.posture_gap is None or self.posture_gap < 0 else float(self.posture_gap)
 
     def replan_fields(self) -> dict:
-        """These values as ``ReplanOptions`` fields (``dataclasses.replace(options, **fields)``)."""
+        """These values as ``ReplanOptions`` fields (``dataclasses.replace(options, **fields)``); the forecast's
+        horizon as the time cost's options (imported here: reading a configuration loads nothing compiled)."""
+        from shared.planning.time_cost import TimeCostOptions
+
         return {"patience": float(self.patience), "min_gain": float(self.min_gain),
                 "min_saving": float(self.min_saving), "slow_excess": float(self.slow_excess),
-                "posture_gap": self.folds, "judge": self.judge}
+                "posture_gap": self.folds, "judge": self.judge,
+                "cost": TimeCostOptions(extrapolation=float(self.forecast_horizon))}

@@ -39,6 +39,7 @@ import numpy as np
 from shared.core.humans import STANDING_SPEED, HumanCapsules
 from shared.core.trajectory import Trajectory
 from shared.planning.forecast import ConstantVelocity, Forecaster, PeopleForecast
+from shared.planning.parameters import PlanningParameters
 from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import _pair_ssm_kernel
@@ -61,7 +62,7 @@ class TimeCostOptions:
     spacing: float = 0.05
     trajectory_step: float = 0.05
     alpha_floor: float = 0.02
-    extrapolation: float = 2.0
+    extrapolation: float = PlanningParameters.forecast_horizon
     wait_step: float = 0.1
     drift_speed: float = STANDING_SPEED
 

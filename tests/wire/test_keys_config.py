@@ -46,6 +46,7 @@ def test_the_shipped_config_is_the_built_in_default():
     ("planning: {posture_gap: .inf}", "planning.posture_gap"),
     ("planning: {posture_gap: near}", "planning.posture_gap"),
     ("planning: {judge: oracle}", "planning.judge"),
+    ("planning: {forecast_horizon: -2}", "planning.forecast_horizon"),
     ("planning: {search: 3}", "unknown key"),
     ("mystery: {}", "unknown section"),
     ("ssm: [1, 2]", "ssm: expected a mapping"),
@@ -67,12 +68,14 @@ def test_the_planning_section_reaches_the_planners_options(tmp_path):
     from shared.planning.options import ReplanOptions
 
     path = tmp_path / "cell.yaml"
-    path.write_text("planning: {patience: 3.0, min_gain: 0.2, posture_gap: 1.0, judge: scaling}")
+    path.write_text("planning: {patience: 3.0, min_gain: 0.2, posture_gap: 1.0, judge: scaling, forecast_horizon: 3.5}")
     config = load_config(path)
     options = ReplanOptions(**config.planning.replan_fields())
     assert (options.patience, options.min_gain, options.posture_gap, options.judge) == (3.0, 0.2, 1.0, "scaling")
+    assert options.cost.extrapolation == 3.5 and options.cost.spacing == ReplanOptions().cost.spacing
     full = Strategies(config).replanner
     assert full.options.patience == 3.0 and full.options.posture_gap == 1.0 and full.executed is not None
+    assert full.cost.options.extrapolation == 3.5                  # the time cost forecasts that far
     shipped = load_config(ROOT / "deploy" / "cell.yaml").planning.posture_gap
     assert CellConfig().planning.replan_fields()["posture_gap"] == 2.5 == shipped
     paper = load_config(ROOT / "deploy" / "cell-paper.yaml")        # the paper's planner takes no posture
@@ -80,6 +83,7 @@ def test_the_planning_section_reaches_the_planners_options(tmp_path):
     path.write_text("planning: {posture_gap: -1}")
     assert load_config(path).planning.replan_fields()["posture_gap"] is None
     assert ReplanOptions().patience == CellConfig().planning.patience      # one default, written once
+    assert ReplanOptions().cost.extrapolation == CellConfig().planning.forecast_horizon
 
 
 def test_missing_file_is_a_config_error(tmp_path):
