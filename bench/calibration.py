@@ -15,7 +15,7 @@ timeline's error alone. ``--judge scaling`` predicts by a forward run of the pro
 forecast (``ReplanOptions.judge``) instead of the cost's kernel.
 
     python bench/calibration.py [--seeds 20] [--kinds two_humans,random_walk] [--seed 0] [--moments 3] [--stay inf]
-                                [--truth] [--judge cost|scaling]
+                                [--truth] [--judge cost|scaling] [--worst 5]
 """
 
 from __future__ import annotations
@@ -69,12 +69,14 @@ def main() -> int:
                         help="predict with the people's own future (the timeline's error alone, no forecast's)")
     parser.add_argument("--judge", choices=("cost", "scaling"), default="cost",
                         help="what predicts: the time cost's kernel, or a forward run of the scaling layer")
+    parser.add_argument("--worst", type=int, default=0, metavar="N",
+                        help="also print the N legs predicted worst of each kind (where to look in the cost)")
     args = parser.parse_args()
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     unknown = [k for k in kinds if k not in SCENARIO_KINDS]
-    if unknown or not kinds or args.seeds < 1 or args.moments < 1:
+    if unknown or not kinds or args.seeds < 1 or args.moments < 1 or args.worst < 0:
         parser.error(f"--kinds: unknown {unknown}; known: {', '.join(sorted(SCENARIO_KINDS))}; "
-                     "--seeds and --moments >= 1")
+                     "--seeds and --moments >= 1, --worst >= 0")
     if args.truth and args.stay is not None:
         parser.error("--truth knows when the people go: it takes no --stay")
     robot, config = default_robot(), CellConfig()
@@ -92,7 +94,7 @@ def main() -> int:
     lim = robot.limits
     summary = {}
     for kind in kinds:
-        errors, ranked, loss = [], [], []
+        errors, ranked, loss, legs_said = [], [], [], []
         for seed in range(args.seed, args.seed + args.seeds):
             human = make_scenario(kind, seed, 12.0 + LONGEST)
             if args.truth:
@@ -110,6 +112,8 @@ def main() -> int:
                     predicted = {n: replanner.predicted_time(t, 0.0, people) for n, t in legs.items()}
                     done = {n: executed(robot, config, t, human, float(t0)) for n, t in legs.items()}
                     errors += [predicted[n] / done[n] - 1.0 for n in legs if done[n] < LONGEST]
+                    legs_said += [(predicted[n] / done[n] - 1.0, seed, float(t0), "out" if a is Q_START else "back", n,
+                                   predicted[n], done[n]) for n in legs if done[n] < LONGEST]
                     chosen, best = min(predicted, key=predicted.get), min(done, key=done.get)
                     ranked.append(chosen == best)
                     loss.append(done[chosen] - done[best])
@@ -127,6 +131,9 @@ def main() -> int:
         print(f"{kind:<12} {s['legs']} choices, {s['finished']} legs finished: {errors_said}; "
               f"the predicted fastest the executed fastest in "
               f"{100 * s['ranked_right']:.0f} %, {s['loss_by_the_cost_s']:.3f} s lost a leg on average", flush=True)
+        for err, seed, t0, way, name, said, took in sorted(legs_said, key=lambda r: -abs(r[0]))[:args.worst]:
+            print(f"  worst: seed {seed} from {t0:.1f} s, the leg {way}, {name}: predicted {said:.2f} s, "
+                  f"executed {took:.2f} s ({err:+.3f})", flush=True)
     print(json.dumps({"bench": "calibration", "seeds": args.seeds, "moments": args.moments, "stay_s": stay,
                       "truth": args.truth, "judge": args.judge, "kinds": summary}))
     return 0
