@@ -94,7 +94,7 @@ def main() -> int:
     lim = robot.limits
     summary = {}
     for kind in kinds:
-        errors, ranked, loss, legs_said = [], [], [], []
+        ranked, loss, legs_said = [], [], []
         for seed in range(args.seed, args.seed + args.seeds):
             human = make_scenario(kind, seed, 12.0 + LONGEST)
             if args.truth:
@@ -111,13 +111,12 @@ def main() -> int:
                         print(f"{kind} {seed} t={t0:.1f}: no search ({type(exc).__name__})", file=sys.stderr)
                     predicted = {n: replanner.predicted_time(t, 0.0, people) for n, t in legs.items()}
                     done = {n: executed(robot, config, t, human, float(t0)) for n, t in legs.items()}
-                    errors += [predicted[n] / done[n] - 1.0 for n in legs if done[n] < LONGEST]
                     legs_said += [(predicted[n] / done[n] - 1.0, seed, float(t0), "out" if a is Q_START else "back", n,
                                    predicted[n], done[n]) for n in legs if done[n] < LONGEST]
                     chosen, best = min(predicted, key=predicted.get), min(done, key=done.get)
                     ranked.append(chosen == best)
                     loss.append(done[chosen] - done[best])
-        e = np.asarray(errors)
+        e = np.asarray([said[0] for said in legs_said])       # the finished legs' errors
         figure = (lambda f: round(float(f), 3)) if e.size else (lambda f: None)    # no leg finished: no error
         summary[kind] = {"legs": len(ranked), "finished": int(e.size),
                          "error_median": figure(np.median(e) if e.size else 0),

@@ -55,8 +55,10 @@ class PlanningParameters:
         return None if self.posture_gap is None or self.posture_gap < 0 else float(self.posture_gap)
 
     def replan_fields(self) -> dict:
-        """These values as ``ReplanOptions`` fields (``dataclasses.replace(options, **fields)``); the forecast's
-        horizon as the time cost's options (imported here: reading a configuration loads nothing compiled)."""
+        """These values as ``ReplanOptions`` fields (``ReplanOptions(**fields)``). The forecast's horizon comes as
+        ``cost``, the time cost's default options with that extrapolation, so ``dataclasses.replace`` onto options
+        whose cost differs otherwise resets the rest of it (imported here: reading a configuration loads nothing
+        compiled)."""
         from shared.planning.time_cost import TimeCostOptions
 
         return {"patience": float(self.patience), "min_gain": float(self.min_gain),

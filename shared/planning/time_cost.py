@@ -53,8 +53,7 @@ class TimeCostOptions:
     sample is charged with; extrapolation (s): how far people are moved on along their tracked velocities
     (``planning.forecast_horizon``; 2 s: a person crossing the cell at walking speed is predicted to leave
     the robot's reach, and is waited for rather than gone round. Against 1 s, full / scale_only on 48 seeded
-    scenarios per kind:
-    crossing 0.998x -> 1.000x, random walk 0.987x -> 0.991x, two people 1.0018x -> 1.0015x, the paper
+    scenarios per kind: crossing 0.998x -> 1.000x, random walk 0.987x -> 0.991x, two people 1.0018x -> 1.0015x, the paper
     unchanged; on 16 others: crossing 0.995x -> 0.999x, random walk 0.975x -> 0.996x, standing 3.154x ->
     3.160x); wait_step (s): how long the prediction waits at a slow sample before it looks again at the
     people moved on; drift_speed (m/s): in the default forecast (``ConstantVelocity``), a capsule whose ends
