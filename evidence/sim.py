@@ -134,7 +134,8 @@ class CommandJudge:
         margin = float("inf")
         if humans is not None:
             points, velocities = self.robot.capsule_motion(step.q_command, step.qd_command)
-            check = pair_ssm(points, self.robot.radii, velocities, humans, self.ssm)
+            check = pair_ssm(points, self.robot.radii, velocities, humans, self.ssm,
+                             self.ssm.stop_of(step.qd_command, self.robot.limits.velocity))
             margin = float(check.margin.min()) if check.margin.size else margin
         braking = step.method.endswith("+braking")
         result.braking_cycles += braking

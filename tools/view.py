@@ -85,7 +85,7 @@ def closest_pair(robot: RobotModel, q: np.ndarray, qd: np.ndarray, humans_segmen
     humans = HumanCapsules(np.asarray(humans_segments, float), np.asarray(humans_radii, float),
                            np.asarray(velocities, float), np.asarray(known, bool))
     points, velocities = robot.capsule_motion(q, qd)
-    pairs = pair_ssm(points, robot.radii, velocities, humans, ssm)
+    pairs = pair_ssm(points, robot.radii, velocities, humans, ssm, ssm.stop_of(qd, robot.limits.velocity))
     i, j = np.unravel_index(int(np.argmin(np.maximum(pairs.limit, 0.0) - pairs.robot_speed)), pairs.limit.shape)
     dist = capsule_pair_distances(points[i:i + 1], robot.radii[i:i + 1], humans.segments[j:j + 1],
                                   humans.radii[j:j + 1])

@@ -6,7 +6,9 @@ margin, is zero or negative: there a robot link may not approach that person at 
 
     d0 = v_h (T_s + T_r) + C + Z_d + Z_r + a_max T_s^2 / 2 + tracking_margin (T_s + T_r)
 
-(0.32 m for a person standing still with the default parameters). The scaling layer bounds how fast a link
+at the T_s of a robot that barely moves (``SsmParameters.min_stopping_time``: a link that approaches at all
+may do so where a creeping robot may), the person's part by the cell's human model (0.32 m for a person
+standing still under the paper's formula). The scaling layer bounds how fast a link
 closes the distance to a capsule (the end-point speed it limits bounds the closest points' speed), so
 while that person stays, the separation of a link from them cannot shrink below d0 or, where it already is
 below, below what it is now. A goal at which some link would be closer to a person than both d0 and its
@@ -59,8 +61,9 @@ def goal_block(robot: RobotModel, ssm: SsmParameters, q_now: np.ndarray, q_goal:
     staying = HumanCapsules(humans.segments, humans.radii, np.zeros_like(humans.velocities), humans.velocity_known)
     goal = pair_ssm(robot.capsule_segments(np.asarray(q_goal, dtype=float)), robot.radii, still, staying, ssm)
     now = pair_ssm(robot.capsule_segments(np.asarray(q_now, dtype=float)), robot.radii, still, staying, ssm)
-    no_approach = human_distance(goal.human_speed, ssm, goal.distance) + ssm.fixed_distance \
-        + ssm.tracking_margin * ssm.horizon
+    stop = ssm.min_stopping_time
+    no_approach = human_distance(goal.human_speed, ssm, goal.distance, stop) + ssm.fixed_distance_at(stop) \
+        + ssm.tracking_margin * (ssm.reaction_time + stop)
     blocked = (goal.distance < no_approach) & (goal.distance < now.distance - TOLERANCE)
     if not blocked.any():
         return None

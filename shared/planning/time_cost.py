@@ -42,8 +42,8 @@ from shared.planning.forecast import ConstantVelocity, Forecaster, PeopleForecas
 from shared.planning.parameters import PlanningParameters
 from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
-from shared.safety.ssm import _pair_ssm_kernel
-from shared.scaling.problem import pairs_alpha_bound
+from shared.safety.ssm import _pair_ssm_kernel, speed_alpha_bound
+from shared.scaling.problem import speed_fraction
 
 
 @dataclass(frozen=True)
@@ -68,9 +68,9 @@ class TimeCostOptions:
 
 
 @numba.njit(cache=True)
-def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, radii, frames, frame_vel, frame_step,
-                    human_rad, human_known, horizon, fixed, near_d, v_near, v_far, a_h, margin, extrapolation, stay,
-                    floor, wait_step, ends):
+def _stretched_time(qs, dqs, dts, velocity_limit, placement, parent, local, joint, ancestry, radii, frames, frame_vel,
+                    frame_step, human_rad, human_known, horizon, fixed, near_d, v_near, v_far, a_h, stop_full, stop_min,
+                    reaction, a_stop, static, margin, extrapolation, stay, floor, wait_step, ends):
     """Sum of dts[k] / alpha_k along the samples, the people where the forecast has them by the time
     already predicted (frames (F, M, 2, 3) every frame_step s, linear in between, the last held; and, in
     ends[k], the sum up to the end of sample k: when the robot is predicted to get there); from `stay` on
@@ -88,6 +88,7 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
             ends[k] = total
             continue
         points, vel = chain_points_and_velocities(qs[k], dqs[k], placement, parent, local, joint, ancestry)
+        fraction = speed_fraction(dqs[k], velocity_limit)
         left = 1.0                 # the fraction of this sample still to travel
         while left > 0.0:
             if total >= stay:      # the people have left: the rest at full speed
@@ -102,10 +103,11 @@ def _stretched_time(qs, dqs, dts, placement, parent, local, joint, ancestry, rad
                 for e in range(2):
                     for c in range(3):
                         moved[j, e, c] = frames[i, j, e, c] + frac * (frames[nxt, j, e, c] - frames[i, j, e, c])
-            _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
-                                                        vel.reshape(n_links, 2, 3), moved, human_rad, frame_vel[i],
-                                                        human_known, horizon, fixed, near_d, v_near, v_far, a_h)
-            alpha = pairs_alpha_bound(robot_speed, limit - margin)
+            dist, robot_speed, human_speed, limit = _pair_ssm_kernel(
+                points.reshape(n_links, 2, 3), radii, vel.reshape(n_links, 2, 3), moved, human_rad, frame_vel[i],
+                human_known, horizon, fixed, near_d, v_near, v_far, a_h)
+            alpha = speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full, stop_min, reaction,
+                                      a_stop, static, near_d, v_near, v_far, a_h, margin)
             if alpha <= 0.0 and stay < np.inf:
                 # inside a person's no-approach distance, approaching: the robot does not pass here while
                 # they stay (the floor would charge 50 samples' time for a wait that has no end)
@@ -282,9 +284,10 @@ class SsmTimeCost:
         ahead = self.forecast(humans, moving) if ahead is None else ahead
         ends = np.empty(samples.q.shape[0])
         _stretched_time(np.ascontiguousarray(samples.q), np.ascontiguousarray(samples.dq), samples.dt,
-                        placement, parent, local, joint, r.ancestry, r.radii, ahead.frames, ahead.velocities,
-                        ahead.step, humans.radii, humans.velocity_known, *ssm.kernel_constants,
-                        ssm.tracking_margin, ahead.horizon, float(stay), o.alpha_floor, o.wait_step, ends)
+                        r.limits.velocity, placement, parent, local, joint, r.ancestry, r.radii, ahead.frames,
+                        ahead.velocities, ahead.step, humans.radii, humans.velocity_known, *ssm.kernel_constants,
+                        *ssm.stop_constants, ssm.tracking_margin, ahead.horizon, float(stay), o.alpha_floor,
+                        o.wait_step, ends)
         return ends
 
     def reached(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None, seconds: float,

@@ -90,6 +90,13 @@ class SafetyMonitor:
                           for cap in robot.capsules]
         self._radii = np.array([cap.radius for cap in robot.capsules], dtype=float)
 
+    def stopping_times(self, qds: np.ndarray) -> np.ndarray:
+        """T_s (s) of each measured joint velocity (N, 6): stopping_time x the fastest joint's share of its
+        velocity limit, at least min_stopping_time (``SsmParameters.stop_at``); the limit of a state is the
+        formula at its own T_s."""
+        fraction = np.max(np.abs(np.asarray(qds, dtype=float)) / self.robot.limits.velocity, axis=-1)
+        return np.maximum(self.ssm.min_stopping_time, self.ssm.stopping_time * fraction)
+
     def check_batch(self, qs: np.ndarray, qds: np.ndarray,
                     humans: list[HumanCapsules | None]) -> list[MonitorResult]:
         """check() for many measured states (N, 6), each against its own human state, vectorised: states
@@ -116,6 +123,7 @@ class SafetyMonitor:
         if humans is None or humans.count == 0:
             return result
         q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+        stop = float(self.stopping_times(qd[None, :])[0])
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
         human_shapes = []
@@ -148,7 +156,7 @@ class SafetyMonitor:
                     v_h = max(0.0, float(-(n @ v_h_point))) if norm > 1e-9 else float(np.linalg.norm(v_h_point))
                 else:
                     v_h = float(default_human_speed(d, self.ssm))
-                limit = float(velocity_limit(d, v_h, self.ssm))
+                limit = float(velocity_limit(d, v_h, self.ssm, stop))
                 margin = max(limit, 0.0) - approach
                 result.min_separation = min(result.min_separation, float(d))
                 if margin < result.min_margin:
@@ -252,7 +260,8 @@ def _batch(monitor: "SafetyMonitor", qs: np.ndarray, qds: np.ndarray,
                                           np.stack([h.segments for h in people]), np.stack([h.radii for h in people]),
                                           np.stack([h.velocities for h in people]))
     known = np.stack([h.velocity_known for h in people])[:, None, :]
-    limit = velocity_limit(d, np.where(known, tracked, default_human_speed(d, monitor.ssm)), monitor.ssm)
+    stop = np.broadcast_to(monitor.stopping_times(qds)[:, None, None], d.shape)
+    limit = velocity_limit(d, np.where(known, tracked, default_human_speed(d, monitor.ssm)), monitor.ssm, stop)
     margin = np.maximum(limit, 0.0) - approach
     speeding = margin < -monitor.tolerance
     too_close = (d < monitor.ssm.min_separation - monitor.tolerance) & (approach > monitor.tolerance)

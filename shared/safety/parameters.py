@@ -23,6 +23,16 @@ class SsmParameters:
       speed limit at its 5 m/s^2 deceleration limit takes 0.20 s (also the controller's Stop-1 trajectory
       duration, stop_trajectory_duration = 0.2 s); a joint stop from 1.57 rad/s at the 6 rad/s^2 the
       controller tolerates takes 0.26 s. The larger, rounded up, so the drives can really stop within it.
+    min_stopping_time = 0.05 s: the stopping time of a robot that barely moves. ISO/TS 15066's T_s is the
+      robot's stopping time, which depends on its speed (ISO 10218-1 Annex B: stopping time and distance at
+      33, 66 and 100 % of speed): the scaling layer brakes at the drives' limit along the path (6 rad/s^2 on
+      the leading joint, ``ScalingLayer.braking_floor``), so a stop takes the fastest joint's speed over
+      6 rad/s^2. T_s of a state is therefore stopping_time x the fastest joint's fraction of its velocity
+      limit (0.30 s at 1.57 rad/s holds the 0.26 s with the same 15 % on top), never below this floor (five
+      control periods: the stop's discretisation to whole periods and the command's way to the drives,
+      which T_r also covers). ``stop_at``; the SSM limit of a state is the formula at its own T_s, and the
+      human's part is their travel over T_r + that T_s: a person may stand closer to a robot that creeps
+      than to one at full speed. Set it to stopping_time for the fixed T_s of the paper (``paper_formula``).
     stopping_deceleration a_max = 5.0 m/s^2: the PRBT's Cartesian deceleration limit (cartesian_limits.yaml).
     intrusion_distance C = 0.0 m: the human is modelled by capsules that enclose the tracked segments,
       hands included, so nothing reaches past the modelled body (ISO 13855's C is for presence sensors
@@ -49,8 +59,9 @@ class SsmParameters:
       human-robot interaction; its human_reach configuration: 50 m/s^2 for shoulders, elbows, wrists and
       hands, 20-30 m/s^2 for the lower body). The arms are what comes near the robot, so one value, theirs,
       for every capsule. At 50 m/s^2 a person measured standing reaches the ISO speed within 0.04 s: their
-      distance is 0.76 m within 0.5 m (0.80 m untracked), 0.61 m beyond (0.64 m). 0 is the paper's formula
-      (the measured speed held over the horizon: ``paper_formula``, ``hrc demo --paper-formula``), which
+      distance over the full-speed horizon (0.4 s) is 0.76 m within 0.5 m (0.80 m untracked), 0.61 m beyond
+      (0.64 m); over that of a robot that creeps (T_r + min_stopping_time, 0.15 s) 0.26 m within 0.5 m. 0 is
+      the paper's formula (the measured speed held over the horizon: ``paper_formula``, ``hrc demo --paper-formula``), which
       lets a link pass a standing person at its stopping distance and does not cover their starting to move
       (docs/measurements.md: its cost and the violations it lets through, side by side).
     tracking_margin (derived, m/s) = drive_lag x link_acceleration = 0.053 m/s: while the joints run
@@ -61,6 +72,7 @@ class SsmParameters:
 
     reaction_time: float = 0.10
     stopping_time: float = 0.30
+    min_stopping_time: float = 0.05
     stopping_deceleration: float = 5.0
     intrusion_distance: float = 0.0
     human_uncertainty: float = 0.05
@@ -77,6 +89,9 @@ class SsmParameters:
         check_numbers(self, "ssm", non_negative=True)
         if self.reaction_time + self.stopping_time <= 0:
             raise ConfigError("ssm: reaction_time + stopping_time must be positive")
+        if self.min_stopping_time > self.stopping_time:
+            raise ConfigError(f"ssm.min_stopping_time: at most stopping_time ({self.stopping_time!r} s), "
+                              f"got {self.min_stopping_time!r}")
         if self.drive_lag <= 0:
             raise ConfigError(f"ssm.drive_lag: must be positive (the drives cannot follow without lag), "
                               f"got {self.drive_lag!r}")
@@ -91,9 +106,45 @@ class SsmParameters:
         return replace(self, drive_lag=float(measured))
 
     def paper_formula(self) -> "SsmParameters":
-        """The same parameters with the paper's human model: the measured speed held over T_r + T_s
-        (human_acceleration 0), for reproducing the paper; not safe for a person who starts to move."""
-        return replace(self, human_acceleration=0.0)
+        """The same parameters with the paper's formula: the measured speed held over T_r + T_s
+        (human_acceleration 0) and one T_s whatever the robot's speed (min_stopping_time = stopping_time), for
+        reproducing the paper; not safe for a person who starts to move."""
+        return replace(self, human_acceleration=0.0, min_stopping_time=self.stopping_time)
+
+    @property
+    def stop_scales(self) -> bool:
+        """Whether T_s follows the robot's speed (min_stopping_time below stopping_time)."""
+        return self.min_stopping_time < self.stopping_time
+
+    def stop_at(self, fraction: float) -> float:
+        """T_s (s) of a robot whose fastest joint moves at `fraction` of its velocity limit: stopping_time x
+        fraction, at least min_stopping_time (see the class)."""
+        return max(self.min_stopping_time, self.stopping_time * float(fraction))
+
+    def stop_of(self, joint_velocity, velocity_limit) -> float:
+        """T_s (s) of a robot moving at joint_velocity (rad/s) under the joints' velocity_limit (rad/s)."""
+        return self.stop_at(max(abs(float(v)) / float(m) for v, m in zip(joint_velocity, velocity_limit)))
+
+    def constants_at(self, stop: float) -> tuple[float, float, float, float, float, float]:
+        """``kernel_constants`` at the stopping time `stop` (s) in place of T_s: the limits of one state."""
+        return (self.reaction_time + stop, self.fixed_distance_at(stop), self.human_near_distance,
+                self.human_speed_near, self.human_speed_far, self.human_acceleration)
+
+    def fixed_distance_at(self, stop: float) -> float:
+        """``fixed_distance`` with the stopping time `stop` (s) in place of T_s."""
+        return 0.5 * self.stopping_deceleration * stop ** 2 + self.static_distance
+
+    @property
+    def static_distance(self) -> float:
+        """C + Z_d + Z_r (m): the distance terms that depend on neither speed nor stopping time."""
+        return self.intrusion_distance + self.human_uncertainty + self.robot_uncertainty
+
+    @property
+    def stop_constants(self) -> tuple[float, float, float, float, float]:
+        """What the compiled bound of a state's path speed takes (``shared.safety.ssm.speed_alpha_bound``), in
+        its order: T_s at full speed, its floor, T_r, a_max, C + Z_d + Z_r."""
+        return (self.stopping_time, self.min_stopping_time, self.reaction_time, self.stopping_deceleration,
+                self.static_distance)
 
     @classmethod
     def from_mapping(cls, raw: object) -> "SsmParameters":
@@ -114,11 +165,9 @@ class SsmParameters:
     def kernel_constants(self) -> tuple[float, float, float, float, float, float]:
         """What the compiled SSM kernel takes, in its order: horizon, fixed distance, the ISO 13855 near
         distance and its two approach speeds (near, far), the human's acceleration."""
-        return (self.horizon, self.fixed_distance, self.human_near_distance, self.human_speed_near,
-                self.human_speed_far, self.human_acceleration)
+        return self.constants_at(self.stopping_time)
 
     @property
     def fixed_distance(self) -> float:
         """The distance terms that do not depend on speed: a_max T_s^2 / 2 + C + Z_d + Z_r (m)."""
-        return (0.5 * self.stopping_deceleration * self.stopping_time ** 2 + self.intrusion_distance
-                + self.human_uncertainty + self.robot_uncertainty)
+        return self.fixed_distance_at(self.stopping_time)

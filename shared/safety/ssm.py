@@ -12,6 +12,12 @@ and its inverse, the largest robot approach speed allowed at the current separat
 deceleration derivation). A negative limit means the robot may not approach at all; moving away stays
 allowed.
 
+T_s is the stopping time of the robot's state, not one number for every speed (``SsmParameters.stop_at``: T_s x
+the fastest joint's fraction of its velocity limit, at least ``min_stopping_time``): the limit of a state is the
+formula at its own T_s (``limit_at``), and the largest path speed a state allows is found where its limit, at the
+stopping time of that speed, still holds (``speed_alpha_bound``: the limit falls as the speed rises, so the
+speeds allowed are an interval from 0). With min_stopping_time = stopping_time it is the paper's single T_s.
+
 Every function here is pure and vectorised over numpy arrays. Units: m, s, m/s, m/s^2.
 """
 
@@ -49,21 +55,52 @@ def _travel_each(speed, cap, acceleration, horizon):
     return out
 
 
-def human_distance(human_speed: np.ndarray, params: SsmParameters, separation: np.ndarray | None = None) -> np.ndarray:
+def human_distance(human_speed: np.ndarray, params: SsmParameters, separation: np.ndarray | None = None,
+                   stop: float | None = None) -> np.ndarray:
     """The human's part of S_p (m): how far a person now approaching at human_speed (m/s) may come within
     T_r + T_s under the cell's human model (``human_travel``, capped at the ISO 13855 speed for that
-    separation; without a separation at the near speed, the larger). Element by element, compiled."""
+    separation; without a separation at the near speed, the larger); stop: the state's T_s (s; default the
+    full-speed stopping_time). Element by element, compiled."""
     cap = params.human_speed_near if separation is None else default_human_speed(separation, params)
     speed, cap = np.broadcast_arrays(np.asarray(human_speed, dtype=float), np.asarray(cap, dtype=float))
+    horizon = params.horizon if stop is None else params.reaction_time + float(stop)
     out = _travel_each(np.ascontiguousarray(speed).ravel(), np.ascontiguousarray(cap).ravel(),
-                       float(params.human_acceleration), float(params.horizon))
+                       float(params.human_acceleration), float(horizon))
     return out.reshape(speed.shape) if speed.shape else float(out[0])
 
 
+NEAR_RAMP = 0.3    # m above human_near_distance over which the ISO 13855 speed falls from the near to the far one
+
+
+@numba.njit(cache=True)
+def iso_speed(d, near_d, v_near, v_far):
+    """The ISO 13855 approach speed (m/s) at separation d (m): v_near within near_d, then falling linearly to
+    v_far over NEAR_RAMP, v_far beyond. ISO 13855 steps from 2.0 to 1.6 m/s at 0.5 m; the ramp is never below it
+    (so never less safe), and it keeps the SSM limit continuous: at the step the limit of a robot that creeps
+    near a person fell by 0.3 m/s within one control period, which no braking follows (a command above the
+    limit for two periods in the paper's phases)."""
+    if d <= near_d:
+        return v_near
+    if d >= near_d + NEAR_RAMP:
+        return v_far
+    return v_near + (v_far - v_near) * (d - near_d) / NEAR_RAMP
+
+
+@numba.njit(cache=True)
+def _iso_each(d, near_d, v_near, v_far):
+    out = np.empty(d.shape[0])
+    for k in range(d.shape[0]):
+        out[k] = iso_speed(d[k], near_d, v_near, v_far)
+    return out
+
+
 def default_human_speed(separation: np.ndarray, params: SsmParameters) -> np.ndarray:
-    """ISO 13855 approach speed for an untracked human: 2.0 m/s within 0.5 m, 1.6 m/s beyond."""
-    return np.where(np.asarray(separation) <= params.human_near_distance,
-                    params.human_speed_near, params.human_speed_far)
+    """ISO 13855 approach speed for an untracked human: 2.0 m/s within 0.5 m, 1.6 m/s beyond (``iso_speed``:
+    a ramp between the two over NEAR_RAMP above 0.5 m)."""
+    d = np.asarray(separation, dtype=float)
+    out = _iso_each(np.ascontiguousarray(d).ravel(), float(params.human_near_distance),
+                    float(params.human_speed_near), float(params.human_speed_far))
+    return out.reshape(d.shape) if d.shape else float(out[0])
 
 
 def protective_separation_distance(robot_speed: np.ndarray, human_speed: np.ndarray,
@@ -73,11 +110,94 @@ def protective_separation_distance(robot_speed: np.ndarray, human_speed: np.ndar
     return human_distance(human_speed, params) + np.asarray(robot_speed) * params.horizon + params.fixed_distance
 
 
-def velocity_limit(separation: np.ndarray, human_speed: np.ndarray, params: SsmParameters) -> np.ndarray:
+def velocity_limit(separation: np.ndarray, human_speed: np.ndarray, params: SsmParameters,
+                   stop: float | np.ndarray | None = None) -> np.ndarray:
     """v_r_max (m/s): the largest robot approach speed at this separation; negative means 'do not approach'.
-    The human's part is ``human_distance`` (the paper's v_h (T_r + T_s) where human_acceleration is 0)."""
-    separation = np.asarray(separation)
-    return (separation - human_distance(human_speed, params, separation) - params.fixed_distance) / params.horizon
+    The human's part is ``human_distance`` (the paper's v_h (T_r + T_s) where human_acceleration is 0); stop:
+    the state's T_s (s, ``SsmParameters.stop_at``; default the full-speed stopping_time), a number or one per
+    element."""
+    separation = np.asarray(separation, dtype=float)
+    if stop is None:
+        return (separation - human_distance(human_speed, params, separation) - params.fixed_distance) / params.horizon
+    d, hs, st = np.broadcast_arrays(separation, np.asarray(human_speed, dtype=float), np.asarray(stop, dtype=float))
+    out = _limits_each(np.ascontiguousarray(d).ravel(), np.ascontiguousarray(hs).ravel(),
+                       np.ascontiguousarray(st).ravel(), *params.stop_constants[2:], *params.kernel_constants[2:])
+    return out.reshape(d.shape) if d.shape else float(out[0])
+
+
+@numba.njit(cache=True)
+def limit_at(d, hs, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h):
+    """v_r_max (m/s) at separation d (m) for a person approaching at hs (m/s; the ISO 13855 speed where
+    untracked) and a robot whose stopping time is `stop` (s): the formula with T_s = stop."""
+    cap = iso_speed(d, near_d, v_near, v_far)
+    horizon = reaction + stop
+    return (d - human_travel(hs, cap, a_h, horizon) - 0.5 * a_stop * stop * stop - static) / horizon
+
+
+@numba.njit(cache=True)
+def _limits_each(d, hs, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h):
+    out = np.empty(d.shape[0])
+    for k in range(d.shape[0]):
+        out[k] = limit_at(d[k], hs[k], stop[k], reaction, a_stop, static, near_d, v_near, v_far, a_h)
+    return out
+
+
+NEGLIGIBLE_SPEED = 1e-12   # m/s: an approach speed below this counts as none (no overflow in b / c)
+BISECTIONS = 14            # of the path speed where T_s follows it: 1/16384 of full speed
+
+
+@numba.njit(cache=True)
+def fixed_stop_alpha_bound(robot_speed, limit):
+    """min(1, max(limit, 0) / robot speed) over the pairs that approach (robot_speed, limit: per pair, m/s, at
+    alpha = 1; the limit already less any margin): the largest alpha every pair allows with one T_s."""
+    upper = 1.0
+    for i in range(robot_speed.shape[0]):
+        for k in range(robot_speed.shape[1]):
+            if robot_speed[i, k] > NEGLIGIBLE_SPEED:
+                upper = min(upper, max(limit[i, k], 0.0) / robot_speed[i, k])
+    return upper
+
+
+@numba.njit(cache=True)
+def _speed_allowed(alpha, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop, static,
+                   near_d, v_near, v_far, a_h, margin):
+    stop = max(stop_min, stop_full * alpha * fraction)
+    for i in range(robot_speed.shape[0]):
+        for k in range(robot_speed.shape[1]):
+            if robot_speed[i, k] > NEGLIGIBLE_SPEED:
+                lim = limit_at(dist[i, k], human_speed[i, k], stop, reaction, a_stop, static, near_d, v_near,
+                               v_far, a_h)
+                if alpha * robot_speed[i, k] > max(lim - margin, 0.0):
+                    return False
+    return True
+
+
+@numba.njit(cache=True)
+def speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full, stop_min, reaction, a_stop,
+                      static, near_d, v_near, v_far, a_h, margin):
+    """The largest alpha in [0, 1] at which every pair that approaches keeps alpha robot_speed within its limit
+    less `margin`, the limit taken at the stopping time of that alpha: max(stop_min, stop_full alpha fraction),
+    fraction the fastest joint's share of its velocity limit at alpha = 1 (pairs: dist, robot_speed, human_speed
+    from ``_pair_ssm_kernel`` at alpha = 1, limit its limit at stop_full). The limit falls as alpha rises, so the
+    alphas allowed are [0, bound]: the one-T_s bound at the longest stopping time those alphas can have is
+    allowed, then bisection up to 1 (the allowed end returned). With stop_min = stop_full, the one-T_s bound."""
+    low = fixed_stop_alpha_bound(robot_speed, limit - margin)
+    if stop_min >= stop_full or low >= 1.0:
+        return low
+    if fraction > 1.0:                     # beyond the velocity limit T_s grows past stop_full: not below it
+        low = min(low, 1.0 / fraction)
+    if _speed_allowed(1.0, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop, static,
+                      near_d, v_near, v_far, a_h, margin):
+        return 1.0
+    high = 1.0
+    for _ in range(BISECTIONS):
+        middle = 0.5 * (low + high)
+        if _speed_allowed(middle, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop,
+                          static, near_d, v_near, v_far, a_h, margin):
+            low = middle
+        else:
+            high = middle
+    return low
 
 
 @dataclass(slots=True)
@@ -154,7 +274,7 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
                     rs = max(rs, nx * robot_vel[i, e, 0] + ny * robot_vel[i, e, 1] + nz * robot_vel[i, e, 2])
                     hs = max(hs, -(nx * human_vel[j, e, 0] + ny * human_vel[j, e, 1] + nz * human_vel[j, e, 2]))
                 robot_speed[i, j] = rs
-            cap = v_near if d <= near_d else v_far
+            cap = iso_speed(d, near_d, v_near, v_far)
             if not human_known[j]:
                 hs = cap
             human_speed[i, j] = hs
@@ -163,7 +283,7 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
 
 
 def pair_ssm(robot_segments: np.ndarray, robot_radii: np.ndarray, robot_velocities: np.ndarray,
-             humans: HumanCapsules, params: SsmParameters) -> PairSsm:
+             humans: HumanCapsules, params: SsmParameters, stop: float | None = None) -> PairSsm:
     """Separation, approach speeds and the SSM limit for every (robot link, human capsule) pair.
 
     robot_segments (L, 2, 3) and robot_velocities (L, 2, 3): capsule end points and their velocities.
@@ -174,8 +294,10 @@ def pair_ssm(robot_segments: np.ndarray, robot_radii: np.ndarray, robot_velociti
     axes touch, no direction exists and full speeds count as approach. The scaling layer (velocities along
     the planned path), the planning layer's time cost, the simulation's conservative bound and the 3D
     view use this one computation; the independent monitor deliberately does not (shared.safety.monitor: coal
-    distances, the actual closest points).
+    distances, the actual closest points). stop: the state's T_s (s, ``SsmParameters.stop_of``); default the
+    full-speed stopping_time.
     """
+    constants = params.kernel_constants if stop is None else params.constants_at(float(stop))
     out = _pair_ssm_kernel(robot_segments, robot_radii, np.ascontiguousarray(robot_velocities), humans.segments,
-                           humans.radii, humans.velocities, humans.velocity_known, *params.kernel_constants)
+                           humans.radii, humans.velocities, humans.velocity_known, *constants)
     return PairSsm(*out)

@@ -354,9 +354,10 @@ class ScalingLayer:
         period = self.params.period
         return bool(stop_stays_safe(traj.times, traj.positions, traj.velocities, self.s + alpha * period, alpha,
                                     period, self.robot.limits.monitor_acceleration, np.asarray(offset, dtype=float),
-                                    LOOKAHEAD_EVERY, *self.robot.chain, self.robot.ancestry, self.robot.radii,
-                                    humans.segments, humans.radii, humans.velocities, humans.velocity_known,
-                                    *self.ssm.kernel_constants, self.ssm.tracking_margin))
+                                    LOOKAHEAD_EVERY, self.robot.limits.velocity, *self.robot.chain,
+                                    self.robot.ancestry, self.robot.radii, humans.segments, humans.radii,
+                                    humans.velocities, humans.velocity_known, *self.ssm.kernel_constants,
+                                    *self.ssm.stop_constants, self.ssm.tracking_margin))
 
     def braking_floor(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
         """The least path speed this cycle can have: the current one less what the drives' full deceleration
@@ -414,8 +415,8 @@ class ScalingLayer:
                     safe_alpha = min(safe_alpha, alpha)
             if rows.ssm is not None and alpha > self.sdot and unknown_within_reach(rows.ssm, humans.velocity_known):
                 alpha, method = self.sdot, method + "+unknown"
-            if rows.ssm is not None:
-                min_sep, min_margin = rows.ssm.closest(alpha)
+            if rows.state is not None:
+                min_sep, min_margin = rows.state.closest(alpha)
         cap = self._stop_cap(dq, ddq)
         if cap < alpha:
             alpha, method = cap, method + "+stopping"

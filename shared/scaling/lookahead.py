@@ -28,16 +28,17 @@ MAX_STEPS = 100     # periods a stop may take (1 s at 100 Hz; from full speed it
 
 
 @numba.njit(cache=True)
-def stop_stays_safe(times, positions, velocities, s, sdot, period, acceleration, offset, every,
+def stop_stays_safe(times, positions, velocities, s, sdot, period, acceleration, offset, every, velocity_limit,
                     placement, parent, local, joint, ancestry, radii, human_seg, human_rad, human_vel, human_known,
-                    horizon, fixed, near_d, v_near, v_far, a_h, margin):
+                    horizon, fixed, near_d, v_near, v_far, a_h, stop_full, stop_min, reaction, a_stop, static,
+                    margin):
     """Whether the stop that starts at path parameter s with path speed sdot (the command's) keeps every checked
     state within the SSM rows' bound: each period, the path speed falls by the drives' deceleration
     (``path_deceleration`` with `acceleration`, rad/s^2), s moves on by it, and every `every`-th state
     (q(s) + offset, q'(s) at that path speed) is checked against the people where their tracked velocities take
     them by then (one of unknown velocity stays where it is). False where one exceeds the bound, or where the stop
-    would take more than MAX_STEPS periods. times, positions, velocities: the trajectory's knots; the rest:
-    ``motion_alpha_bound``'s."""
+    would take more than MAX_STEPS periods (each state at its own stopping time: the bound of sdot, ``motion_alpha_bound``,
+    at q'(s)). times, positions, velocities: the trajectory's knots; the rest: ``motion_alpha_bound``'s."""
     end = times[-1]
     q, dq, ddq = _hermite_one(times, positions, velocities, s)
     for k in range(1, MAX_STEPS + 1):
@@ -51,9 +52,9 @@ def stop_stays_safe(times, positions, velocities, s, sdot, period, acceleration,
             for m in range(human_seg.shape[0]):
                 if human_known[m]:
                     moved[m] += human_vel[m] * (k * period)
-            bound = motion_alpha_bound(q + offset, dq, placement, parent, local, joint, ancestry, radii, moved,
-                                       human_rad, human_vel, human_known, horizon, fixed, near_d, v_near, v_far,
-                                       a_h, margin)
+            bound = motion_alpha_bound(q + offset, dq, velocity_limit, placement, parent, local, joint, ancestry,
+                                       radii, moved, human_rad, human_vel, human_known, horizon, fixed, near_d,
+                                       v_near, v_far, a_h, stop_full, stop_min, reaction, a_stop, static, margin)
             if sdot > bound * (1.0 + 1e-9) + 1e-12:
                 return False
     return False

@@ -4,7 +4,8 @@ The robot follows the planned path exactly: q(s), joint velocity q'(s) sdot, wit
 Each cycle the largest alpha in [0, 1] is sought such that
 
 * SSM (hard): for every robot link i and human capsule j, the speed at which link i approaches capsule j,
-  n_ij^T J_i(q) q'(s) sdot_nom alpha, stays below max(v_r_max,ij - tracking_margin, 0) (the margin covers
+  n_ij^T J_i(q) q'(s) sdot_nom alpha, stays below max(v_r_max,ij - tracking_margin, 0), v_r_max at the stopping
+  time of that alpha (``shared.safety.ssm.speed_alpha_bound``: it is the one bound all SSM rows give) (the margin covers
   the measured lag of the drives behind their setpoints, ``SsmParameters.tracking_margin``). The approach speed of a rigid
   segment is affine along it, so the largest of its two end points' speeds is used with the pair's
   closest distance: conservative for the whole link, not only for the closest point. A negative limit
@@ -34,7 +35,7 @@ import piqp
 from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
-from shared.safety.ssm import PairSsm, _pair_ssm_kernel
+from shared.safety.ssm import NEGLIGIBLE_SPEED, PairSsm, _limits_each, _pair_ssm_kernel, speed_alpha_bound
 
 
 @dataclass(slots=True)
@@ -48,7 +49,9 @@ class ScalingRows:
     solutions against every row, ``hard_coef`` / ``hard_bound``).
     Soft rows soft_coef alpha - sigma <= soft_bound: acceleration limits normalised by the limit, without
     the rows that hold for every alpha (coefficient 0, bound >= 0).
-    ssm: per-pair SSM quantities at alpha = 1, or None when no human capsule is present.
+    ssm: per-pair SSM quantities at alpha = 1 (the limit at the full-speed T_s), or None when no human capsule
+    is present. state: the same with each limit at the stopping time of alpha = upper (every alpha up to upper
+    keeps its rows within these: a slower robot stops sooner), or None.
     upper_free: every soft row holds at alpha = upper without slack (the exact presolve of ``solve``).
     """
 
@@ -60,6 +63,7 @@ class ScalingRows:
     ssm: PairSsm | None
     tracking_margin: float = 0.0
     upper_free: bool = False
+    state: PairSsm | None = None
 
     @property
     def hard_coef(self) -> np.ndarray:
@@ -68,7 +72,7 @@ class ScalingRows:
 
     @property
     def hard_bound(self) -> np.ndarray:
-        ssm = np.maximum(self.ssm.limit - self.tracking_margin, 0.0).ravel() if self.ssm is not None else np.zeros(0)
+        ssm = np.maximum(self.state.limit - self.tracking_margin, 0.0).ravel() if self.state is not None else np.zeros(0)
         return np.concatenate([self.joint_speed_limit, ssm])
 
     def slack(self, alpha: float) -> float:
@@ -78,21 +82,32 @@ class ScalingRows:
         return float(max(0.0, np.max(self.soft_coef * alpha - self.soft_bound)))
 
 
-NEGLIGIBLE_SPEED = 1e-12   # m/s: a hard-row coefficient below this counts as zero (no overflow in b / c)
-
-
 @numba.njit(cache=True)
-def _upper_bound(joint_speed, joint_speed_limit, robot_speed, limit):
-    """min(1, b / c over every hard row with c > NEGLIGIBLE_SPEED): the largest alpha they all allow."""
+def _joint_bound(joint_speed, joint_speed_limit):
+    """min(1, v_max_j / |q'_j| over the joints that move): the largest alpha the velocity rows allow."""
     upper = 1.0
     for j in range(joint_speed.shape[0]):
         if joint_speed[j] > NEGLIGIBLE_SPEED:
             upper = min(upper, joint_speed_limit[j] / joint_speed[j])
-    for i in range(robot_speed.shape[0]):
-        for k in range(robot_speed.shape[1]):
-            if robot_speed[i, k] > NEGLIGIBLE_SPEED:
-                upper = min(upper, max(limit[i, k], 0.0) / robot_speed[i, k])
     return upper
+
+
+@numba.njit(cache=True)
+def speed_fraction(joint_velocity, joint_speed_limit):
+    """The fastest joint's |velocity| as a fraction of its limit: what a state's T_s scales with."""
+    fraction = 0.0
+    for j in range(joint_velocity.shape[0]):
+        fraction = max(fraction, abs(joint_velocity[j]) / joint_speed_limit[j])
+    return fraction
+
+
+@numba.njit(cache=True)
+def _state_limits(dist, human_speed, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h):
+    """Every pair's limit at the stopping time `stop` (s), shaped like dist."""
+    flat_d = dist.copy().reshape(-1)
+    out = _limits_each(flat_d, human_speed.copy().reshape(-1), np.full(flat_d.shape[0], stop), reaction, a_stop,
+                       static, near_d, v_near, v_far, a_h)
+    return out.reshape(dist.shape)
 
 
 @numba.njit(cache=True)
@@ -118,10 +133,11 @@ def _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration):
 @numba.njit(cache=True)
 def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, acceleration, placement, parent, local,
                 joint, ancestry, radii, human_seg, human_rad, human_vel, human_known, horizon, fixed, near_d,
-                v_near, v_far, a_h, margin):
+                v_near, v_far, a_h, stop_full, stop_min, reaction, a_stop, static, margin):
     """``build_rows`` in one compiled call: the joint speeds at alpha = 1, every pair's SSM row (kinematics and
-    ``_pair_ssm_kernel``; empty without people), the hard rows' bound, the acceleration rows and whether they
-    all hold at that bound (one call: each compiled call costs its arguments' unboxing)."""
+    ``_pair_ssm_kernel``; empty without people), the hard rows' bound, each pair's limit at that bound's stopping
+    time, the acceleration rows and whether they all hold at that bound (one call: each compiled call costs its
+    arguments' unboxing)."""
     n_links = radii.shape[0]
     tangent = dq * sdot_nominal                                        # joint velocity at alpha = 1
     joint_speed = np.abs(tangent)
@@ -132,25 +148,34 @@ def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, accelerat
             human_known, horizon, fixed, near_d, v_near, v_far, a_h)
     else:
         dist = robot_speed = human_speed = limit = np.zeros((n_links, 0))
-    upper = _upper_bound(joint_speed, velocity, robot_speed, limit - margin)
+    fraction = speed_fraction(tangent, velocity)
+    upper = min(_joint_bound(joint_speed, velocity),
+                speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full, stop_min, reaction,
+                                  a_stop, static, near_d, v_near, v_far, a_h, margin))
+    if stop_min < stop_full:
+        state = _state_limits(dist, human_speed, max(stop_min, stop_full * upper * fraction), reaction, a_stop,
+                              static, near_d, v_near, v_far, a_h)
+    else:
+        state = limit
     coef, bound = _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration)
     upper_free = True
     for r in range(coef.shape[0]):
         upper_free = upper_free and coef[r] * upper <= bound[r]
-    return joint_speed, dist, robot_speed, human_speed, limit, upper, coef, bound, upper_free
+    return joint_speed, dist, robot_speed, human_speed, limit, state, upper, coef, bound, upper_free
 
 
 def build_rows(robot: RobotModel, q: np.ndarray, dq_ds: np.ndarray, d2q_ds2: np.ndarray, sdot_nominal: float,
                sdot_prev: float, humans: HumanCapsules, ssm: SsmParameters, period: float) -> ScalingRows:
     """Assemble one cycle's problem at configuration q for the path tangent dq_ds (pure, no I/O)."""
     lim = robot.limits
-    joint_speed, dist, robot_speed, human_speed, limit, upper, coef, bound, upper_free = _cycle_rows(
+    joint_speed, dist, robot_speed, human_speed, limit, state, upper, coef, bound, upper_free = _cycle_rows(
         np.asarray(q, dtype=np.float64), np.asarray(dq_ds, dtype=np.float64), np.asarray(d2q_ds2, dtype=np.float64),
         float(sdot_nominal), float(sdot_prev), float(period), lim.velocity, lim.acceleration, *robot.chain,
         robot.ancestry, robot.radii, humans.segments, humans.radii, humans.velocities, humans.velocity_known,
-        *ssm.kernel_constants, ssm.tracking_margin)
+        *ssm.kernel_constants, *ssm.stop_constants, ssm.tracking_margin)
     pairs = PairSsm(dist, robot_speed, human_speed, limit) if humans.count else None
-    return ScalingRows(joint_speed, lim.velocity, upper, coef, bound, pairs, ssm.tracking_margin, upper_free)
+    at_stop = PairSsm(dist, robot_speed, human_speed, state) if humans.count else None
+    return ScalingRows(joint_speed, lim.velocity, upper, coef, bound, pairs, ssm.tracking_margin, upper_free, at_stop)
 
 
 def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray, humans: HumanCapsules,
@@ -159,34 +184,26 @@ def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray
     if not humans.count:
         return 1.0
     return motion_alpha_bound(np.asarray(q, dtype=np.float64), np.asarray(joint_velocity, dtype=np.float64),
-                              *robot.chain, robot.ancestry, robot.radii, humans.segments, humans.radii,
-                              humans.velocities, humans.velocity_known, *ssm.kernel_constants,
-                              ssm.tracking_margin)
-
-
-_NO_ROWS = np.zeros(0)
+                              robot.limits.velocity, *robot.chain, robot.ancestry, robot.radii, humans.segments,
+                              humans.radii, humans.velocities, humans.velocity_known, *ssm.kernel_constants,
+                              *ssm.stop_constants, ssm.tracking_margin)
 
 
 @numba.njit(cache=True)
-def pairs_alpha_bound(robot_speed, limit):
-    """The largest alpha in [0, 1] every pair's SSM row allows: min(1, max(limit, 0) / robot speed) over the pairs
-    that move (robot_speed, limit: per pair, m/s, at alpha = 1; the limit already less any margin). The planning
-    layer's time cost predicts the scaling layer's speed with it."""
-    return _upper_bound(_NO_ROWS, _NO_ROWS, robot_speed, limit)
-
-
-@numba.njit(cache=True)
-def motion_alpha_bound(q, joint_velocity, placement, parent, local, joint, ancestry, radii, human_seg, human_rad,
-                       human_vel, human_known, horizon, fixed, near_d, v_near, v_far, a_h, margin):
-    """``ssm_alpha_bound`` in one compiled call (the kinematics, every pair's SSM row, their bound; the kernels
-    the scaling rows and the planning layer's time cost use): the scaling layer checks every command with it,
-    without the Python between three calls that a control cycle pays for on cold caches."""
+def motion_alpha_bound(q, joint_velocity, velocity_limit, placement, parent, local, joint, ancestry, radii,
+                       human_seg, human_rad, human_vel, human_known, horizon, fixed, near_d, v_near, v_far, a_h,
+                       stop_full, stop_min, reaction, a_stop, static, margin):
+    """``ssm_alpha_bound`` in one compiled call (the kinematics, every pair's SSM row, their bound at the stopping
+    time of each alpha, ``speed_alpha_bound``; the kernels the scaling rows and the planning layer's time cost use):
+    the scaling layer checks every command with it, without the Python between three calls that a control cycle
+    pays for on cold caches."""
     n_links = radii.shape[0]
     points, velocities = chain_points_and_velocities(q, joint_velocity, placement, parent, local, joint, ancestry)
-    _, robot_speed, _, limit = _pair_ssm_kernel(points.reshape(n_links, 2, 3), radii,
-                                                velocities.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
-                                                human_known, horizon, fixed, near_d, v_near, v_far, a_h)
-    return pairs_alpha_bound(robot_speed, limit - margin)
+    dist, robot_speed, human_speed, limit = _pair_ssm_kernel(
+        points.reshape(n_links, 2, 3), radii, velocities.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
+        human_known, horizon, fixed, near_d, v_near, v_far, a_h)
+    return speed_alpha_bound(dist, robot_speed, human_speed, limit, speed_fraction(joint_velocity, velocity_limit),
+                             stop_full, stop_min, reaction, a_stop, static, near_d, v_near, v_far, a_h, margin)
 
 
 @numba.njit(cache=True)

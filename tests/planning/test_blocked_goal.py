@@ -41,9 +41,14 @@ def test_a_goal_inside_the_no_approach_distance_of_a_person_is_blocked_and_says_
     assert block is not None and block.link == "prbt_link_2"
     no_approach = SSM.fixed_distance + SSM.tracking_margin * SSM.horizon       # 0.316 m for a person standing
     assert np.isclose(block.no_approach, no_approach) and 0.30 < no_approach < 0.33
-    # the shipped model: a person standing may start at 50 m/s^2 up to 2.0 m/s, 0.76 m within the horizon
-    shipped = goal_block(ROBOT, SsmParameters(), Q_HELD, Q_START, person)
-    assert shipped is not None and np.isclose(shipped.no_approach, 0.76 + no_approach)
+    # the shipped model: a robot that creeps stops within min_stopping_time (0.05 s), and a person standing may
+    # start at 50 m/s^2 up to 2.0 m/s: 0.26 m within T_r + that T_s
+    shipped_ssm = SsmParameters()
+    creeping = shipped_ssm.reaction_time + shipped_ssm.min_stopping_time
+    shipped = goal_block(ROBOT, shipped_ssm, Q_HELD, Q_START, person)
+    assert shipped is not None and np.isclose(shipped.no_approach, 0.04 + 2.0 * (creeping - 0.04)
+                                              + shipped_ssm.fixed_distance_at(shipped_ssm.min_stopping_time)
+                                              + shipped_ssm.tracking_margin * creeping)
     assert block.at_goal < block.now and block.at_goal < no_approach
     assert np.isclose(block.at_goal, separation(Q_START, person), atol=1e-9)
     assert "0.21 m from human capsule 3, inside the 0.32 m" in block.describe()

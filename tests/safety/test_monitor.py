@@ -56,7 +56,7 @@ def test_agrees_with_the_scaling_kernels(seed):
     humans = HumanCapsules.from_arrays(centre + rng.normal(scale=0.2, size=(m, 2, 3)), rng.uniform(0.03, 0.15, m),
                                        rng.normal(size=(m, 2, 3)), [True] * m)
     points, jac = ROBOT.capsule_kinematics(q)
-    kernel = pair_ssm(points, ROBOT.radii, jac @ qd, humans, SSM)
+    kernel = pair_ssm(points, ROBOT.radii, jac @ qd, humans, SSM, SSM.stop_of(qd, ROBOT.limits.velocity))
     # overlapping capsules are a separation violation to both; coal's penetration witness points give
     # no meaningful direction there, so the speed comparison is for separated capsules
     assume(float(kernel.distance.min()) > 1e-4)
@@ -84,7 +84,7 @@ def test_in_penetration_the_monitor_sees_the_same_direction_as_the_scaling_kerne
     centre = axis_point + away * (ROBOT.radii[link] + radius - overlap)
     humans = HumanCapsules.from_arrays(np.array([[centre, centre + 1e-3 * away]]), [radius], np.zeros((1, 2, 3)),
                                        [True])
-    kernel = pair_ssm(points, ROBOT.radii, jac @ qd, humans, SSM)
+    kernel = pair_ssm(points, ROBOT.radii, jac @ qd, humans, SSM, SSM.stop_of(qd, ROBOT.limits.velocity))
     assume(float(kernel.distance[link, 0]) < -1e-3)
     result = MONITOR.check(q, qd, humans)
     for v in result.violations:

@@ -6,6 +6,7 @@ distance is 0.5 * 5 * 0.3^2 + 0.07 = 0.295 m.
 """
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ import pytest
 from shared.core.errors import ConfigError
 from shared.core.humans import HumanCapsules
 from shared.safety.parameters import SsmParameters
-from shared.safety.ssm import default_human_speed, pair_ssm, protective_separation_distance, velocity_limit
+from shared.safety.ssm import NEAR_RAMP, default_human_speed, pair_ssm, protective_separation_distance, velocity_limit
 
 P = SsmParameters().paper_formula()      # the paper's formula: the measured human speed held
 
@@ -38,7 +39,13 @@ def test_protective_distance_inverts_the_limit():
 
 
 def test_iso_13855_default_speeds():
-    assert default_human_speed(np.array([0.2, 0.5, 0.51, 3.0]), P).tolist() == [2.0, 2.0, 1.6, 1.6]
+    """ISO 13855's 2.0 m/s within 0.5 m and 1.6 m/s beyond, the step made a ramp over NEAR_RAMP that is never
+    below the standard's speed and has no jump."""
+    assert default_human_speed(np.array([0.2, 0.5, 0.5 + NEAR_RAMP, 3.0]), P).tolist() == pytest.approx([2.0, 2.0, 1.6, 1.6])
+    d = np.linspace(0.0, 1.5, 1501)
+    speed = default_human_speed(d, P)
+    assert np.all(speed >= np.where(d <= 0.5, 2.0, 1.6)) and np.all(np.diff(speed) <= 0.0)
+    assert np.abs(np.diff(speed)).max() < 0.01
 
 
 @pytest.mark.parametrize("bad", [{"reaction_time": -0.1}, {"stopping_time": float("nan")},
@@ -135,3 +142,76 @@ def test_touching_axes_count_full_speed():
     r = pair_ssm(robot, np.array([0.05]), np.array([[[0, 0.4, 0], [0, 0.4, 0]]]), humans, P)
     assert r.robot_speed[0, 0] == pytest.approx(0.4) and r.human_speed[0, 0] == pytest.approx(0.3)
     assert r.limit[0, 0] < 0 and math.isfinite(r.limit[0, 0])
+
+
+def test_the_stopping_time_follows_the_robots_speed():
+    """T_s of a state is stopping_time x the fastest joint's share of its velocity limit, at least
+    min_stopping_time; the paper's formula has one T_s; a floor above T_s is refused."""
+    shipped = SsmParameters()
+    limits = np.full(6, 1.57)
+    assert shipped.stop_scales and not P.stop_scales and P.min_stopping_time == P.stopping_time
+    assert shipped.stop_of(np.array([0.0, 1.57, 0, 0, 0, 0]), limits) == pytest.approx(0.30)
+    assert shipped.stop_of(np.array([0.0, -0.785, 0.1, 0, 0, 0]), limits) == pytest.approx(0.15)
+    assert shipped.stop_of(np.zeros(6), limits) == pytest.approx(shipped.min_stopping_time)
+    assert P.stop_of(np.zeros(6), limits) == pytest.approx(0.30)
+    # the formula at a state's own T_s: the limit of the full-speed T_s at 0.3 s, higher for a shorter stop
+    for s in (0.3, 0.6, 1.0):
+        assert velocity_limit(s, 0.0, shipped, 0.30) == pytest.approx(velocity_limit(s, 0.0, shipped))
+        slower = [velocity_limit(s, 0.0, shipped, stop) for stop in (0.05, 0.15, 0.30)]
+        assert slower[0] > slower[1] > slower[2]
+    # by hand: T_s 0.05 s, a person standing 0.4 m away (2.0 m/s within 0.5 m, reached within 0.04 s)
+    travel = 0.5 * 50.0 * 0.04 ** 2 + 2.0 * (0.15 - 0.04)
+    assert velocity_limit(0.4, 0.0, shipped, 0.05) == pytest.approx((0.4 - travel - 2.5 * 0.05 ** 2 - 0.07) / 0.15)
+    with pytest.raises(ConfigError, match="min_stopping_time"):
+        SsmParameters.from_mapping({"min_stopping_time": 0.4})
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_path_speed_bound_is_where_the_limit_at_its_own_stop_holds(seed):
+    """speed_alpha_bound: at the bound every approaching pair is within its limit at the bound's T_s, a little
+    faster some pair is not (unless the bound is 1), every alpha below is allowed, and it is never below the
+    bound of the full-speed T_s; with one T_s it is that bound exactly."""
+    from shared.safety.ssm import _pair_ssm_kernel, fixed_stop_alpha_bound, speed_alpha_bound
+
+    rng = np.random.default_rng(seed)
+    shipped = SsmParameters()
+    robot = rng.uniform(-0.3, 0.3, (4, 2, 3))
+    robot_vel = rng.normal(scale=0.8, size=(4, 2, 3))
+    humans = HumanCapsules.from_arrays(rng.uniform(0.2, 0.9, (3, 2, 3)), rng.uniform(0.05, 0.12, 3),
+                                       rng.normal(scale=0.5, size=(3, 2, 3)), [True, False, True])
+    margin, fraction = shipped.tracking_margin, float(rng.uniform(0.3, 1.0))
+
+    def allowed(alpha, ssm):
+        stop = ssm.stop_at(alpha * fraction)
+        pairs = pair_ssm(robot, np.full(4, 0.05), robot_vel, humans, ssm, stop)
+        moving = pairs.robot_speed > 1e-12
+        return bool(np.all(alpha * pairs.robot_speed[moving] <= np.maximum(pairs.limit[moving] - margin, 0.0) + 1e-12))
+
+    for ssm in (shipped, shipped.paper_formula()):
+        k = _pair_ssm_kernel(robot, np.full(4, 0.05), robot_vel, humans.segments, humans.radii, humans.velocities,
+                             humans.velocity_known, *ssm.kernel_constants)
+        bound = speed_alpha_bound(*k, fraction, *ssm.stop_constants, *ssm.kernel_constants[2:], margin)
+        one_stop = fixed_stop_alpha_bound(k[1], k[3] - margin)
+        assert bound >= one_stop - 1e-12 and allowed(bound, ssm)
+        assert all(allowed(a, ssm) for a in np.linspace(0.0, bound, 9))
+        if bound < 1.0:
+            assert not allowed(bound + 2e-4, ssm) or bound == pytest.approx(one_stop)
+        if not ssm.stop_scales:
+            assert bound == one_stop
+
+
+def test_a_robot_that_creeps_may_pass_a_person_where_one_at_full_speed_may_not():
+    """A link 0.6 m from a person standing, approaching at 1 m/s at full path speed: with one T_s the link may
+    not approach at all (0.6 m is inside the 0.91 m no-approach distance); with T_s following the speed it may,
+    slowly, and not at full speed."""
+    from shared.safety.ssm import _pair_ssm_kernel, speed_alpha_bound
+
+    shipped = SsmParameters()
+    robot, robot_vel = np.array([[[0.0, 0, 0], [0.0, 0, 0]]]), np.array([[[1.0, 0, 0], [1.0, 0, 0]]])
+    humans = HumanCapsules.from_arrays([[[0.8, 0, 0], [0.8, 0, 0]]], [0.1], np.zeros((1, 2, 3)), [True])
+    bounds = {}
+    for name, ssm in (("scaling", shipped), ("one", replace(shipped, min_stopping_time=shipped.stopping_time))):
+        k = _pair_ssm_kernel(robot, np.array([0.1]), robot_vel, humans.segments, humans.radii, humans.velocities,
+                             humans.velocity_known, *ssm.kernel_constants)
+        bounds[name] = speed_alpha_bound(*k, 1.0, *ssm.stop_constants, *ssm.kernel_constants[2:], ssm.tracking_margin)
+    assert bounds["one"] == 0.0 and 0.2 < bounds["scaling"] < 0.8

@@ -56,8 +56,8 @@ def test_piqp_and_closed_form_agree_and_respect_every_hard_row(cycle):
     assert solve_closed_form(rows, WEIGHT) == pytest.approx(a_cf.alpha, abs=1e-9)
     for alpha in (a_cf.alpha, a_qp.alpha):
         assert np.all(rows.hard_coef * alpha <= rows.hard_bound + 1e-12)
-    # and the SSM rows themselves: approach speed at alpha within max(limit, 0)
-    assert np.all(rows.ssm.robot_speed * a_qp.alpha <= np.maximum(rows.ssm.limit, 0) + 1e-12)
+    # and the SSM rows themselves: approach speed at alpha within max(limit, 0), each limit at the T_s of upper
+    assert np.all(rows.state.robot_speed * a_qp.alpha <= np.maximum(rows.state.limit, 0) + 1e-12)
 
 
 @given(cycles(), st.floats(0.0, 0.3), st.floats(1.0, 3.0))

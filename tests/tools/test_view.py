@@ -44,7 +44,8 @@ def test_the_closest_pair_is_the_one_nearest_its_limit():
     qd = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
     pair = closest_pair(ROBOT, Q_START, qd, seg, radii, vel, known, SSM)
     points, jac = ROBOT.capsule_kinematics(Q_START)
-    full = pair_ssm(points, ROBOT.radii, jac @ qd, HumanCapsules(seg, radii, vel, known), SSM)
+    full = pair_ssm(points, ROBOT.radii, jac @ qd, HumanCapsules(seg, radii, vel, known), SSM,
+                    SSM.stop_of(qd, ROBOT.limits.velocity))
     margin = np.maximum(full.limit, 0.0) - full.robot_speed
     i, j = np.unravel_index(np.argmin(margin), margin.shape)
     assert j == 0 and pair.separation == pytest.approx(full.distance[i, j])
