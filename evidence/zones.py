@@ -9,6 +9,9 @@ that zone:
     S_stop = S_p(v_reduced, 2.0 m/s)        below it: protective stop (within T_s)
     S_full = S_p(v_robot_max, 2.0 m/s)      beyond it: full speed; between: reduced speed
 
+each with the robot's stopping time from its zone's speed (the cell's model of T_s, ``SsmParameters.stop_at``;
+the reduced zone's is shorter).
+
 The reduced speed caps every point of every link at v_reduced (ISO 10218's 250 mm/s by default). The
 stop is a category 2 stop: the path speed ramps down to zero within T_s, as S_p assumes; speeding up
 again ramps over T_s too. It follows the same path as the scaling layer, so the comparison isolates the
@@ -45,8 +48,13 @@ class SpeedZones:
     @classmethod
     def sized(cls, ssm: SsmParameters, robot_speed: float, reduced_speed: float = REDUCED_SPEED,
               human_speed: float = ISO_13855_SPEED) -> "SpeedZones":
-        """Zones from the ISO/TS 15066 formula for robot_speed (the fastest point of the robot, m/s)."""
-        return cls(float(protective_separation_distance(reduced_speed, human_speed, ssm)),
+        """Zones from the ISO/TS 15066 formula for robot_speed (the fastest point of the robot at full speed,
+        m/s), each with the robot's stopping time at its zone's speed (``SsmParameters.stop_at``, as the scaling
+        layer has it: at reduced speed the joints move at about reduced_speed / robot_speed of full speed, and a
+        robot stops sooner from there; an integrator sizes the stop zone with the stopping time of the reduced
+        speed)."""
+        reduced_stop = ssm.stop_at(min(1.0, reduced_speed / robot_speed))
+        return cls(float(protective_separation_distance(reduced_speed, human_speed, ssm, reduced_stop)),
                    float(protective_separation_distance(robot_speed, human_speed, ssm)), reduced_speed)
 
 

@@ -104,10 +104,13 @@ def default_human_speed(separation: np.ndarray, params: SsmParameters) -> np.nda
 
 
 def protective_separation_distance(robot_speed: np.ndarray, human_speed: np.ndarray,
-                                   params: SsmParameters) -> np.ndarray:
+                                   params: SsmParameters, stop: float | None = None) -> np.ndarray:
     """S_p (m) for a robot approaching at robot_speed and a human at human_speed (m/s, >= 0), the human's
-    part under the cell's human model (``human_distance``, capped at the near ISO 13855 speed)."""
-    return human_distance(human_speed, params) + np.asarray(robot_speed) * params.horizon + params.fixed_distance
+    part under the cell's human model (``human_distance``, capped at the near ISO 13855 speed); stop: the
+    robot's T_s (s; default the full-speed stopping_time)."""
+    stop = params.stopping_time if stop is None else float(stop)
+    return human_distance(human_speed, params, stop=stop) + np.asarray(robot_speed) * (params.reaction_time + stop) \
+        + params.fixed_distance_at(stop)
 
 
 def velocity_limit(separation: np.ndarray, human_speed: np.ndarray, params: SsmParameters,

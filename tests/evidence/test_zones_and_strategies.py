@@ -33,8 +33,11 @@ def zone_layer():
 def test_zones_are_sized_with_the_iso_formula_for_the_worst_case():
     ssm = SsmParameters()
     zones = SpeedZones.sized(ssm, robot_speed=0.72)
-    assert zones.stop == pytest.approx((2.0 + 0.25) * ssm.horizon + ssm.fixed_distance)
+    reduced = ssm.stopping_time * 0.25 / 0.72                   # T_s from the reduced speed's share of full
+    assert zones.stop == pytest.approx((2.0 + 0.25) * (ssm.reaction_time + reduced) + ssm.fixed_distance_at(reduced))
     assert zones.full == pytest.approx((2.0 + 0.72) * ssm.horizon + ssm.fixed_distance)
+    one = SpeedZones.sized(ssm.paper_formula(), robot_speed=0.72)          # one T_s: the stop zone at T_s
+    assert one.stop == pytest.approx((2.0 + 0.25) * ssm.horizon + ssm.fixed_distance) and one.full == zones.full
 
 
 def test_reduced_zone_caps_every_point_at_the_reduced_speed():
