@@ -13,7 +13,8 @@ shares none of them, so that a mistake in one of those shows up as a disagreemen
 * its own code for the standard's reaction window: for each (link, human capsule), an episode begins at
   the first exceeding state and ends at the first compliant one; within it the robot has T_r to react,
   then must stay under the braking line from its fastest approach of those T_r down to zero over T_s
-  (plus ``tolerance``), and the episode may not outlast T_r + T_s.
+  (plus ``tolerance``), and the episode may not outlast T_r + T_s, T_s that of the episode's first state (the
+  cell's model of T_s at the measured joint speeds, as the check took it).
 
 A joint state with no human state of its moment (before the first, older than PAIR_AGE, an invalid track)
 is unchecked, as the monitor has it, never a violation and never a pass.
@@ -67,7 +68,7 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
     stamps = np.array([m.sample_stamp for m in people])
     states = sorted(joint_states, key=lambda m: m.stamp)
     out = Recount()
-    episodes: dict[tuple[str, int], tuple[float, float]] = {}       # (link, capsule) -> (start, fastest in T_r)
+    episodes: dict[tuple[str, int], tuple[float, float, float]] = {}   # (link, capsule) -> (start, fastest in T_r, T_s)
     first: dict[tuple[str, int], float] = {}                          # (link, capsule) -> speed at the start
     previous = -np.inf
     for js in states:
@@ -83,6 +84,7 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
             continue
         out.states += 1
         worst: dict[tuple[str, int], float] = {}
+        stop = float(monitor.stopping_times(np.asarray(js.qd)[None])[0])       # this state's T_s
         offset = 0
         for humans in reversed(seen):                  # newest first: capsule numbers as the monitor's union
             if humans is None:
@@ -98,15 +100,15 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
         kept = {}
         first = {pair: first.get(pair, speed) for pair, speed in worst.items()}
         for pair, speed in worst.items():
-            start, reference = episodes.get(pair, (js.stamp, speed))
+            start, reference, braking = episodes.get(pair, (js.stamp, speed, stop))
             elapsed = js.stamp - start
             if elapsed <= ssm.reaction_time:          # reacting: the fastest approach of these T_r is the one
-                kept[pair] = (start, max(reference, speed))      # braking must start from
+                kept[pair] = (start, max(reference, speed), braking)      # braking must start from
                 out.speedups += speed > first[pair] + tolerance
                 continue
-            kept[pair] = (start, reference)
-            allowed = reference * max(0.0, 1.0 - (elapsed - ssm.reaction_time) / ssm.stopping_time)
-            if elapsed > ssm.horizon or speed > allowed + tolerance:
+            kept[pair] = (start, reference, braking)
+            allowed = reference * max(0.0, 1.0 - (elapsed - ssm.reaction_time) / braking)
+            if elapsed > ssm.reaction_time + braking or speed > allowed + tolerance:
                 out.violations += 1
         episodes = kept
     return out

@@ -72,6 +72,7 @@ class MonitorResult:
     approach_speed: float = 0.0         # the robot's approach speed (m/s) at the pair of min_margin ...
     limit: float = np.inf               # ... and its ISO/TS 15066 limit there (m/s)
     violations: list[Violation] = field(default_factory=list)
+    stop: float = np.nan                # the state's T_s (s), at which its limits were taken (NaN: not checked)
 
 
 class SafetyMonitor:
@@ -123,7 +124,7 @@ class SafetyMonitor:
         if humans is None or humans.count == 0:
             return result
         q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
-        stop = float(self.stopping_times(qd[None, :])[0])
+        stop = result.stop = float(self.stopping_times(qd[None, :])[0])
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
         human_shapes = []
@@ -260,7 +261,8 @@ def _batch(monitor: "SafetyMonitor", qs: np.ndarray, qds: np.ndarray,
                                           np.stack([h.segments for h in people]), np.stack([h.radii for h in people]),
                                           np.stack([h.velocities for h in people]))
     known = np.stack([h.velocity_known for h in people])[:, None, :]
-    stop = np.broadcast_to(monitor.stopping_times(qds)[:, None, None], d.shape)
+    stops = monitor.stopping_times(qds)
+    stop = np.broadcast_to(stops[:, None, None], d.shape)
     limit = velocity_limit(d, np.where(known, tracked, default_human_speed(d, monitor.ssm)), monitor.ssm, stop)
     margin = np.maximum(limit, 0.0) - approach
     speeding = margin < -monitor.tolerance
@@ -270,7 +272,8 @@ def _batch(monitor: "SafetyMonitor", qs: np.ndarray, qds: np.ndarray,
     worst = np.argmin(flat, axis=1)
     for k in range(n):
         i, j = np.unravel_index(worst[k], margin.shape[1:])
-        r = MonitorResult(float(d[k].min()), float(margin[k, i, j]), float(approach[k, i, j]), float(limit[k, i, j]))
+        r = MonitorResult(float(d[k].min()), float(margin[k, i, j]), float(approach[k, i, j]), float(limit[k, i, j]),
+                          stop=float(stops[k]))
         for i, j in zip(*np.nonzero(speeding[k] | too_close[k])):
             name = monitor._links[i][0]
             if speeding[k, i, j]:
@@ -291,7 +294,9 @@ class ReactionWindow:
     below a pair's approach speed (a person appears, their velocity turns unknown, or they come faster than
     the robot can be slowed by one command), the robot is allowed, for that (link, capsule) pair:
     * up to T_r at the speed it had (v_ref: the highest approach speed seen in the first T_r), then
-    * a braking envelope down to zero over T_s: v_ref (1 - (t - T_r) / T_s).
+    * a braking envelope down to zero over T_s: v_ref (1 - (t - T_r) / T_s), T_s that of the episode's first
+      state (``MonitorResult.stop``: a robot that creeps has to be stopped sooner; the full-speed stopping_time
+      where a result does not say).
     An exceedance that rises above the envelope (it did not brake), or outlasts T_r + T_s (it did not stop),
     is a violation; an episode ends at the pair's first compliant state. A separation below d_min is a
     violation at once. tolerance (m/s): measurement noise allowed on top.
@@ -305,24 +310,27 @@ class ReactionWindow:
 
     def __init__(self, reaction_time: float, stopping_time: float, tolerance: float = 0.01) -> None:
         self.reaction_time, self.stopping_time, self.tolerance = reaction_time, stopping_time, tolerance
-        self._episodes: dict[tuple[str, int], tuple[float, float]] = {}      # pair -> (start, v_ref)
+        self._episodes: dict[tuple[str, int], tuple[float, float, float]] = {}    # pair -> (start, v_ref, T_s)
 
-    def allowed(self, elapsed: float, v_ref: float) -> float:
-        """The approach speed (m/s) the formula still allows `elapsed` seconds into an exceedance."""
+    def allowed(self, elapsed: float, v_ref: float, stop: float | None = None) -> float:
+        """The approach speed (m/s) the formula still allows `elapsed` seconds into an exceedance whose first
+        state's T_s is `stop` (s; default the full-speed stopping_time)."""
         if elapsed <= self.reaction_time:
             return np.inf
-        return v_ref * max(0.0, 1.0 - (elapsed - self.reaction_time) / self.stopping_time) + self.tolerance
+        stop = self.stopping_time if stop is None else stop
+        return v_ref * max(0.0, 1.0 - (elapsed - self.reaction_time) / stop) + self.tolerance
 
     def update(self, now: float, result: MonitorResult) -> list[Violation]:
         speeding = {(v.link, v.capsule): v for v in result.violations if v.kind == "speed"}
         episodes, late = {}, []
+        first_stop = result.stop if result.stop > 0.0 else self.stopping_time      # NaN: not said
         for pair, v in speeding.items():
-            start, v_ref = self._episodes.get(pair, (now, v.approach_speed))
+            start, v_ref, stop = self._episodes.get(pair, (now, v.approach_speed, first_stop))
             elapsed = now - start
             if elapsed <= self.reaction_time:
                 v_ref = max(v_ref, v.approach_speed)
-            episodes[pair] = (start, v_ref)
-            if elapsed > self.reaction_time + self.stopping_time or v.approach_speed > self.allowed(elapsed, v_ref):
+            episodes[pair] = (start, v_ref, stop)
+            if elapsed > self.reaction_time + stop or v.approach_speed > self.allowed(elapsed, v_ref, stop):
                 late.append(v)
         self._episodes = episodes
         return late + [v for v in result.violations if v.kind == "separation"]

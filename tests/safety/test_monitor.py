@@ -212,3 +212,24 @@ def test_a_state_is_checked_against_the_person_of_its_moment_or_counted_unchecke
     ready, unchecked = backlog.take(1.7, history)
     assert ready == [] and [(u.stamp, u.kind) for u in unchecked] == [(0.2, "late"), (1.5, "tracker silent")]
     assert "after it was measured" in unchecked[0].reason and "ms old" in unchecked[1].reason and len(backlog) == 0
+
+
+def test_an_episode_of_a_robot_that_creeps_must_end_within_its_own_stopping_time():
+    """The reaction window brakes over the T_s of the episode's first state (``MonitorResult.stop``): a robot
+    that exceeds at a crawl (T_s 0.05 s) is late after T_r + 0.05 s, where one at full speed has 0.3 s."""
+    from shared.safety.monitor import MonitorResult, ReactionWindow, Violation
+
+    def speeding(speed, stop):
+        return MonitorResult(violations=[Violation("prbt_link_5", 0, "speed", 0.5, speed, 0.0)], stop=stop)
+
+    for stop, late_at in ((0.05, 0.16), (0.30, 0.41)):
+        window = ReactionWindow(0.1, 0.3)
+        assert window.update(0.0, speeding(0.05, stop)) == []
+        assert window.update(late_at - 0.02, speeding(0.001, stop)) == []
+        assert len(window.update(late_at, speeding(0.001, stop))) == 1, stop
+    state = MONITOR.check(Q_START, np.array([0.0, 0.785, 0, 0, 0, 0]), HumanCapsules.empty())
+    assert np.isnan(state.stop)                                       # nobody: nothing checked
+    near = HumanCapsules.from_arrays([[[0.5, 0, 1.0], [0.5, 0, 1.4]]], [0.1], np.zeros((1, 2, 3)), [True])
+    one = MONITOR.check(Q_START, np.array([0.0, 0.785, 0, 0, 0, 0]), near)
+    batch = MONITOR.check_batch(Q_START[None], np.array([[0.0, 0.785, 0, 0, 0, 0]]), [near])[0]
+    assert one.stop == pytest.approx(0.15) and batch.stop == pytest.approx(0.15)
