@@ -168,7 +168,8 @@ class Replanner:
                   waited: float = 0.0, prepared: PreparedPlan | None = None) -> Trajectory:
         """A new goal from rest: the direct line (the exact trapezoid) when the static scene allows it, even
         if a person is in its way now (the scaling layer holds the robot back), unless the searched path is
-        predicted faster; else the searched path (raises PlanningError or TimingError). prepared: this leg's
+        predicted faster by what a replan must save (``required_gain``); else the searched path (raises
+        PlanningError or TimingError). prepared: this leg's
         plan made a moment before, while the robot was still on its way here (``PlanningLoop`` prepares the
         next leg): it takes the search's place where it is still good (``_still_good``), and the robot
         leaves without waiting for a search. While someone is within ``posture_gap`` of the robot's reach, the
@@ -188,14 +189,17 @@ class Replanner:
         direct_time = self.predicted_time(direct, 0.0, humans, waited)
         if direct_time <= direct.duration + self.options.worth_searching:
             return direct                   # the people hardly slow it: a search would cost more than it saves
-        ready = self._still_good(prepared, q_start, q_goal, humans, waited, direct_time, version)
+        # a searched leg must beat it as a replan must beat the trajectory it would replace (min_gain, or
+        # min_saving seconds): a forecast's error is no reason to leave the line or the fold
+        beat = (1.0 - required_gain(direct_time, self.options.min_gain, self.options.min_saving)) * direct_time
+        ready = self._still_good(prepared, q_start, q_goal, humans, waited, beat, version)
         if ready is not None:
             return ready
         try:
             searched = self.plan_fresh(q_start, q_goal, humans, version, waited)
         except (PlanningError, TimingError):
             return direct
-        return searched if self.predicted_time(searched, 0.0, humans, waited) < direct_time else direct
+        return searched if self.predicted_time(searched, 0.0, humans, waited) < beat else direct
 
     def _posture(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules,
                  version: int) -> Trajectory | None:
