@@ -119,10 +119,9 @@ def velocity_limit(separation: np.ndarray, human_speed: np.ndarray, params: SsmP
     The human's part is ``human_distance`` (the paper's v_h (T_r + T_s) where human_acceleration is 0); stop:
     the state's T_s (s, ``SsmParameters.stop_at``; default the full-speed stopping_time), a number or one per
     element."""
-    separation = np.asarray(separation, dtype=float)
-    if stop is None:
-        return (separation - human_distance(human_speed, params, separation) - params.fixed_distance) / params.horizon
-    d, hs, st = np.broadcast_arrays(separation, np.asarray(human_speed, dtype=float), np.asarray(stop, dtype=float))
+    stop = params.stopping_time if stop is None else stop
+    d, hs, st = np.broadcast_arrays(np.asarray(separation, dtype=float), np.asarray(human_speed, dtype=float),
+                                    np.asarray(stop, dtype=float))
     out = _limits_each(np.ascontiguousarray(d).ravel(), np.ascontiguousarray(hs).ravel(),
                        np.ascontiguousarray(st).ravel(), *params.stop_constants[2:], *params.kernel_constants[2:])
     return out.reshape(d.shape) if d.shape else float(out[0])

@@ -4,8 +4,8 @@ The robot follows the planned path exactly: q(s), joint velocity q'(s) sdot, wit
 Each cycle the largest alpha in [0, 1] is sought such that
 
 * SSM (hard): for every robot link i and human capsule j, the speed at which link i approaches capsule j,
-  n_ij^T J_i(q) q'(s) sdot_nom alpha, stays below max(v_r_max,ij - tracking_margin, 0), v_r_max at the stopping
-  time of that alpha (``shared.safety.ssm.speed_alpha_bound``: it is the one bound all SSM rows give) (the margin covers
+  n_ij^T J_i(q) q'(s) sdot_nom alpha, stays below max(v_r_max,ij - tracking_margin, 0), v_r_max taken at the
+  stopping time of that alpha (``shared.safety.ssm.speed_alpha_bound``, the one bound all SSM rows give; the margin covers
   the measured lag of the drives behind their setpoints, ``SsmParameters.tracking_margin``). The approach speed of a rigid
   segment is affine along it, so the largest of its two end points' speeds is used with the pair's
   closest distance: conservative for the whole link, not only for the closest point. A negative limit
