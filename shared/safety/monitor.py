@@ -95,8 +95,7 @@ class SafetyMonitor:
         """T_s (s) of each measured joint velocity (N, 6): stopping_time x the fastest joint's share of its
         velocity limit, at least min_stopping_time (``SsmParameters.stop_at``); the limit of a state is the
         formula at its own T_s."""
-        fraction = np.max(np.abs(np.asarray(qds, dtype=float)) / self.robot.limits.velocity, axis=-1)
-        return np.maximum(self.ssm.min_stopping_time, self.ssm.stopping_time * fraction)
+        return self.ssm.stop_of(qds, self.robot.limits.velocity)
 
     def check_batch(self, qs: np.ndarray, qds: np.ndarray,
                     humans: list[HumanCapsules | None]) -> list[MonitorResult]:

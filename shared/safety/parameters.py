@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from shared.core.errors import ConfigError
 from shared.core.sections import check_numbers, from_mapping
 
@@ -121,9 +123,12 @@ class SsmParameters:
         fraction, at least min_stopping_time (see the class)."""
         return max(self.min_stopping_time, self.stopping_time * float(fraction))
 
-    def stop_of(self, joint_velocity, velocity_limit) -> float:
-        """T_s (s) of a robot moving at joint_velocity (rad/s) under the joints' velocity_limit (rad/s)."""
-        return self.stop_at(max(abs(float(v)) / float(m) for v, m in zip(joint_velocity, velocity_limit)))
+    def stop_of(self, joint_velocity, velocity_limit):
+        """T_s (s) of a robot moving at joint_velocity (rad/s; (6,), or (N, 6) for one per state) under the joints'
+        velocity_limit (rad/s): ``stop_at`` of the fastest joint's share of its limit."""
+        fraction = np.max(np.abs(np.asarray(joint_velocity, dtype=float)) / np.asarray(velocity_limit, dtype=float),
+                          axis=-1)
+        return np.maximum(self.min_stopping_time, self.stopping_time * fraction)
 
     def constants_at(self, stop: float) -> tuple[float, float, float, float, float, float]:
         """``kernel_constants`` at the stopping time `stop` (s) in place of T_s: the limits of one state."""
