@@ -84,7 +84,7 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
             continue
         out.states += 1
         worst: dict[tuple[str, int], float] = {}
-        stop = float(monitor.stopping_times(np.asarray(js.qd)[None])[0])       # this state's T_s
+        stop = float(monitor.stopping_times(js.qd))       # this state's T_s
         offset = 0
         for humans in reversed(seen):                  # newest first: capsule numbers as the monitor's union
             if humans is None:

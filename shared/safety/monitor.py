@@ -92,7 +92,7 @@ class SafetyMonitor:
         self._radii = np.array([cap.radius for cap in robot.capsules], dtype=float)
 
     def stopping_times(self, qds: np.ndarray) -> np.ndarray:
-        """T_s (s) of each measured joint velocity (N, 6): stopping_time x the fastest joint's share of its
+        """T_s (s) of each measured joint velocity ((N, 6), or one (6,)): stopping_time x the fastest joint's share of its
         velocity limit, at least min_stopping_time (``SsmParameters.stop_at``); the limit of a state is the
         formula at its own T_s."""
         return self.ssm.stop_of(qds, self.robot.limits.velocity)
@@ -123,7 +123,7 @@ class SafetyMonitor:
         if humans is None or humans.count == 0:
             return result
         q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
-        stop = result.stop = float(self.stopping_times(qd[None, :])[0])
+        stop = result.stop = float(self.stopping_times(qd))
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
         human_shapes = []

@@ -118,17 +118,16 @@ class SsmParameters:
         """Whether T_s follows the robot's speed (min_stopping_time below stopping_time)."""
         return self.min_stopping_time < self.stopping_time
 
-    def stop_at(self, fraction: float) -> float:
-        """T_s (s) of a robot whose fastest joint moves at `fraction` of its velocity limit: stopping_time x
-        fraction, at least min_stopping_time (see the class)."""
-        return max(self.min_stopping_time, self.stopping_time * float(fraction))
+    def stop_at(self, fraction):
+        """T_s (s) of a robot whose fastest joint moves at `fraction` of its velocity limit (a number, or an array
+        of them): stopping_time x fraction, at least min_stopping_time (see the class)."""
+        return np.maximum(self.min_stopping_time, self.stopping_time * np.asarray(fraction, dtype=float))
 
     def stop_of(self, joint_velocity, velocity_limit):
         """T_s (s) of a robot moving at joint_velocity (rad/s; (6,), or (N, 6) for one per state) under the joints'
         velocity_limit (rad/s): ``stop_at`` of the fastest joint's share of its limit."""
-        fraction = np.max(np.abs(np.asarray(joint_velocity, dtype=float)) / np.asarray(velocity_limit, dtype=float),
-                          axis=-1)
-        return np.maximum(self.min_stopping_time, self.stopping_time * fraction)
+        return self.stop_at(np.max(np.abs(np.asarray(joint_velocity, dtype=float))
+                                   / np.asarray(velocity_limit, dtype=float), axis=-1))
 
     def constants_at(self, stop: float) -> tuple[float, float, float, float, float, float]:
         """``kernel_constants`` at the stopping time `stop` (s) in place of T_s: the limits of one state."""

@@ -161,9 +161,16 @@ def fixed_stop_alpha_bound(robot_speed, limit):
 
 
 @numba.njit(cache=True)
+def stop_of_speed(alpha, fraction, stop_full, stop_min):
+    """T_s (s) at path speed alpha where the fastest joint moves at `fraction` of its limit at alpha = 1: the
+    compiled ``SsmParameters.stop_at`` (stop_full = stopping_time, stop_min = min_stopping_time)."""
+    return max(stop_min, stop_full * alpha * fraction)
+
+
+@numba.njit(cache=True)
 def _speed_allowed(alpha, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop, static,
                    near_d, v_near, v_far, a_h, margin):
-    stop = max(stop_min, stop_full * alpha * fraction)
+    stop = stop_of_speed(alpha, fraction, stop_full, stop_min)
     for i in range(robot_speed.shape[0]):
         for k in range(robot_speed.shape[1]):
             if robot_speed[i, k] > NEGLIGIBLE_SPEED:

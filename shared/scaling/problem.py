@@ -35,7 +35,7 @@ import piqp
 from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel, chain_points_and_velocities
 from shared.safety.parameters import SsmParameters
-from shared.safety.ssm import NEGLIGIBLE_SPEED, PairSsm, _limits_each, _pair_ssm_kernel, speed_alpha_bound
+from shared.safety.ssm import NEGLIGIBLE_SPEED, PairSsm, _limits_each, _pair_ssm_kernel, speed_alpha_bound, stop_of_speed
 
 
 @dataclass(slots=True)
@@ -153,8 +153,8 @@ def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, accelerat
                 speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full, stop_min, reaction,
                                   a_stop, static, near_d, v_near, v_far, a_h, margin))
     if stop_min < stop_full:
-        state = _state_limits(dist, human_speed, max(stop_min, stop_full * upper * fraction), reaction, a_stop,
-                              static, near_d, v_near, v_far, a_h)
+        state = _state_limits(dist, human_speed, stop_of_speed(upper, fraction, stop_full, stop_min), reaction,
+                              a_stop, static, near_d, v_near, v_far, a_h)
     else:
         state = limit
     coef, bound = _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration)
