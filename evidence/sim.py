@@ -58,7 +58,7 @@ class SimRecord:
 @dataclass
 class ReplanEvent:
     t: float
-    reason: str                  # 'horizon', 'beta', 'slow' or 'goal'
+    reason: str                  # the loop's action: 'horizon', 'beta', 'slow', 'search' or 'goal'
     ok: bool
     compute_ms: float
     detail: str = ""
@@ -68,6 +68,7 @@ class ReplanEvent:
 class SimResult:
     records: list[SimRecord] = field(default_factory=list)
     replans: list[ReplanEvent] = field(default_factory=list)
+    goals: list[ReplanEvent] = field(default_factory=list)   # each new goal's plan, taken (reason 'goal', its detail)
     shuttles: int = 0
     violations: int = 0
     command_exceedances: int = 0
@@ -205,6 +206,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         if layer.take(res.trajectory, res.from_rest, res.junction, q_now, START_TOLERANCE) is None:
             if outcome.action == "goal":
                 pending_leg = False
+                result.goals.append(ReplanEvent(t, "goal", True, elapsed, res.detail))
             else:
                 log_replan(ReplanEvent(t, outcome.action, True, elapsed, res.detail))
 

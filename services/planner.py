@@ -167,12 +167,12 @@ class PlannerService:
 
     def pause(self) -> float:
         """How long the worker may wait for its next turn (``idle_time``): a turn every POLL while someone is
-        within reach of any path, a replan is asked or a goal waits for the robot's position; up to
-        IDLE_LONGEST while the nearest person could not come within reach before then."""
+        within reach of any path, a replan is asked, a goal's search is left for the way, or a goal waits for the
+        robot's position; up to IDLE_LONGEST while the nearest person could not come within reach before then."""
         with self.lock:
             humans, status, new_goal = self.humans, self.status, self.new_goal
             waiting = self.goal is not None and self.q is None
-        if waiting or new_goal or (status is not None and status.beta):
+        if waiting or new_goal or (status is not None and status.beta) or self.loop.search_due is not None:
             return POLL
         return idle_time(reach_gap(self.loop.replanner.collision, humans), POLL)
 

@@ -101,6 +101,8 @@ class Replanner:
         self.candidates = Candidates(collision, options, self.cost, self.budget, self.path, self.predicted_time,
                                      self.stay)
         self.took_prepared = False     # the last plan_goal took the prepared trajectory it was given
+        self.search_deferred = False   # the last plan_goal left a search to be run on the way (leaving)
+        self.goal_searched = False     # the last plan_goal took the leg its search found
         self.postures = FoldedLegs(collision)     # the folded legs a new goal may take (``_posture``)
 
     def begin(self) -> None:
@@ -165,7 +167,7 @@ class Replanner:
         return self.candidates.from_rest(self.path(q_start, q_goal, humans, waited), humans, version)
 
     def plan_goal(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
-                  waited: float = 0.0, prepared: PreparedPlan | None = None) -> Trajectory:
+                  waited: float = 0.0, prepared: PreparedPlan | None = None, leaving: bool = False) -> Trajectory:
         """A new goal from rest: the direct line (the exact trapezoid) when the static scene allows it, even
         if a person is in its way now (the scaling layer holds the robot back), unless the searched path is
         predicted faster by what a replan must save (``required_gain``); else the searched path (raises
@@ -173,12 +175,19 @@ class Replanner:
         plan made a moment before, while the robot was still on its way here (``PlanningLoop`` prepares the
         next leg): it takes the search's place where it is still good (``_still_good``), and the robot
         leaves without waiting for a search. While someone is within ``posture_gap`` of the robot's reach, the
-        folded leg (``shared.planning.postures``) takes the direct line's place, where it is free."""
+        folded leg (``shared.planning.postures``) takes the direct line's place, where it is free. leaving:
+        where a search would decide but the direct line is predicted slower than nominal by no more than
+        ``worth_waiting``, the direct line (or the fold) is returned at once and ``search_deferred`` says so: the
+        robot leaves on it and the search runs on the way (``PlanningLoop``, action 'search'), so nobody waits
+        at the goal for a search that seldom pays."""
         q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
-        self.took_prepared = False
+        self.took_prepared = self.search_deferred = self.goal_searched = False
         if not self.collision.motion_free(q_start, q_goal)[0]:
             ready = self._still_good(prepared, q_start, q_goal, humans, waited, np.inf, version)
-            return ready if ready is not None else self.plan_fresh(q_start, q_goal, humans, version, waited)
+            if ready is not None:
+                return ready
+            self.goal_searched = True
+            return self.plan_fresh(q_start, q_goal, humans, version, waited)
         direct = straight_line_trajectory(q_start, q_goal, self.limits.velocity, self.limits.acceleration,
                                           version=version)
         if humans is None or humans.count == 0:
@@ -195,11 +204,15 @@ class Replanner:
         ready = self._still_good(prepared, q_start, q_goal, humans, waited, beat, version)
         if ready is not None:
             return ready
+        if leaving and direct_time <= direct.duration + self.options.worth_waiting:
+            self.search_deferred = True
+            return direct
         try:
             searched = self.plan_fresh(q_start, q_goal, humans, version, waited)
         except (PlanningError, TimingError):
             return direct
-        return searched if self.predicted_time(searched, 0.0, humans, waited) < beat else direct
+        self.goal_searched = self.predicted_time(searched, 0.0, humans, waited) < beat
+        return searched if self.goal_searched else direct
 
     def _posture(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules,
                  version: int) -> Trajectory | None:

@@ -188,3 +188,18 @@ def test_the_fixed_path_folds_the_elbow_over_the_middle_of_the_sweep_and_costs_a
     assert strategies.collision.path_free(leg.sample(np.linspace(0.0, leg.duration, 200))[0])
     folded, straight = strategies._run("fixed_path", EmptyCell(), 12.0), strategies.empty_cell(12.0)
     assert 0.9 * straight.progress < folded.progress < straight.progress and folded.violations == 0
+
+
+def test_a_goal_whose_search_seldom_pays_is_left_at_once_and_searched_on_the_way(strategies):
+    """Two people walking (seed 6003, charged 80 ms a search): at 6.94 s the direct leg is predicted slower than
+    nominal, but by less than worth_waiting. The robot leaves in the cycle after its goal (not 80 ms later),
+    and the search runs on the way the next cycle (refused here: the way round did not pay), as a replan."""
+    result = strategies.run("full", "two_humans", 6003, 12.0)
+    left = [g.t for g in result.goals if g.detail == "left at once, searched on the way"]
+    assert left and result.violations == 0
+    for t in left:
+        after = [r for r in result.records if t < r.t <= t + 0.025]
+        assert after[-1].step.s > 0.0 and after[-1].step.alpha > 0.0, [(r.t, r.step.s) for r in after]
+        assert any(e.reason == "search" and t < e.t <= t + 0.2 for e in result.replans), result.replans
+    assert all(g.detail in ("", "left at once, searched on the way", "searched from rest", "prepared on the way here")
+               for g in result.goals)

@@ -398,6 +398,22 @@ def test_a_new_goal_takes_the_direct_line_unless_the_searched_path_is_predicted_
     assert not np.allclose(chosen.sample(1.0)[0], OLD.sample(1.0)[0])
     assert stays.predicted_time(chosen, 0.0, STANDING) < stays.predicted_time(OLD, 0.0, STANDING)
     assert_trajectory_feasible(chosen, STANDING)
+    # leaving (the planning loop leaves at once and searches on the way) where the direct line is predicted no more
+    # than worth_waiting slower than nominal: the direct line, no search, and it says the search was left
+    excess = stays.predicted_time(OLD, 0.0, STANDING) - OLD.duration
+    leaves = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=5.0, posture_gap=None,
+                                                                     worth_waiting=excess + 0.1))
+    at_once = leaves.plan_goal(Q_START, Q_GOAL, STANDING, 8, leaving=True)
+    assert leaves.search_deferred and leaves.searches == 0 and at_once.version == 8
+    assert np.allclose(at_once.sample(1.0)[0], OLD.sample(1.0)[0])
+    leaves.plan_goal(Q_START, Q_GOAL, ASIDE, 9, leaving=True)           # no search would decide: nothing left
+    assert not leaves.search_deferred
+    # slower than that: the robot waits for the search at the goal, as without leaving
+    waits = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=5.0, posture_gap=None,
+                                                                    worth_waiting=excess - 0.1))
+    searched = waits.plan_goal(Q_START, Q_GOAL, STANDING, 10, leaving=True)
+    assert not waits.search_deferred and waits.searches == 1 and np.allclose(searched.positions, chosen.positions)
+    assert waits.goal_searched and not leaves.goal_searched
 
 
 def test_a_search_starts_from_the_paths_the_last_ones_found_to_the_same_goal():

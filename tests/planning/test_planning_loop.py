@@ -43,8 +43,13 @@ class RecordingReplanner:
     """Answers every call at once and records it: the loop's cadence is what is under test here."""
 
     def __init__(self, horizon=None, beta_fails: bool = False, horizon_fails: bool = False, slow=None,
-                 slow_fails: bool = False) -> None:
+                 slow_fails: bool = False, defers: bool = False) -> None:
+        """defers: a goal's search is left for the way (``Replanner.search_deferred``) where plan_goal is told the
+        robot is leaving."""
         self.calls: list[str] = []
+        self.defers, self.search_deferred = defers, False
+        self.leaving: list[bool] = []        # plan_goal's leaving argument, call by call
+        self.options = ReplanOptions()
         self.searches = 0
         self.forgotten = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
@@ -67,24 +72,26 @@ class RecordingReplanner:
         self.searches += 1
         return ReplanResult(OLD, 0.5, reason, 0.0)
 
-    def plan_goal(self, q, goal, humans, version, waited, prepared=None):
+    def plan_goal(self, q, goal, humans, version, waited, prepared=None, leaving=False):
         self.calls.append(f"plan_goal v{version}")
+        self.leaving.append(leaving)
         self.took_prepared = prepared is not None
         if np.allclose(goal, 99.0):
             raise PlanningError("the goal is out of reach")
-        self.searches += 1
-        return OLD
+        self.search_deferred, self.goal_searched = self.defers and leaving, False
+        self.searches += not self.search_deferred
+        return dataclasses.replace(OLD, version=version)
 
     def replan(self, old, s, goal, humans, reason, waited=0.0):
         self.calls.append("replan")
         return self._result(reason)
 
-    def on_beta(self, old, s, goal, humans, speed, waited, held, stop_at=None):
-        self.calls.append("beta")
+    def on_beta(self, old, s, goal, humans, speed, waited, held, reason="beta", why="replan request", stop_at=None):
+        self.calls.append("beta" if reason == "beta" else f"beta as {reason}")
         self.waited, self.held, self.stop_at = waited, held, stop_at
         if self.beta_fails:
             raise ReplanFailed("not 10 % faster")
-        return self._result("beta")
+        return self._result(reason)
 
     def on_horizon(self, old, s, goal, humans, speed, waited, held):
         self.calls.append("horizon")
@@ -122,6 +129,42 @@ def test_a_new_goal_comes_first_from_rest_or_merged_into_the_followed_trajectory
     assert merged.action == "goal" and not merged.result.from_rest
     assert loop.replanner.calls == ["plan_goal v4", "replan"]
     assert loop.replanner.forgotten == 3        # a new loop and each new goal start with no remembered paths
+
+
+def test_a_goal_from_rest_leaves_at_once_and_its_search_runs_on_the_way():
+    """Nobody waits at a goal for its search: the leg is published without one, and once the robot has left on
+    it (or the SSM holds it where it stands) the search runs, once, as a replan that must pay (reason 'goal')."""
+    loop = PlanningLoop(RecordingReplanner(defers=True), slow_period=None)
+    goal = loop.step(0.0, inputs(new_goal=True, following=None))
+    assert goal.action == "goal" and goal.searches == 0 and goal.result.detail == "left at once, searched on the way"
+    assert loop.replanner.leaving == [True] and loop.search_due == 4
+    leg = goal.result.trajectory
+    assert loop.step(0.01, inputs(following=(leg, 0.0), speed=0.0)) is None          # not left yet: nothing
+    assert loop.step(0.01, inputs(following=(leg, 0.0), speed=None)) is None         # speed unknown: nothing
+    assert loop.step(0.01, inputs(following=(OLD, 0.05), speed=1.0)) is None         # another trajectory: nothing
+    search = loop.step(0.02, inputs(following=(leg, 0.01), speed=0.05))
+    assert search.action == "search" and search.result.reason == "goal" and search.searches == 1
+    assert loop.replanner.calls[-1] == "beta as goal" and loop.search_due is None
+    assert loop.step(0.03, inputs(following=(leg, 0.02), speed=0.1)) is None         # once
+    # held where it stands by the SSM: the search plans from rest there
+    held = PlanningLoop(RecordingReplanner(defers=True), slow_period=None)
+    leg = held.step(0.0, inputs(new_goal=True, following=None)).result.trajectory
+    assert held.step(0.01, inputs(following=(leg, 0.0), speed=0.0, held=True)).action == "search"
+
+
+def test_a_replan_request_or_a_new_goal_takes_the_place_of_the_search_left_for_the_way():
+    loop = PlanningLoop(RecordingReplanner(defers=True), slow_period=None)
+    leg = loop.step(0.0, inputs(new_goal=True, following=None)).result.trajectory
+    beta = loop.step(0.01, inputs(following=(leg, 0.01), speed=0.05, beta=True))
+    assert beta.action == "beta" and loop.search_due is None
+    assert loop.step(0.02, inputs(following=(leg, 0.02), speed=0.1)) is None
+    again = PlanningLoop(RecordingReplanner(defers=True), slow_period=None)
+    again.step(0.0, inputs(new_goal=True, following=None))
+    assert again.step(0.5, inputs(new_goal=True, following=(OLD, 0.2), goal=Q_START)).action == "goal"
+    assert again.search_due is None               # a goal merged into the followed trajectory searches itself
+    plain = PlanningLoop(RecordingReplanner(), slow_period=None)       # a goal whose line needs no search
+    plain.step(0.0, inputs(new_goal=True, following=None))
+    assert plain.search_due is None
 
 
 def test_a_goal_that_cannot_be_planned_is_refused_with_the_reason():

@@ -71,7 +71,13 @@ def test_the_paper_phases_with_both_layers():
     result = both_layers(paper)
     assert result.violations == 0 and result.beta_requests > 0
     done = [(round(e.t, 2), e.reason) for e in result.replans if e.ok]
-    assert any(t >= 12.0 and reason in ("horizon", "beta") for t, reason in done), done
+    # gone round by the planning layer: a replan taken, or the goal's own plan searched from rest while the arm is
+    # there (in 10 runs, the phase period 0.5 % longer or shorter and planning charged 0 or 80 ms: a beta replan in 4,
+    # the goal searched round the arm in 6; with the search waited for at every goal, a beta replan in 7 and in
+    # 3 none at all, 0.08 shuttles less on average)
+    searched = [round(g.t, 2) for g in result.goals if g.detail == "searched from rest"]
+    assert any(t >= 12.0 and reason in ("horizon", "beta") for t, reason in done) \
+        or any(12.0 <= t < 18.0 for t in searched), (done, result.goals)
     assert result.shuttles >= scaling_only.shuttles + 1 and result.progress >= scaling_only.progress + 0.3
     # (or, where the goal itself is out of reach while the person stays, that, with the link and distances)
     for refused in (e for e in result.replans if not e.ok):
@@ -90,11 +96,12 @@ def test_the_paper_phases_with_both_layers():
         return sum(1 for a, b in zip(run.records, run.records[1:]) if b.shuttles > a.shuttles and start <= b.t < end)
     # (the replan comes while the arm reaches into the path, 12-13.8 s, or once it is there: the scaling layer's stop
     # run ahead sees the arm coming by its tracked velocity and holds the robot from 13.48 s; without it, 14.5 s)
-    assert any(12.0 <= t < 18.0 for t, _ in done) and legs_between(result, 13.8, 18.0) >= 1, done
-    # the paper's replan request answered: a beta replan taken while the arm is in the path, phase 3 (it was, in
-    # every one of 15 runs with the phase period 0.5 % longer or shorter and planning charged 0 to 90 ms, measured
-    # before the stop run ahead; the 12 s phases below need none)
-    assert any(12.0 <= t < 18.0 and why == "beta" for t, why in done), done
+    assert any(12.0 <= t < 18.0 for t, _ in done) or any(12.0 <= t < 18.0 for t in searched), done
+    assert legs_between(result, 13.8, 18.0) >= 1
+    # the paper's replan request answered: a beta replan taken while the arm is in the path, phase 3, wherever the
+    # scaling layer holds the robot there (below: every hold answered); where the goal's plan already goes round the
+    # arm, nothing holds it (the goal left 12.8 s, the arm there since 12 s)
+    assert any(12.0 <= t < 18.0 and why == "beta" for t, why in done) or any(12.0 <= t < 18.0 for t in searched), done
     assert legs_between(result, 19.2, 22.8) >= 1
     def holds_answered(run, start, end):    # every hold below alpha_min from start to end: short, or a beta replan
         taken = [e.t for e in run.replans if e.ok and e.reason == "beta"]
@@ -110,7 +117,7 @@ def test_the_paper_phases_with_both_layers():
         for a, b in holds:
             assert b - a <= 0.5 or any(a <= t <= b for t in taken), (a, b, run.replans)
 
-    holds_answered(result, 18.0, 22.8)
+    holds_answered(result, 12.0, 22.8)
     # phase 4 at 12 s (3 s phases): the scaling layer alone stays held beside the person until the end;
     # with both layers the robot reaches its goal while the person still reaches in. Where alpha falls below
     # alpha_min and the scaling layer asks for a replan, a new plan takes the robot on (the replan's own
