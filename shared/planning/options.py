@@ -57,7 +57,7 @@ class ReplanOptions:
     patience: float = PlanningParameters.patience
     rrt_budget: float = 0.2
     worth_searching: float = 0.25
-    worth_waiting: float = 0.5
+    worth_waiting: float = PlanningParameters.worth_waiting
     slow_excess: float = PlanningParameters.slow_excess
     action_budget: float | None = None
     posture_gap: float | None = PlanningParameters.posture_gap

@@ -18,6 +18,10 @@ forward run of the scaling layer itself, ``shared.planning.executed``). forecast
 planning layer's forecast moves the tracked people on along their velocities, then holds them (the time cost's
 ``extrapolation``; 0: held where they are now). 2 s shipped: swept from 1 to 6 s, with the patience, it trades
 the two-person scenarios against the random walk by about 1 % either way (docs/measurements.md, 2026-12-03).
+worth_waiting (s): a new goal's robot waits at the goal for its search only where the people slow the direct
+line by more than this; below it, it leaves at once and the search runs on the way (``shared.planning.loop``).
+0.5 s shipped: on 20 seeds a kind, against the fixed fold, 0.25 s (waiting for every search) lost 0.5 % with
+two people walking, never waiting lost the paper's phase 4 at 3 s phases (docs/architecture.md, Goals).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ class PlanningParameters:
     posture_gap: float | None = 2.5
     judge: str = "cost"
     forecast_horizon: float = 2.0
+    worth_waiting: float = 0.5
 
     def __post_init__(self) -> None:
         check_numbers(self, "planning", skip=("posture_gap", "judge"), non_negative=True)
@@ -63,5 +68,5 @@ class PlanningParameters:
 
         return {"patience": float(self.patience), "min_gain": float(self.min_gain),
                 "min_saving": float(self.min_saving), "slow_excess": float(self.slow_excess),
-                "posture_gap": self.folds, "judge": self.judge,
+                "posture_gap": self.folds, "judge": self.judge, "worth_waiting": float(self.worth_waiting),
                 "cost": TimeCostOptions(extrapolation=float(self.forecast_horizon))}

@@ -47,6 +47,7 @@ def test_the_shipped_config_is_the_built_in_default():
     ("planning: {posture_gap: near}", "planning.posture_gap"),
     ("planning: {judge: oracle}", "planning.judge"),
     ("planning: {forecast_horizon: -2}", "planning.forecast_horizon"),
+    ("planning: {worth_waiting: -0.5}", "planning.worth_waiting"),
     ("planning: {search: 3}", "unknown key"),
     ("mystery: {}", "unknown section"),
     ("ssm: [1, 2]", "ssm: expected a mapping"),
@@ -68,7 +69,8 @@ def test_the_planning_section_reaches_the_planners_options(tmp_path):
     from shared.planning.options import ReplanOptions
 
     path = tmp_path / "cell.yaml"
-    path.write_text("planning: {patience: 3.0, min_gain: 0.2, posture_gap: 1.0, judge: scaling, forecast_horizon: 3.5}")
+    path.write_text("planning: {patience: 3.0, min_gain: 0.2, posture_gap: 1.0, judge: scaling, forecast_horizon: 3.5, "
+                    "worth_waiting: 0.75}")
     config = load_config(path)
     options = ReplanOptions(**config.planning.replan_fields())
     assert (options.patience, options.min_gain, options.posture_gap, options.judge) == (3.0, 0.2, 1.0, "scaling")
@@ -76,6 +78,7 @@ def test_the_planning_section_reaches_the_planners_options(tmp_path):
     full = Strategies(config).replanner
     assert full.options.patience == 3.0 and full.options.posture_gap == 1.0 and full.executed is not None
     assert full.cost.options.extrapolation == 3.5                  # the time cost forecasts that far
+    assert full.options.worth_waiting == 0.75
     shipped = load_config(ROOT / "deploy" / "cell.yaml").planning.posture_gap
     assert CellConfig().planning.replan_fields()["posture_gap"] == 2.5 == shipped
     paper = load_config(ROOT / "deploy" / "cell-paper.yaml")        # the paper's planner takes no posture
@@ -84,6 +87,7 @@ def test_the_planning_section_reaches_the_planners_options(tmp_path):
     assert load_config(path).planning.replan_fields()["posture_gap"] is None
     assert ReplanOptions().patience == CellConfig().planning.patience      # one default, written once
     assert ReplanOptions().cost.extrapolation == CellConfig().planning.forecast_horizon
+    assert ReplanOptions().worth_waiting == CellConfig().planning.worth_waiting == 0.5
 
 
 def test_missing_file_is_a_config_error(tmp_path):
