@@ -1,0 +1,173 @@
+"""Every real recording through the cell, as a table (not a test: it prints figures; docs/real-people.md).
+
+The human-assembly recordings (``../shared/data/human-assembly/``: RealSense + OpenPose, the arms of people
+assembling LEGO at a table) are converted with the product's own reader (``hrc human from-keypoints FILE OUT
+--format assembly --translate X 0 1.1``) at each placement, and run through ``hrc demo --human`` on the real
+processes (every service over Zenoh, the emulated PRBT on CAN; the recording sent at its own 30 Hz), or in the
+simulation with ``--sim``. One row per run, from the run's own summary.json (docs/report-format.md): shuttles per
+minute, the stopped share, the violations counted by the monitor, by the report's recount and by the
+independent judge (tools/judge.py), the states left unchecked, the tracker's dropouts and unknown velocities,
+the independent judge's speed-ups within T_r, the worst joint's drive lag p99 and the events that were not
+info. Then the mean shuttles per minute and the sums of violations per placement. The last line is one JSON
+object: {"rows": [...], "means": {placement: {"shuttles_per_min": m, "violations": [monitor, recount,
+independent], "unchecked": n, "held": [recordings whose robot completed no shuttle]}}} (a count is
+null where no run of the placement measured it: the simulation has no recount).
+
+Placements (shoulders 1.35 m high, facing the robot across its sweep):
+* table_edge, X = -0.05: shoulders at x = -0.90 m, hands about 0.77 m from the base;
+* step_back, X = -0.75: shoulders at x = -1.60 m.
+
+    python bench/real_people.py [--sim] [--paper-formula] [--placements table_edge,step_back]
+                                [--recordings DIR] [--only NAME ...] [--out DIR]
+
+Each processes run takes the recording's length plus about 15 s to start and stop the cell; the 24 runs of
+both placements about 20 minutes on this 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RECORDINGS = ROOT.parent / "shared" / "data" / "human-assembly"
+PLACEMENTS = {"table_edge": -0.05, "step_back": -0.75}     # m: --translate X of hrc human from-keypoints
+HEIGHT = 1.1                                                 # m: --translate Z (shoulders 1.35 m high)
+HRC = [sys.executable, "-m", "tools.cli"]
+
+
+def convert(recording: Path, placement: str, out: Path) -> Path:
+    """The recording as a motion file at the placement (the product's reader; raises CalledProcessError)."""
+    motion = out / f"{recording.stem}-{placement}.json"
+    subprocess.run(HRC + ["human", "from-keypoints", str(recording), str(motion), "--format", "assembly",
+                          "--translate", str(PLACEMENTS[placement]), "0", str(HEIGHT)],
+                   check=True, cwd=ROOT, capture_output=True, text=True)
+    return motion
+
+
+def run(motion: Path, report: Path, sim: bool, paper: bool) -> dict:
+    """One ``hrc demo --human`` run; its summary.json, or {"error": ...} where the run gave none."""
+    cmd = HRC + ["demo", "--human", str(motion), "--out", str(report), "--quiet"]
+    cmd += ["--sim"] if sim else []
+    cmd += ["--paper-formula"] if paper else []
+    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    summary = report / "summary.json"
+    if not summary.exists():
+        return {"error": f"exit {done.returncode}: {(done.stderr or done.stdout).strip()[-300:]}"}
+    return json.loads(summary.read_text())
+
+
+def row(recording: str, placement: str, summary: dict) -> dict:
+    """The table's figures of one run (None where the run's mode does not measure them: the simulation has no
+    recount, no tracker and no drives)."""
+    check = summary.get("monitor_check") or {}
+    independent = check.get("independent") or {}
+    tracker = summary.get("tracker") or {}
+    lags = ((summary.get("drives") or {}).get("lag_p99_ms") or {})
+    lag_values = list(lags.values()) if isinstance(lags, dict) else list(lags)
+    events = summary.get("events") or {}
+    return {"recording": recording, "placement": placement, "error": summary.get("error"),
+            "shuttles_per_min": summary.get("shuttles_per_min"),
+            "stopped": summary.get("stopped_fraction"),
+            "violations": [summary.get("violations"), check.get("violations_recounted"), independent.get("violations")],
+            "unchecked": check.get("unchecked"),
+            "dropouts": tracker.get("dropouts"),
+            "velocity_unknown": [tracker.get("velocity_unknown_share"), tracker.get("velocity_unknown_longest_ms")],
+            "speedups": independent.get("speedups"),
+            "drive_lag_p99_ms": max(lag_values) if lag_values else None,
+            "events": sorted(events) if isinstance(events, dict) else events}
+
+
+def _cell(value, share: bool = False) -> str:
+    if value is None:
+        return "-"
+    if share:
+        return f"{100.0 * value:.1f} %"
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    if isinstance(value, list):
+        return " / ".join(_cell(v) for v in value)
+    return str(value)
+
+
+def _total(values) -> int | None:
+    """The sum of the counts a run measured (None where no run measured it: the simulation's recounts)."""
+    counted = [v for v in values if v is not None]
+    return sum(counted) if counted else None
+
+
+def means(rows: list[dict]) -> dict:
+    """Per placement: the mean shuttles per minute, the violations summed per counter, the unchecked states, and
+    the recordings whose robot completed no shuttle."""
+    out = {}
+    for placement in dict.fromkeys(r["placement"] for r in rows):
+        mine = [r for r in rows if r["placement"] == placement and r["error"] is None]
+        rates = [r["shuttles_per_min"] for r in mine]
+        out[placement] = {
+            "runs": len(mine), "failed": sum(r["placement"] == placement and r["error"] is not None for r in rows),
+            "shuttles_per_min": round(sum(rates) / len(rates), 2) if rates else None,
+            "violations": [_total(r["violations"][k] for r in mine) for k in range(3)],
+            "unchecked": _total(r["unchecked"] for r in mine),
+            "held": [r["recording"] for r in mine if not r["shuttles_per_min"]]}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sim", action="store_true", help="in the simulation (hrc demo --sim) instead of the processes")
+    parser.add_argument("--paper-formula", action="store_true", help="the paper's configuration (deploy/cell-paper.yaml)")
+    parser.add_argument("--placements", default="table_edge,step_back",
+                        help=f"comma-separated, of {', '.join(PLACEMENTS)} (default: both)")
+    parser.add_argument("--recordings", type=Path, default=RECORDINGS, help="the folder of *.txt recordings")
+    parser.add_argument("--only", nargs="*", default=None, help="recording names (without .txt) to run, not all")
+    parser.add_argument("--out", type=Path, default=None, help="where each run's report goes (default: a temporary folder)")
+    args = parser.parse_args(argv)
+    placements = [p.strip() for p in args.placements.split(",") if p.strip()]
+    unknown = [p for p in placements if p not in PLACEMENTS]
+    if unknown or not placements:
+        parser.error(f"--placements: unknown {unknown}; known: {', '.join(PLACEMENTS)}")
+    recordings = sorted(args.recordings.glob("*.txt")) if args.recordings.is_dir() else []
+    if args.only is not None:
+        recordings = [r for r in recordings if r.stem in set(args.only)]
+    if not recordings:
+        parser.error(f"no recordings (*.txt) in {args.recordings}" + (f" named {args.only}" if args.only else ""))
+    out = args.out or Path(tempfile.mkdtemp(prefix="real-people-"))
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    header = ["recording", "placement", "shuttles/min", "stopped", "violations (monitor / recount / independent)",
+              "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups", "drive lag p99 ms", "events"]
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header), flush=True)
+    for placement in placements:
+        for recording in recordings:
+            try:
+                motion = convert(recording, placement, out)
+            except subprocess.CalledProcessError as exc:
+                r = row(recording.stem, placement, {"error": f"conversion: {exc.stderr.strip()[-300:]}"})
+            else:
+                r = row(recording.stem, placement, run(motion, out / f"{recording.stem}-{placement}", args.sim,
+                                                       args.paper_formula))
+            rows.append(r)
+            cells = [r["recording"], r["placement"]] + ([f"error: {r['error']}"] if r["error"] else
+                     [_cell(r["shuttles_per_min"]), _cell(r["stopped"], share=True)]
+                     + [_cell(r[k]) for k in ("violations", "unchecked", "dropouts")]
+                     + [f"{_cell(r['velocity_unknown'][0], share=True)}, {_cell(r['velocity_unknown'][1])}"]
+                     + [_cell(r[k]) for k in ("speedups", "drive_lag_p99_ms")]
+                     + [", ".join(r["events"] or []) or "-"])
+            print("| " + " | ".join(cells) + " |", flush=True)
+    summary = means(rows)
+    for placement, m in summary.items():
+        print(f"{placement}: {m['shuttles_per_min']} shuttles/min over {m['runs']} runs ({m['failed']} failed), "
+              f"violations {_cell(m['violations'])}, unchecked {_cell(m['unchecked'])}, "
+              f"no shuttle done: {', '.join(m['held']) or 'none'}")
+    print(f"reports in {out}")
+    print(json.dumps({"rows": rows, "means": summary, "sim": args.sim, "paper_formula": args.paper_formula}))
+    return 0 if all(r["error"] is None for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,47 @@
+"""bench/real_people.py: every recording through hrc demo --human, as a table. Its command line, its errors, and
+one short recording in the simulation end to end (the figures themselves are the benchmark's, not asserted)."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from tests.util import load_bench
+
+FIXTURE = Path(__file__).resolve().parents[1] / "data" / "human-assembly"
+
+
+def test_bad_arguments_are_refused_with_the_reason(capsys, tmp_path):
+    bench = load_bench("real_people")
+    with pytest.raises(SystemExit) as exit_:
+        bench.main(["--placements", "on_the_table"])
+    assert exit_.value.code == 2 and "unknown ['on_the_table']" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        bench.main(["--recordings", str(tmp_path)])
+    assert exit_.value.code == 2 and "no recordings" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        bench.main(["--recordings", str(FIXTURE), "--only", "nobody"])
+    assert exit_.value.code == 2 and "named ['nobody']" in capsys.readouterr().err
+
+
+def test_a_recording_goes_through_the_simulation_and_its_row_comes_from_the_runs_summary(capsys, tmp_path):
+    bench = load_bench("real_people")
+    assert bench.main(["--sim", "--recordings", str(FIXTURE), "--placements", "step_back", "--out", str(tmp_path)]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    (row,) = result["rows"]
+    summary = json.loads((tmp_path / "task1_human1_trial1_first300-step_back" / "summary.json").read_text())
+    assert row["shuttles_per_min"] == summary["shuttles_per_min"] > 0.0
+    assert row["violations"] == [summary["violations"], None, None] and row["error"] is None
+    assert result["means"]["step_back"]["shuttles_per_min"] == summary["shuttles_per_min"]
+    assert result["means"]["step_back"]["violations"] == [summary["violations"], None, None]
+    motion = json.loads((tmp_path / "task1_human1_trial1_first300-step_back.json").read_text())
+    assert motion                                   # the product's own reader wrote the placed motion
+
+
+def test_a_run_without_a_summary_is_a_row_with_its_error_and_the_table_goes_on():
+    bench = load_bench("real_people")
+    row = bench.row("r", "step_back", {"error": "exit 2: bad file"})
+    assert row["error"] == "exit 2: bad file" and row["shuttles_per_min"] is None
+    means = bench.means([row, bench.row("s", "step_back", {"shuttles_per_min": 10.0, "violations": 0})])
+    assert means["step_back"]["runs"] == 1 and means["step_back"]["failed"] == 1
+    assert means["step_back"]["shuttles_per_min"] == 10.0 and means["step_back"]["violations"] == [0, None, None]
