@@ -21,7 +21,7 @@ from shared.core.trajectory import Trajectory
 class ReplanResult:
     trajectory: Trajectory
     junction: float       # s where the new trajectory starts to differ from the old one
-    reason: str           # 'horizon', 'beta', 'slow' or 'goal'
+    reason: str           # 'horizon', 'beta', 'slow', 'search' (a goal's search on the way) or 'goal'
     plan_s: float         # wall time spent (s)
     predicted: float = float("nan")   # its predicted time to the goal under the SSM (s)
     baseline: float = float("nan")    # the old trajectory's, predicted the same way (s)

@@ -13,7 +13,7 @@ how long it has been held) and takes at most one action, in this order:
    itself is out of reach while the people stay (``shared.planning.blocked``): every path then ends in the
    same wait, and the refusal says so without a search;
    then, once the robot has left on a goal's direct leg (moving, or held by the SSM), the search that goal
-   from rest would have waited for (action 'search', reason 'goal'): a merge ahead of the robot, kept only
+   from rest would have waited for (action and reason 'search'): a merge ahead of the robot, kept only
    where it beats the leg followed as a replan must (``required_gain``). The robot does not stand at a goal
    for a search that seldom pays (80 ms a search in the cell: with two people walking, 0.6 % of the
    shuttles were lost to it);
@@ -178,7 +178,7 @@ class PlanningLoop:
             self.search_due = None
             try:
                 return PlanningOutcome("search", self.replanner.on_beta(
-                    trajectory, s, inputs.goal, inputs.humans, inputs.speed, inputs.waited, inputs.held, reason="goal",
+                    trajectory, s, inputs.goal, inputs.humans, inputs.speed, inputs.waited, inputs.held, reason="search",
                     why="the new goal's search, on the way"))
             except ReplanFailed as exc:
                 return PlanningOutcome("search", refused=str(exc))

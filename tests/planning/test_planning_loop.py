@@ -133,7 +133,7 @@ def test_a_new_goal_comes_first_from_rest_or_merged_into_the_followed_trajectory
 
 def test_a_goal_from_rest_leaves_at_once_and_its_search_runs_on_the_way():
     """Nobody waits at a goal for its search: the leg is published without one, and once the robot has left on
-    it (or the SSM holds it where it stands) the search runs, once, as a replan that must pay (reason 'goal')."""
+    it (or the SSM holds it where it stands) the search runs, once, as a replan that must pay (reason 'search')."""
     loop = PlanningLoop(RecordingReplanner(defers=True), slow_period=None)
     goal = loop.step(0.0, inputs(new_goal=True, following=None))
     assert goal.action == "goal" and goal.searches == 0 and goal.result.detail == "left at once, searched on the way"
@@ -143,8 +143,8 @@ def test_a_goal_from_rest_leaves_at_once_and_its_search_runs_on_the_way():
     assert loop.step(0.01, inputs(following=(leg, 0.0), speed=None)) is None         # speed unknown: nothing
     assert loop.step(0.01, inputs(following=(OLD, 0.05), speed=1.0)) is None         # another trajectory: nothing
     search = loop.step(0.02, inputs(following=(leg, 0.01), speed=0.05))
-    assert search.action == "search" and search.result.reason == "goal" and search.searches == 1
-    assert loop.replanner.calls[-1] == "beta as goal" and loop.search_due is None
+    assert search.action == "search" and search.result.reason == "search" and search.searches == 1
+    assert loop.replanner.calls[-1] == "beta as search" and loop.search_due is None
     assert loop.step(0.03, inputs(following=(leg, 0.02), speed=0.1)) is None         # once
     # held where it stands by the SSM: the search plans from rest there
     held = PlanningLoop(RecordingReplanner(defers=True), slow_period=None)
