@@ -12,19 +12,19 @@ how long it has been held) and takes at most one action, in this order:
    ``stop_at``, is answered at once, once for each wait): ``Replanner.on_beta``, unless the goal
    itself is out of reach while the people stay (``shared.planning.blocked``): every path then ends in the
    same wait, and the refusal says so without a search;
-   then, once the robot has left on a goal's direct leg (moving, or held by the SSM), the search that goal
-   from rest would have waited for (action and reason 'search'): a merge ahead of the robot, kept only
-   where it beats the leg followed as a replan must (``required_gain``). The robot does not stand at a goal
-   for a search that seldom pays (80 ms a search in the cell: with two people walking, 0.6 % of the
-   shuttles were lost to it);
-3. a new human sample, at most every ``horizon_period``: the horizon check (Alg. 1) and a merge when the
+3. once the robot has left on a goal's direct leg (moving, or held by the SSM), the search that goal from
+   rest would have waited for (action and reason 'search'): a merge ahead of the robot, kept only where it
+   beats the leg followed as a replan must (``required_gain``). The robot does not stand at a goal for a
+   search that seldom pays (80 ms a search in the cell: with two people walking, waiting for every one cost
+   0.5 % of the shuttles);
+4. a new human sample, at most every ``horizon_period``: the horizon check (Alg. 1) and a merge when the
    path ahead is blocked and the way round is predicted faster; after a refused one, the horizon is left
    alone for half a beta cooldown (a blocked horizon is not hammered every sample);
-4. at most every ``slow_period``, the path ahead predicted slow while the robot still moves at speed
+5. at most every ``slow_period``, the path ahead predicted slow while the robot still moves at speed
    (``Replanner.on_slow``: the planning layer's own replan request, reason 'slow'); after a refused one,
    not for a beta cooldown. A plan is only as good as the prediction it was made on: a goal planned while
    a person was still stepping in assumed they walk on, and they stopped in its way;
-5. where the goal after this one is known (``PlanningInputs.then``), once the robot is within
+6. where the goal after this one is known (``PlanningInputs.then``), once the robot is within
    ``prepare_ahead`` nominal seconds of the goal: the next leg's plan, prepared and kept, not published
    (action 'prepare'). When that goal comes, ``Replanner.plan_goal`` takes it instead of a search where it
    is still good for the people as they are then: the robot leaves without waiting for a search (in `hrc
