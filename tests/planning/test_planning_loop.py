@@ -697,6 +697,13 @@ def test_the_planner_service_polls_every_period_only_while_someone_is_within_rea
                                                    min_separation=None, min_margin=None, compute_us=50.0))
     service.work_once(1.7)
     assert service.pause() == POLL                          # a replan asked: every period whoever is where
+    shell.deliver(keys.scaler_status, ScalerStatus(s=0.3, alpha=1.0, safe_alpha=1.0, beta=False, q_command=Q_START,
+                                                   trajectory_version=3, status="running", method="presolved",
+                                                   min_separation=None, min_margin=None, compute_us=50.0))
+    service.work_once(1.8)
+    assert service.pause() == IDLE_LONGEST
+    service.loop.search_due = 3                             # a goal's search left for the way: due at the next turn
+    assert service.pause() == POLL
 
 
 def test_the_planner_refuses_a_missing_scene_file_saying_which(tmp_path, capsys):
