@@ -67,9 +67,7 @@ def row(recording: str, placement: str, summary: dict) -> dict:
     check = summary.get("monitor_check") or {}
     independent = check.get("independent") or {}
     tracker = summary.get("tracker") or {}
-    lags = ((summary.get("drives") or {}).get("lag_p99_ms") or {})
-    lag_values = list(lags.values()) if isinstance(lags, dict) else list(lags)
-    events = summary.get("events") or {}
+    lags = (summary.get("drives") or {}).get("lag_p99_ms") or []     # per joint (report.py)
     return {"recording": recording, "placement": placement, "error": summary.get("error"),
             "shuttles_per_min": summary.get("shuttles_per_min"),
             "stopped": summary.get("stopped_fraction"),
@@ -78,8 +76,8 @@ def row(recording: str, placement: str, summary: dict) -> dict:
             "dropouts": tracker.get("dropouts"),
             "velocity_unknown": [tracker.get("velocity_unknown_share"), tracker.get("velocity_unknown_longest_ms")],
             "speedups": independent.get("speedups"),
-            "drive_lag_p99_ms": max(lag_values) if lag_values else None,
-            "events": sorted(events) if isinstance(events, dict) else events}
+            "drive_lag_p99_ms": max(lags) if lags else None,
+            "events": summary.get("events") or []}
 
 
 def _cell(value, share: bool = False) -> str:
