@@ -2,7 +2,8 @@
 
 On a small machine (two cores here, seven Python processes) the threads that carry a human sample to the
 drives must not wait behind a plan or the witness. Where the operating system allows it they run in
-SCHED_FIFO, highest first: the driver's SYNC cycle, the emulated drives, the scaler, tracker_ingest. The
+SCHED_FIFO, highest first: the driver's SYNC cycle, the emulated drives, the scaler, tracker_ingest (and, in
+``hrc demo``, below them, the process that plays the person, as a camera would). The
 planner and the safety monitor stay in the normal class and are niced (planner +10, monitor +5: in
 deploy/supervisord.conf and in hrc demo's launcher).
 
@@ -28,7 +29,9 @@ import threading
 # SCHED_FIFO priorities of the safety chain, highest first: the driver's SYNC cycle, the emulated drives,
 # the scaler, tracker_ingest. The planner and the safety monitor stay in the normal class (and niced): a
 # slow plan or a busy witness must never delay a command.
-PRIORITY = {"robot_driver": 60, "hwsim": 55, "scaler": 50, "tracker_ingest": 45}
+# Below them, the demo's person feed (tools.feed): like the emulated drives it stands for hardware outside the
+# machine (a camera and its skeleton tracker), which neither the chain nor a busy planner delays.
+PRIORITY = {"robot_driver": 60, "hwsim": 55, "scaler": 50, "tracker_ingest": 45, "human_feed": 40}
 
 
 OWN_CPU = "robot_driver"                             # the SYNC cycle: the last CPU is its own

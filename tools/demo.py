@@ -63,7 +63,8 @@ def start_feed(cell: CellProcesses, human_file: Path | None, phase_length: float
 
 
 def feed_figures(stats: Path) -> dict:
-    """What the feed process wrote at its end: rate_hz, skipped, sent; {"error": ...} when it wrote nothing."""
+    """What the feed process wrote at its end: rate_hz, skipped, sent, late_ms_p99, late_ms_max (how late it woke
+    for its samples); {"error": ...} when it wrote nothing."""
     try:
         return json.loads(stats.read_text())
     except (OSError, ValueError) as exc:
