@@ -21,6 +21,7 @@ import numpy as np
 from evidence.scenarios import Q_GOAL, Q_START
 from shared.core.errors import MessageError
 from shared.core.humans import HumanCapsules
+from shared.safety.latency import DelayHistogram
 from shared.wire.convert import humans_to_msg
 from shared.wire.keys import KeySpace
 from shared.wire.messages import (
@@ -45,7 +46,7 @@ HUMAN_RATE = 120.0          # Hz, raw tracker samples of a scripted human (a rec
 ARRIVED = 0.01              # rad: the robot is at its goal
 GOAL_RETRY = 1.0            # s without following a trajectory for the current goal: send it again
 RECOVER_EVERY = 1.0         # s between recovery requests while the driver is stopped
-LATE_BIN, LATE_BINS = 1e-4, 2000    # the feed's lateness histogram: 0.1 ms bins up to 200 ms, then one for later
+LATE_RESOLUTION, LATE_LIMIT = 1e-4, 0.2    # s: the feed's lateness histogram, 0.1 ms bins up to 200 ms
 
 
 class Recorder:
@@ -119,23 +120,16 @@ class HumanFeed(threading.Thread):
         self.skipped = 0                  # samples not sent because the feed was late for them
         self.sent = 0                     # samples put
         self.last_sent = 0.0              # monotonic time (s) of the last sample put
-        self.late_counts = np.zeros(LATE_BINS + 1, dtype=np.int64)   # wake-ups by how late they came (0.1 ms
-        self.late_max = 0.0                                            # bins, the last one: later), the latest (s)
-
-    def _count_late(self, late: float) -> None:
-        self.late_counts[min(max(int(late / LATE_BIN), 0), LATE_BINS)] += 1
-        self.late_max = max(self.late_max, late)
+        self.lateness = DelayHistogram(LATE_RESOLUTION, LATE_LIMIT)   # how late it woke for each sample (s)
 
     def lateness_figures(self) -> dict:
         """How late the feed woke for its samples, after their due times (ms: p99, max): a feed that the machine
         does not run in time looks, to the tracker, like a person lost from view (issue 41, item 6). A
         histogram, not a list: a replay may run for hours."""
-        total = int(self.late_counts.sum())
-        if total == 0:
+        if self.lateness.total == 0:
             return {"late_ms_p99": None, "late_ms_max": None}
-        p99_bin = int(np.searchsorted(np.cumsum(self.late_counts), 0.99 * total))
-        p99 = self.late_max if p99_bin >= LATE_BINS else (p99_bin + 1) * LATE_BIN
-        return {"late_ms_p99": round(1e3 * p99, 1), "late_ms_max": round(1e3 * self.late_max, 1)}
+        return {"late_ms_p99": round(1e3 * self.lateness.percentile(99), 1),
+                "late_ms_max": round(1e3 * self.lateness.largest, 1)}
 
     def run(self) -> None:
         k = 0
@@ -144,7 +138,7 @@ class HumanFeed(threading.Thread):
             due = self.t0 + k / self.rate
             time.sleep(max(0.0, due - time.monotonic()))
             woke = time.monotonic()
-            self._count_late(woke - due)                      # before a skip moves `due` on
+            self.lateness.add(woke - due)                     # before a skip moves `due` on
             newest = int((woke - self.t0) * self.rate)
             if newest > k:                                    # late: the samples missed are gone
                 self.skipped += newest - k
