@@ -98,27 +98,82 @@ class FeedFault:
     every: int = 0
 
 
+class FeedSchedule:
+    """When a feed's samples are due, in seconds of the motion from its start (pure: no clock, no I/O). A
+    recorded motion's own frame times (``times``, from 0: each frame once, when its tracker sent it, regular or
+    not), and past its last frame on at `rate` (the last frame held, as ``RecordedMotion.at`` holds it); a
+    script's, k / rate from 0. ``until`` (s): the last offset a finite feed sends (``hrc human replay`` ends
+    with its file); None: on until stopped."""
+
+    def __init__(self, rate: float, times: np.ndarray | None = None, until: float | None = None) -> None:
+        if not rate > 0.0:
+            raise ValueError(f"a feed's rate must be positive, not {rate}")
+        self.rate, self.until = float(rate), until
+        self.times = np.zeros(1) if times is None or len(times) == 0 else np.asarray(times, dtype=float)
+        # samples in all: every offset up to `until` (None: unbounded)
+        self.count = None if until is None else int(np.searchsorted(self._offsets_upto(until), until, side="right"))
+
+    def _offsets_upto(self, horizon: float) -> np.ndarray:
+        last = float(self.times[-1])
+        extra = max(0, int(np.floor((horizon - last) * self.rate + 1e-9)))
+        return np.concatenate([self.times, last + np.arange(1, extra + 1) / self.rate])
+
+    def offset(self, k: int) -> float:
+        """Sample k's offset (s from the motion's start)."""
+        n = self.times.size
+        return float(self.times[k]) if k < n else float(self.times[-1]) + (k - n + 1) / self.rate
+
+    def newest(self, elapsed: float) -> int:
+        """The last sample due by `elapsed` s of the motion (0 before any; the last one of a finite feed)."""
+        n = self.times.size
+        if elapsed <= self.times[-1]:
+            k = int(np.searchsorted(self.times, elapsed, side="right")) - 1
+        else:
+            k = n - 1 + int(np.floor((elapsed - self.times[-1]) * self.rate + 1e-9))
+        k = max(k, 0)
+        return k if self.count is None else min(k, self.count - 1)
+
+    def done(self, k: int) -> bool:
+        """Sample k lies beyond a finite feed's end."""
+        return self.count is not None and k >= self.count
+
+
+def schedule_of(human, rate: float | None = None, until: float | None = None) -> FeedSchedule:
+    """The schedule a feed sends `human` at: a given `rate` (Hz) as a fixed rate from 0; else a recorded
+    motion's own frame times (``times``) and its median rate past them; else HUMAN_RATE."""
+    if rate is not None:
+        return FeedSchedule(rate, until=until)
+    return FeedSchedule(getattr(human, "rate", None) or HUMAN_RATE, getattr(human, "times", None), until)
+
+
 class HumanFeed(threading.Thread):
     """Publishes a scripted or recorded human (anything with ``at(t) -> HumanCapsules | None``; None: the
     tracker sees nobody, nothing is sent) as raw tracker data, time measured from t0, the way a tracker
-    does: at the source's own rate (a recorded motion's ``rate``, its frames each sent once; HUMAN_RATE for a
-    script; or `rate`), each sample stamped with the moment it shows (its capture time, not when it was
+    does: on its ``FeedSchedule`` (a recorded motion's frames each sent once at their own times; HUMAN_RATE for
+    a script; or `rate`), each sample stamped with the moment it shows (its capture time, not when it was
     sent), and a feed that fell behind skips to the newest sample due, as a camera drops frames, rather than
-    sending the ones it missed in a burst. ``fault`` may be changed at any time (FeedFault).
+    sending the ones it missed in a burst (a burst looks to the tracker like a glitch). ``fault`` may be
+    changed at any time (FeedFault). speed: the motion played that many times faster (``hrc human replay
+    --speed``). until: the motion's last second to send (None: until ``running`` is cleared); ``finished``
+    then says the feed ended by itself.
 
     tracked=True stands in for the tracker instead (a cell without tracker_ingest): each sample goes out as a
     valid HumanState with the capsules' own velocities, on the key the scaler reads."""
 
     def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo",
-                 rate: float | None = None, tracked: bool = False) -> None:
+                 rate: float | None = None, tracked: bool = False, speed: float = 1.0,
+                 until: float | None = None) -> None:
         super().__init__(daemon=True, name="human-feed")
         self.tracked = tracked
         self.pub = session.declare_publisher(keys.human_state if tracked else keys.human_raw)
         self.human, self.t0, self.source, self.running = human, t0, source, True
-        self.rate = float(rate or getattr(human, "rate", None) or HUMAN_RATE)
+        self.schedule = schedule_of(human, rate, until)
+        self.speed = float(speed)
+        self.rate = self.schedule.rate * self.speed      # Hz on the wall clock
         self.fault = FeedFault()
         self.skipped = 0                  # samples not sent because the feed was late for them
         self.sent = 0                     # samples put
+        self.finished = False             # a finite feed sent its last sample
         self.last_sent = 0.0              # monotonic time (s) of the last sample put
         self.lateness = DelayHistogram(LATE_RESOLUTION, LATE_LIMIT)   # how late it woke for each sample (s)
 
@@ -131,35 +186,44 @@ class HumanFeed(threading.Thread):
         return {"late_ms_p99": round(1e3 * self.lateness.percentile(99), 1),
                 "late_ms_max": round(1e3 * self.lateness.largest, 1)}
 
+    def figures(self) -> dict:
+        """What the feed did: its rate (Hz), samples sent and skipped, and how late it woke."""
+        return {"rate_hz": round(self.rate, 3), "skipped": self.skipped, "sent": self.sent,
+                **self.lateness_figures()}
+
     def run(self) -> None:
-        k = 0
-        while self.running:
-            k += 1
-            due = self.t0 + k / self.rate
+        schedule, k = self.schedule, 0
+        while self.running and not schedule.done(k):
+            due = self.t0 + schedule.offset(k) / self.speed
             time.sleep(max(0.0, due - time.monotonic()))
             woke = time.monotonic()
             self.lateness.add(woke - due)                     # before a skip moves `due` on
-            newest = int((woke - self.t0) * self.rate)
+            newest = schedule.newest((woke - self.t0) * self.speed)
             if newest > k:                                    # late: the samples missed are gone
                 self.skipped += newest - k
                 k = newest
-                due = self.t0 + k / self.rate
-            caps = self.human.at(due - self.t0)
-            fault = self.fault
-            if fault.kind == "silent" or caps is None:       # a fault, or a dropout in a recorded motion
-                continue
-            shifted = fault.kind == "jump" and (fault.every <= 0 or k % fault.every == 0)
-            segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
-            if self.tracked:
-                shown = HumanCapsules(segments, caps.radii, caps.velocities, caps.velocity_known)
-                payload = encode(humans_to_msg(shown, True, due, seq=k, stamp=time.monotonic(),
-                                               sample_interval=1.0 / self.rate))
-            else:
-                payload = encode(HumanRaw(source=self.source, sample_time=due, segments=segments, radii=caps.radii,
-                                          seq=k, stamp=time.monotonic()))
-            self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)
-            self.last_sent = time.monotonic()
-            self.sent += 1
+                due = self.t0 + schedule.offset(k) / self.speed
+            self._send(k, due, self.human.at(schedule.offset(k)))
+            k += 1
+        self.finished = schedule.done(k)
+
+    def _send(self, k: int, due: float, caps: HumanCapsules | None) -> None:
+        """Sample k, due at `due` (monotonic s), as the fault in force makes it (nothing when silent or nobody)."""
+        fault = self.fault
+        if fault.kind == "silent" or caps is None:           # a fault, or a dropout in a recorded motion
+            return
+        shifted = fault.kind == "jump" and (fault.every <= 0 or k % fault.every == 0)
+        segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
+        if self.tracked:
+            shown = HumanCapsules(segments, caps.radii, caps.velocities, caps.velocity_known)
+            payload = encode(humans_to_msg(shown, True, due, seq=k, stamp=time.monotonic(),
+                                           sample_interval=1.0 / self.rate))
+        else:
+            payload = encode(HumanRaw(source=self.source, sample_time=due, segments=segments, radii=caps.radii,
+                                      seq=k, stamp=time.monotonic()))
+        self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)
+        self.last_sent = time.monotonic()
+        self.sent += 1
 
 
 class HeldHuman:
@@ -171,6 +235,20 @@ class HeldHuman:
 
     def at(self, t: float) -> HumanCapsules | None:
         return self.capsules
+
+
+class MovingCapsule:
+    """`hrc human inject`'s person: one capsule A-B (m, base frame) of `radius` (m) moving at `velocity` (m/s)
+    from t = 0."""
+
+    def __init__(self, a, b, radius: float, velocity) -> None:
+        self.a, self.b, self.velocity = (np.asarray(v, dtype=float) for v in (a, b, velocity))
+        self.radii = np.array([float(radius)])
+
+    def at(self, t: float) -> HumanCapsules:
+        moved = np.array([[self.a + self.velocity * t, self.b + self.velocity * t]])
+        return HumanCapsules(moved, self.radii, np.broadcast_to(self.velocity, moved.shape).copy(),
+                             np.ones(1, dtype=bool))
 
 
 def with_nan_segments(payload: bytes) -> bytes:

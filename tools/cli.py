@@ -280,31 +280,38 @@ def cmd_human(args: argparse.Namespace) -> int:
     if args.velocity is not None and args.duration is None:
         print("hrc human inject: error: --velocity needs --duration", file=sys.stderr)
         return 2
-    steps = 1 if args.duration is None else max(1, int(args.duration * args.rate))
-    radii = np.array([args.radius])
-    return _publish_raw(args, "inject", ((k / args.rate, lambda t: np.array([[a + velocity * t, b + velocity * t]]), radii)
-                                         for k in range(steps)))
+    from tools.actors import MovingCapsule
+
+    return _feed(args, "inject", MovingCapsule(a, b, args.radius, velocity), rate=args.rate,
+                 until=0.0 if args.duration is None else args.duration)
 
 
-def _publish_raw(args: argparse.Namespace, what: str, frames) -> int:
-    """Publish (sample_time_offset, segments, radii) frames as raw tracker data, each at its offset from
-    now, once tracker_ingest is reachable (exit 1 if it is not)."""
+def _feed(args: argparse.Namespace, what: str, human, rate: float | None = None, speed: float = 1.0,
+          until: float | None = None) -> int:
+    """Send `human` as raw tracker data once tracker_ingest is reachable (exit 1 if it is not), by the demo's own
+    feed (tools.actors.HumanFeed: each sample at its time, a late one skipped, never a burst), in SCHED_FIFO
+    below the safety chain where the machine allows it, as a camera outside the machine; then its figures."""
     import time
 
-    from shared.wire.messages import HumanRaw, encode
+    from shared.scheduling import realtime
+    from tools.actors import HumanFeed
 
     with _client(args, "tracker_ingest") as (session, keys):
-        pub = session.declare_publisher(keys.human_raw)
-        start = time.monotonic()
-        count = 0
-        for k, (offset, segments, radii) in enumerate(frames):
-            time.sleep(max(0.0, start + offset - time.monotonic()))
-            now = time.monotonic()           # stamped with the moment the frame shows, late or not
-            pub.put(encode(HumanRaw(source=f"hrc {what}", sample_time=start + offset, segments=segments(offset),
-                                    radii=radii, seq=k, stamp=now)))
-            count += 1
-    print(f"hrc human {what}: published {count} pose(s)")
-    return 0
+        human.at(0.0)                                 # its first evaluation before SCHED_FIFO, not under it
+        feed = HumanFeed(session, keys, human, time.monotonic(), source=f"hrc {what}", rate=rate, speed=speed,
+                         until=until)
+        scheduling = realtime("human_feed")
+        print(f"hrc human {what}: sending at {feed.rate:.1f} Hz, {scheduling}", flush=True)
+        try:
+            feed.run()                                # this thread, to the motion's end
+        except KeyboardInterrupt:
+            feed.running = False
+        figures = feed.figures()
+    late = "" if figures["late_ms_max"] is None else \
+        f", woke late p99 {figures['late_ms_p99']} ms, max {figures['late_ms_max']} ms"
+    print(f"hrc human {what}: published {figures['sent']} pose(s), {figures['skipped']} skipped{late}"
+          + ("" if feed.finished else " (stopped)"))
+    return 0 if feed.finished else 130
 
 
 def _from_keypoints(args: argparse.Namespace) -> int:
@@ -329,12 +336,10 @@ def _from_keypoints(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from shared.tracking.motion import load_replay
+    from shared.tracking.motion import RecordedMotion
 
-    frames = load_replay(args.file)              # ConfigError: a clear message and exit 2 (main)
-    t0 = frames[0].t
-    return _publish_raw(args, "replay", (((f.t - t0) / args.speed, lambda t, f=f: f.segments, f.radii)
-                                         for f in frames if not f.dropout))       # a dropout: silence
+    motion = RecordedMotion.load(args.file)      # ConfigError: a clear message and exit 2 (main)
+    return _feed(args, "replay", motion, speed=args.speed, until=motion.duration)   # a dropout: silence
 
 
 def _check_port(name: str, port: int) -> None:

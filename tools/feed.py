@@ -77,8 +77,7 @@ def main(argv: list[str] | None = None) -> int:
         scheduling = realtime("human_feed")
         print(f"human_feed: sending at {feed.rate:.1f} Hz, {scheduling}", flush=True)
         feed.run()                                    # this thread, until SIGTERM
-        args.stats.write_text(json.dumps({"rate_hz": round(feed.rate, 3), "skipped": feed.skipped,
-                                          "sent": feed.sent, **feed.lateness_figures()}))
+        args.stats.write_text(json.dumps(feed.figures()))
         return 0
     finally:
         session.close()

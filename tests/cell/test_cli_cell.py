@@ -1,6 +1,7 @@
 """The hrc commands that talk to a running cell, against a stand-in cell on loopback (a Zenoh session
 that declares the services' liveliness tokens and records what arrives)."""
 
+import re
 import subprocess
 import sys
 import time
@@ -115,8 +116,13 @@ def test_human_replay(cell, tmp_path):
     path.write_text("\n".join(rows) + "\n")
     out = hrc(port, "human", "replay", str(path), "--speed", "2")
     assert out.returncode == 0, out.stderr
-    assert wait_for(lambda: len(received["raw"]) == 10)
-    assert received["raw"][-1].segments[0, 0, 0] == pytest.approx(-1.41)
+    # the demo's own feed: each frame once at its time (100 Hz at --speed 2), a late one skipped, never a burst
+    sent, skipped = map(int, re.search(r"published (\d+) pose\(s\), (\d+) skipped", out.stdout).groups())
+    assert "sending at 100.0 Hz" in out.stdout and sent + skipped == 10 and sent >= 5
+    assert wait_for(lambda: len(received["raw"]) == sent)
+    assert received["raw"][-1].segments[0, 0, 0] == pytest.approx(-1.41)     # the last frame always goes
+    times = [m.sample_time for m in received["raw"]]
+    assert np.diff(times) == pytest.approx(np.full(sent - 1, 0.01)) or skipped
     path.write_text("t,ax\n1,2\n")
     out = hrc(port, "human", "replay", str(path))
     assert out.returncode == 2 and "line 1" in out.stderr and "Traceback" not in out.stderr
