@@ -179,7 +179,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         def leg_path(start, goal, version):
             return straight_line_trajectory(start, goal, lim.velocity, lim.acceleration, version=version)
     # with a planning layer the first leg is its plan too, as in the cell (until it comes, the robot stands at
-    # its start: a trajectory of one knot period that stays there); without one, the fixed path's
+    # its start: a trajectory of one knot period that stays there; a plan made with no search charged, the
+    # goal's default shape, is ready at t = 0, as the fixed path is); without one, the fixed path's
     first = leg_path(ends[0], ends[1], 0) if loop is None else \
         straight_line_trajectory(ends[0], ends[0], lim.velocity, lim.acceleration)
     layer.set_trajectory(first)
@@ -235,6 +236,11 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         else:
             take(t, outcome, elapsed * 1e3)
 
+    if loop is not None:      # the first leg planned before the clock starts, as the fixed path's is made
+        planning_turn(0.0, 0, human.at(0.0))
+        if waiting is not None and waiting[0] <= 0.0:     # planned with no search charged: ready at the start
+            take(0.0, waiting[1], waiting[2])
+            waiting = None
     for k in range(int(round(duration / period))):
         t = k * period
         humans = human.at(t)

@@ -67,6 +67,7 @@ def unknown_within_reach(pairs: PairSsm, velocity_known: np.ndarray) -> bool:
     return bool(unknown.any() and (pairs.robot_speed[:, unknown] > pairs.limit[:, unknown]).any())
 
 
+AT_REST = 1e-9            # rad/s: a commanded joint speed below this is the robot at rest (``ScalingLayer.take``)
 STOP_REACH = 0.5          # nominal s: how far ahead a plan for a crawling robot may start (``ScalingLayer.take``)
 
 
@@ -196,7 +197,7 @@ class ScalingLayer:
         if from_rest:
             if q_here is None:
                 return "the robot's position is not known"
-            if self.sdot > 0.0 and self._stop_for(trajectory, start_tolerance) is None:
+            if self._moving() and self._stop_for(trajectory, start_tolerance) is None:
                 return None          # moving towards its start: stopped there first, even if it is near
             if np.abs(trajectory.positions[0] - np.asarray(q_here)).max() > start_tolerance:
                 return "the robot is not at its start, nor moving towards it"
@@ -207,6 +208,16 @@ class ScalingLayer:
             return f"junction {junction:.3f} already passed (s = {self.s:.3f})"
         self.set_trajectory(trajectory, self.s)
         return None
+
+    def _moving(self) -> bool:
+        """The robot's commanded joints move: a positive path speed on a path that goes somewhere here. A path
+        that stands (the one knot a cell holds before its first plan, the end of a rest-to-rest leg) moves
+        nothing however fast it is followed, and a plan from rest is then taken at once, not after a stop of
+        one period that stops nothing."""
+        if self.trajectory is None or self.sdot <= 0.0:
+            return False
+        dq_ds = self.trajectory.sample(np.array([self.s]))[1][0]
+        return float(np.abs(dq_ds).max()) * self.sdot > AT_REST
 
     def _stop_for(self, trajectory: Trajectory, tolerance: float) -> str | None:
         """A plan from rest whose start lies ahead on the path being followed (within STOP_REACH nominal
