@@ -5,8 +5,8 @@ On a slow day the cell's timing has hiccups: the person feed (SCHED_FIFO 40) wok
 the robot driver (FIFO 60) missed SYNC answers, the scaler (FIFO 50) sent a command 20 ms apart. Either the
 machine itself stopped (the hypervisor took the virtual CPUs away: nothing on it can do anything about that), or
 the cell's own real-time processes held both cores for that long and starved those below them. One process per
-priority sleeps to a deadline every `--period` and records how late it woke (``shared.safety.latency.
-DelayHistogram``) and every wake-up later than `--stall` with its monotonic time: a stall seen at every priority,
+priority sleeps to a deadline every `--period` and records how late it woke and every wake-up later than `--stall`
+with its monotonic time (``tools.stalls``, the witness the demo runs at FIFO 99): a stall seen at every priority,
 FIFO 99 included, is the machine's; one seen only below some priority is the work of the processes above it
 (``shared.scheduling.PRIORITY``: robot_driver 60, hwsim 55, scaler 50, tracker_ingest 45, human_feed 40). Priority
 0 is the normal class, where the planner, the monitor and the demo's recorder run. The machine's steal time
@@ -25,16 +25,14 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing
-import os
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from shared.safety.latency import DelayHistogram  # noqa: E402
+from tools.stalls import StallLog, fifo, steal_seconds, steal_ticks, witness  # noqa: E402
 
-RESOLUTION, LIMIT = 1e-4, 0.5      # s: the lateness histogram's bins and its range
 STALLS_KEPT = 200                  # the longest stalls listed per probe
 
 
@@ -42,53 +40,11 @@ def probe(priority: int, seconds: float, period: float, stall: float, phase: flo
     """One probe: this process at `priority` (SCHED_FIFO; 0: the normal class), waking every `period` s for
     `seconds`, `phase` s after the others' deadlines (probes that woke together would delay each other); puts its
     figures on the queue `out`."""
-    scheduling = "normal class"
-    if priority > 0:
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-            scheduling = f"SCHED_FIFO {priority}"
-        except OSError as exc:
-            scheduling = f"normal class (SCHED_FIFO {priority} refused: {exc.strerror})"
-    late = DelayHistogram(RESOLUTION, LIMIT)
-    stalls: list[tuple[float, float]] = []
+    scheduling = fifo(priority)
+    log = StallLog(stall, STALLS_KEPT)
     start = round(time.monotonic(), 1) + 0.2 + phase      # a common grid: the probes' deadlines interleave
-    k = 0
-    while True:
-        due = start + k * period
-        if due > start + seconds:
-            break
-        time.sleep(max(0.0, due - time.monotonic()))
-        woke = time.monotonic()
-        late.add(woke - due)
-        if woke - due > stall:
-            stalls.append((round(due, 4), round(1e3 * (woke - due), 2), last_cpu()))
-        k = max(k + 1, int((woke - start) / period) + 1)      # the deadlines missed meanwhile are gone
-    stalls.sort(key=lambda s: -s[1])
-    out.put({"priority": priority, "scheduling": scheduling, "wakeups": late.total,
-             "late_ms_p50": round(1e3 * late.percentile(50), 2), "late_ms_p99": round(1e3 * late.percentile(99), 2),
-             "late_ms_max": round(1e3 * late.largest, 2), "stalls": len(stalls),
-             "longest": sorted(stalls[:STALLS_KEPT])})
-
-
-def last_cpu() -> int:
-    """The CPU this process last ran on (/proc/self/stat's 39th field; -1 where it cannot be read): the one it
-    woke on after a stall."""
-    try:
-        text = Path("/proc/self/stat").read_text()
-        return int(text[text.rindex(")") + 2:].split()[36])
-    except (OSError, ValueError, IndexError):
-        return -1
-
-
-def steal_ticks() -> dict[str, int]:
-    """Each CPU's steal time so far (USER_HZ ticks, /proc/stat's 8th field of its cpuN line; empty where there
-    is none): time the hypervisor ran something else while this virtual CPU wanted to run."""
-    try:
-        lines = Path("/proc/stat").read_text().splitlines()
-    except OSError:
-        return {}
-    return {f[0]: int(f[8]) for f in (line.split() for line in lines) if f and f[0].startswith("cpu") and f[0] != "cpu"
-            and len(f) > 8}
+    witness(log, period, lambda: True, start=start, until=start + seconds)
+    out.put({"priority": priority, "scheduling": scheduling, **log.figures()})
 
 
 def arguments(argv: list[str] | None) -> argparse.Namespace:
@@ -123,13 +79,12 @@ def main(argv: list[str] | None = None) -> int:
     for proc in procs:
         proc.join()
     window = time.monotonic() - t0
-    hz = os.sysconf("SC_CLK_TCK")
-    steal = {cpu: round((ticks - steal0.get(cpu, 0)) / hz, 3) for cpu, ticks in steal_ticks().items()}
+    steal = steal_seconds(steal0, steal_ticks())
     print(f"window {window:.1f} s from monotonic {t0:.3f}; steal (the hypervisor's, CPU-s): "
           + ", ".join(f"{cpu} {s:.2f}" for cpu, s in steal.items()))
     for r in results:
         top = ", ".join(f"{t:.3f}: {ms} ms on cpu{c}" for t, ms, c in sorted(r["longest"], key=lambda s: -s[1])[:5])
-        print(f"{r['scheduling']:>14}: late p50 {r['late_ms_p50']} ms, p99 {r['late_ms_p99']} ms, "
+        print(f"{r['scheduling']:>14}: late p99 {r['late_ms_p99']} ms, "
               f"max {r['late_ms_max']} ms; {r['stalls']} stalls > {1e3 * args.stall:.0f} ms  [{top}]")
     print(json.dumps({"bench": "stall_probe", "window_s": round(window, 2), "t0_monotonic": round(t0, 3),
                       "steal_cpu_s": steal, "period_s": args.period, "stall_s": args.stall,

@@ -10,6 +10,8 @@ where there is one, else on udp_multicast inside a private network namespace tha
   again when the robot is not following a plan for it (refused, or dropped after a stop); see
   tools.actors;
 * everything the cell publishes is recorded; progress twice a second;
+* a witness of the machine's own stalls (tools.stalls, SCHED_FIFO 99) runs beside it, so that the report says
+  which of the cell's lag warnings came as the machine itself stopped (the summary's ``machine``);
 * at the end, the report folder (tools.report; format in docs/report-format.md).
 `--no-beta` runs the planner with replans on the scaling layer's request switched off.
 """
@@ -33,6 +35,8 @@ from tools.cell import choose_bus
 from tools.feed import READY
 from tools.launch import CellProcesses, LaunchError, free_port
 from tools.report import Recording, write_report
+from tools.stalls import READY as WITNESS_READY
+from tools.stalls import in_run
 
 PREFIX = "hrc/demo"
 
@@ -62,6 +66,20 @@ def start_feed(cell: CellProcesses, human_file: Path | None, phase_length: float
                                             "--stats", str(stats), *motion], READY)
 
 
+def start_witness(cell: CellProcesses, stats: Path):
+    """The machine's stall witness (tools.stalls, SCHED_FIFO 99 above the whole cell), running; its Popen."""
+    return cell.spawn_helper("stall_witness", ["tools.stalls", "--stats", str(stats)], WITNESS_READY)
+
+
+def machine_figures(stats: Path, t0: float, events) -> dict:
+    """What the stall witness wrote at its end, for the run that began at t0 (``tools.stalls.in_run``: its
+    stalls from t0, and the cell's warnings that followed one); {"error": ...} when it wrote nothing."""
+    try:
+        return in_run(json.loads(stats.read_text()), t0, events)
+    except (OSError, ValueError) as exc:
+        return {"error": f"the stall witness wrote no figures ({exc.__class__.__name__}); see logs/stall_witness.log"}
+
+
 def feed_figures(stats: Path) -> dict:
     """What the feed process wrote at its end: rate_hz, skipped, sent, late_ms_p99, late_ms_max (how late it woke
     for its samples); {"error": ...} when it wrote nothing."""
@@ -87,10 +105,12 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     rec = Recording(t0=time.monotonic())
     recorder = None
     stats = out / "logs" / "human_feed.json"
+    machine = out / "logs" / "stall_witness.json"
     human = RecordedMotion.load(human_file) if human_file is not None else paper_phases(phase_length)
     try:
         started = time.monotonic()
         cell.start(session)
+        start_witness(cell, machine)
         feed = start_feed(cell, human_file, phase_length, stats)
         what = f"the motion in {human_file}" if human_file is not None else "the paper's four phases"
         say(f"hrc demo: all services up in {time.monotonic() - started:.1f} s; {duration:.0f} s of {what}"
@@ -125,6 +145,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
              "cpu_s": cpu, "cpus": os.cpu_count(),
              "bad_messages_seen": recorder.bad, "no_beta": no_beta,
              "human_feed": feed_figures(stats),
+             "machine": machine_figures(machine, rec.t0, rec.events),
              "human": str(human_file or "built-in: the paper's four phases")}
     return write_report(out, robot, config, rec, extra)
 

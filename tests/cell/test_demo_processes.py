@@ -39,6 +39,9 @@ def test_runs_to_the_end_with_zero_violations(report):
     assert summary["mode"] == "processes" and all(summary["services_alive_at_end"].values())
     feed = summary["human_feed"]                   # the person came from a process of its own, at 120 Hz
     assert feed["rate_hz"] == 120.0 and feed["sent"] > 2000 and summary["exit_codes"]["human_feed"] == 0, feed
+    machine = summary["machine"]                   # the machine's own stalls, witnessed at FIFO 99 beside the cell
+    assert machine["wakeups"] > 3000 and summary["exit_codes"]["stall_witness"] == 0, machine
+    assert set(machine["after_stall"]) <= set(summary["events"]) and machine["stalls"] >= len(machine["longest"])
     assert summary["cycles_completed"] > 2000 and abs(summary["mean_cycle_s"] - 0.01) < 0.002
     assert summary["shuttles_completed"] >= 5                                # goal after goal reached
     assert summary["min_margin_m"] is not None and summary["min_separation_m"] > 0.05

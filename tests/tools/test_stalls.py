@@ -1,0 +1,70 @@
+"""The machine's stall witness (tools.stalls): how late it woke, its stalls with the CPU they ended on, and which
+of the cell's warnings came during or just after one, so that a report tells the machine's hiccups from the
+cell's own."""
+
+import json
+import subprocess
+import sys
+import time
+from types import SimpleNamespace
+
+import pytest
+
+from tests.util import ROOT
+from tools.stalls import AFTER_STALL, READY, StallLog, in_run, steal_seconds, steal_ticks, witness
+
+
+def test_a_stall_is_a_wake_up_later_than_the_threshold_and_the_longest_are_kept():
+    log = StallLog(threshold=0.02, kept=2)
+    assert not log.add(1.0, 1.0003)
+    assert log.add(2.0, 2.1, cpu=1) and log.add(3.0, 3.03, cpu=0) and log.add(4.0, 4.05, cpu=0)
+    figures = log.figures(t0=1.0)
+    assert figures["wakeups"] == 4 and figures["stalls"] == 3
+    assert figures["longest"] == [[1.0, 100.0, 1], [3.0, 50.0, 0]]          # the two longest, in time order
+    assert figures["late_ms_max"] == pytest.approx(100.0) and figures["threshold_ms"] == 20.0
+    assert StallLog().figures()["late_ms_p99"] is None
+
+
+def test_the_cells_warnings_during_or_just_after_a_stall_are_named():
+    figures = {"started": 100.5, "longest": [[110.0, 100.0, 1]], "stalls": 1}
+    event = lambda t, source, name, severity="warning": SimpleNamespace(stamp=t, source=source, event=name,
+                                                                       severity=severity)
+    events = [event(110.05, "robot_driver", "frames_lost", "stop"),            # during the stall
+              event(110.1 + AFTER_STALL - 0.01, "robot_driver", "command_clamped"),   # just after it
+              event(110.1 + AFTER_STALL + 0.1, "safety_monitor", "monitor_behind"),   # too late to be its
+              event(110.02, "planner", "trajectory_goal", "info"),                  # not a warning
+              event(105.0, "scaler", "stale_command")]                              # before it
+    run = in_run(figures, 100.0, events)
+    assert run["longest"] == [[10.0, 100.0, 1]] and run["started"] == 0.5
+    assert run["after_stall"] == ["robot_driver:command_clamped", "robot_driver:frames_lost"]
+    assert in_run({"longest": []}, 100.0, events)["after_stall"] == []
+
+
+def test_the_witness_wakes_on_its_grid_and_makes_up_no_missed_deadline():
+    log = StallLog(threshold=0.05)
+    start = time.monotonic() - 0.2                     # 200 ms of deadlines already gone: one late wake-up, no burst
+    witness(log, 0.005, lambda: True, start=start, until=start + 0.3)
+    assert log.stalls == 1 and 18 <= log.late.total <= 22, log.figures()
+    assert steal_seconds(steal_ticks(), steal_ticks()).keys() == steal_ticks().keys()
+
+
+def test_the_witness_process_writes_its_figures_when_ended(tmp_path):
+    stats = tmp_path / "witness.json"
+    proc = subprocess.Popen([sys.executable, "-m", "tools.stalls", "--stats", str(stats), "--period", "0.002"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        said = proc.stdout.readline()
+        assert said.startswith(READY) and ("SCHED_FIFO 99" in said or "normal class" in said), said
+        time.sleep(0.5)
+        proc.terminate()                                  # by its PID
+        assert proc.wait(10) == 0, proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    figures = json.loads(stats.read_text())
+    assert figures["wakeups"] > 100 and figures["scheduling"] in said and figures["period_ms"] == 2.0
+    assert set(figures["steal_s"]) == set(steal_ticks())
+    bad = subprocess.run([sys.executable, "-m", "tools.stalls", "--stats", str(stats), "--period", "0"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=30)
+    assert bad.returncode == 2 and "positive" in bad.stderr and "Traceback" not in bad.stderr

@@ -1,0 +1,159 @@
+"""The machine's own stalls, witnessed beside the cell (`python -m tools.stalls`): a process in SCHED_FIFO 99, above
+every process of the cell, that sleeps to a deadline every few milliseconds and keeps how late it woke.
+
+On a slow day the cell's timing has hiccups (the robot driver misses SYNC answers, the scaler sends two commands
+20 ms apart, the person feed wakes 75 ms late), and a report has to say whose they were. Nothing on the machine
+delays a FIFO 99 process that does almost nothing, but the machine itself: when the hypervisor takes a virtual CPU
+away (its steal time, /proc/stat), every process on that CPU stops, the drives' emulator included. A stall this
+witness sees is the machine's; a lag the cell reports with no stall here is the cell's own. ``bench/stall_probe.py``
+runs the same witness at several priorities at once, to tell which of the cell's processes held the others off.
+
+The protocol with the parent (``tools.demo``): the child sets its scheduling, prints READY and runs until SIGTERM,
+then writes its figures (``StallLog.figures``: monotonic times) as JSON to --stats.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+from shared.safety.latency import DelayHistogram
+
+READY = "stall_witness: ready"
+PRIORITY = 99                 # SCHED_FIFO: above the whole cell (shared.scheduling.PRIORITY tops at 60)
+PERIOD = 0.005                # s between wake-ups: 200 a second, well under 1 % of a core
+THRESHOLD = 0.02              # s late: a stall listed (two control periods)
+KEPT = 100                    # the longest stalls kept
+RESOLUTION, LIMIT = 1e-4, 1.0  # s: the lateness histogram's bins and range
+
+
+def last_cpu() -> int:
+    """The CPU this process last ran on (/proc/self/stat's 39th field; -1 where it cannot be read): the one it
+    woke on after a stall."""
+    try:
+        text = Path("/proc/self/stat").read_text()
+        return int(text[text.rindex(")") + 2:].split()[36])
+    except (OSError, ValueError, IndexError):
+        return -1
+
+
+def steal_ticks() -> dict[str, int]:
+    """Each CPU's steal time so far (USER_HZ ticks, the 8th field of /proc/stat's cpuN lines; empty where there
+    are none): the time the hypervisor ran something else while this virtual CPU had work."""
+    try:
+        lines = Path("/proc/stat").read_text().splitlines()
+    except OSError:
+        return {}
+    rows = (line.split() for line in lines)
+    return {f[0]: int(f[8]) for f in rows if len(f) > 8 and f[0].startswith("cpu") and f[0] != "cpu"}
+
+
+def steal_seconds(before: dict[str, int], after: dict[str, int]) -> dict[str, float]:
+    """Each CPU's steal time between two ``steal_ticks`` readings (s)."""
+    hz = os.sysconf("SC_CLK_TCK")
+    return {cpu: round((ticks - before.get(cpu, 0)) / hz, 3) for cpu, ticks in after.items()}
+
+
+class StallLog:
+    """How late a witness woke (a bounded histogram, for hours of it) and its stalls later than `threshold` s: the
+    `kept` longest as (due, ms late, the CPU it woke on). Pure but for the CPU, which the caller reads."""
+
+    def __init__(self, threshold: float = THRESHOLD, kept: int = KEPT) -> None:
+        self.threshold, self.kept = threshold, kept
+        self.late = DelayHistogram(RESOLUTION, LIMIT)
+        self.stalls = 0
+        self.longest: list[tuple[float, float, int]] = []
+
+    def add(self, due: float, woke: float, cpu: int = -1) -> bool:
+        """One wake-up due at `due` that came at `woke` (s, one clock); True when it was a stall."""
+        self.late.add(woke - due)
+        if woke - due <= self.threshold:
+            return False
+        self.stalls += 1
+        self.longest.append((due, woke - due, cpu))
+        if len(self.longest) > 2 * self.kept:
+            self.longest = sorted(self.longest, key=lambda s: -s[1])[:self.kept]
+        return True
+
+    def figures(self, t0: float = 0.0) -> dict:
+        """wakeups, late_ms_p99, late_ms_max, stalls (how many beyond the threshold), longest ([s after t0, ms, cpu],
+        in time order)."""
+        kept = sorted(sorted(self.longest, key=lambda s: -s[1])[:self.kept])
+        empty = self.late.total == 0
+        return {"wakeups": self.late.total, "threshold_ms": round(1e3 * self.threshold, 1),
+                "late_ms_p99": None if empty else round(1e3 * self.late.percentile(99), 2),
+                "late_ms_max": None if empty else round(1e3 * self.late.largest, 2), "stalls": self.stalls,
+                "longest": [[round(due - t0, 3), round(1e3 * late, 2), cpu] for due, late, cpu in kept]}
+
+
+def fifo(priority: int) -> str:
+    """This process in SCHED_FIFO `priority` (0: left in the normal class); what it got, in words."""
+    if priority <= 0:
+        return "normal class"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return f"SCHED_FIFO {priority}"
+    except OSError as exc:
+        return f"normal class (SCHED_FIFO {priority} refused: {exc.strerror})"
+
+
+def witness(log: StallLog, period: float, running, start: float | None = None, until: float | None = None) -> None:
+    """Wake every `period` s on the grid from `start` (monotonic s; default now) while running() and before
+    `until`, each wake-up into `log`; deadlines missed meanwhile are gone, not made up in a burst."""
+    start = time.monotonic() if start is None else start
+    k = 0
+    while running():
+        due = start + k * period
+        if until is not None and due > until:
+            return
+        time.sleep(max(0.0, due - time.monotonic()))
+        woke = time.monotonic()
+        late = woke - due > log.threshold
+        log.add(due, woke, last_cpu() if late else -1)
+        k = max(k + 1, int((woke - start) / period) + 1)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m tools.stalls", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--stats", type=Path, required=True, help="where the figures go at the end (JSON)")
+    parser.add_argument("--priority", type=int, default=PRIORITY, help="SCHED_FIFO priority (0: the normal class)")
+    parser.add_argument("--period", type=float, default=PERIOD, help="s between wake-ups")
+    parser.add_argument("--threshold", type=float, default=THRESHOLD, help="s late: a stall")
+    args = parser.parse_args(argv)
+    if not (0 <= args.priority <= 99 and args.period > 0 and args.threshold > 0):
+        print("stall_witness: error: --priority in 0..99, --period and --threshold positive", file=sys.stderr)
+        return 2
+    running = [True]
+    signal.signal(signal.SIGTERM, lambda *_: running.__setitem__(0, False))
+    scheduling = fifo(args.priority)
+    log, steal0, started = StallLog(args.threshold), steal_ticks(), time.monotonic()
+    print(f"{READY}: {scheduling}, every {1e3 * args.period:.0f} ms", flush=True)
+    witness(log, args.period, lambda: running[0])
+    figures = {"scheduling": scheduling, "period_ms": round(1e3 * args.period, 2), "started": round(started, 3),
+               **log.figures(), "steal_s": steal_seconds(steal0, steal_ticks())}
+    args.stats.write_text(json.dumps(figures))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
+
+
+AFTER_STALL = 0.5     # s: a warning this soon after a stall's end is listed as following it
+
+
+def in_run(figures: dict, t0: float, events) -> dict:
+    """The witness's figures (``main``'s, monotonic times) for a run that began at t0 (monotonic s): its stalls'
+    times counted from t0, and ``after_stall``: the cell's warnings and stops (``SafetyEvent``s of another
+    severity than info, as "source:event") that came during one of them or within AFTER_STALL s of its end. An
+    event listed there may still be the cell's own; one not listed was not the machine's stopping."""
+    stalls = [(due - t0, ms, cpu) for due, ms, cpu in figures.get("longest", [])]
+    after = sorted({f"{e.source}:{e.event}" for e in events if e.severity != "info"
+                    and any(due <= e.stamp - t0 <= due + ms / 1e3 + AFTER_STALL for due, ms, _ in stalls)})
+    return {**figures, "started": round(figures.get("started", t0) - t0, 3),
+            "longest": [[round(due, 3), ms, cpu] for due, ms, cpu in stalls], "after_stall": after}
