@@ -7,8 +7,9 @@ processes (every service over Zenoh, the emulated PRBT on CAN; the recording sen
 simulation with ``--sim``. One row per run, from the run's own summary.json (docs/report-format.md): shuttles per
 minute, the stopped share, the violations counted by the monitor, by the report's recount and by the
 independent judge (tools/judge.py), the states left unchecked, the tracker's dropouts and unknown velocities,
-the independent judge's speed-ups within T_r, the worst joint's drive lag p99 and the events that were not
-info. Then the mean shuttles per minute and the sums of violations per placement. The last line is one JSON
+the independent judge's speed-ups within T_r, the worst joint's drive lag p99, the machine's own stalls (the
+demo's FIFO 99 witness, ``tools.stalls``) and the events that were not info, each marked "(machine)" where it came
+during or just after such a stall. Then the mean shuttles per minute and the sums of violations per placement. The last line is one JSON
 object: {"rows": [...], "means": {placement: {"shuttles_per_min": m, "violations": [monitor, recount,
 independent], "unchecked": n, "held": [recordings whose robot completed no shuttle]}}} (a count is
 null where no run of the placement measured it: the simulation has no recount).
@@ -68,6 +69,7 @@ def row(recording: str, placement: str, summary: dict) -> dict:
     independent = check.get("independent") or {}
     tracker = summary.get("tracker") or {}
     lags = (summary.get("drives") or {}).get("lag_p99_ms") or []     # per joint (report.py)
+    machine = summary.get("machine") or {}
     return {"recording": recording, "placement": placement, "error": summary.get("error"),
             "shuttles_per_min": summary.get("shuttles_per_min"),
             "stopped": summary.get("stopped_fraction"),
@@ -77,7 +79,10 @@ def row(recording: str, placement: str, summary: dict) -> dict:
             "velocity_unknown": [tracker.get("velocity_unknown_share"), tracker.get("velocity_unknown_longest_ms")],
             "speedups": independent.get("speedups"),
             "drive_lag_p99_ms": max(lags) if lags else None,
-            "events": summary.get("events") or []}
+            "events": summary.get("events") or [],
+            # the machine's own stalls (tools.stalls: how many beyond 20 ms, the longest), and the events after one
+            "machine": [machine.get("stalls"), machine.get("late_ms_max")] if "stalls" in machine else [None, None],
+            "after_stall": machine.get("after_stall") or []}
 
 
 def _cell(value, share: bool = False) -> str:
@@ -137,7 +142,8 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     header = ["recording", "placement", "shuttles/min", "stopped", "violations (monitor / recount / independent)",
-              "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups", "drive lag p99 ms", "events"]
+              "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups", "drive lag p99 ms",
+              "machine stalls > 20 ms (count, longest ms)", "events (machine: during or just after a stall)"]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header), flush=True)
     for placement in placements:
@@ -155,7 +161,8 @@ def main(argv: list[str] | None = None) -> int:
                      + [_cell(r[k]) for k in ("violations", "unchecked", "dropouts")]
                      + [f"{_cell(r['velocity_unknown'][0], share=True)}, {_cell(r['velocity_unknown'][1])}"]
                      + [_cell(r[k]) for k in ("speedups", "drive_lag_p99_ms")]
-                     + [", ".join(r["events"] or []) or "-"])
+                     + [f"{_cell(r['machine'][0])}, {_cell(r['machine'][1])}"]
+                     + [", ".join(e + (" (machine)" if e in r["after_stall"] else "") for e in r["events"]) or "-"])
             print("| " + " | ".join(cells) + " |", flush=True)
     summary = means(rows)
     for placement, m in summary.items():

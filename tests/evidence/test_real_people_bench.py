@@ -45,3 +45,12 @@ def test_a_run_without_a_summary_is_a_row_with_its_error_and_the_table_goes_on()
     means = bench.means([row, bench.row("s", "step_back", {"shuttles_per_min": 10.0, "violations": 0})])
     assert means["step_back"]["runs"] == 1 and means["step_back"]["failed"] == 1
     assert means["step_back"]["shuttles_per_min"] == 10.0 and means["step_back"]["violations"] == [0, None, None]
+
+
+def test_a_row_says_the_machines_stalls_and_the_events_after_them():
+    bench = load_bench("real_people")
+    summary = {"shuttles_per_min": 12.0, "events": ["robot_driver:frames_lost", "safety_monitor:monitor_behind"],
+               "machine": {"stalls": 2, "late_ms_max": 100.2, "after_stall": ["robot_driver:frames_lost"]}}
+    row = bench.row("r", "step_back", summary)
+    assert row["machine"] == [2, 100.2] and row["after_stall"] == ["robot_driver:frames_lost"]
+    assert bench.row("r", "step_back", {"shuttles_per_min": 1.0})["machine"] == [None, None]   # --sim: no witness
