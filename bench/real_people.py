@@ -9,10 +9,10 @@ minute, the stopped share, the violations counted by the monitor, by the report'
 independent judge (tools/judge.py), the states left unchecked, the tracker's dropouts and unknown velocities,
 the independent judge's speed-ups within T_r, the worst joint's drive lag p99, the machine's own stalls (the
 demo's FIFO 99 witness, ``tools.stalls``) and the events that were not info, each marked "(machine)" where it came
-during or just after such a stall. Then the mean shuttles per minute and the sums of violations per placement. The last line is one JSON
-object: {"rows": [...], "means": {placement: {"shuttles_per_min": m, "violations": [monitor, recount,
-independent], "unchecked": n, "held": [recordings whose robot completed no shuttle]}}} (a count is
-null where no run of the placement measured it: the simulation has no recount).
+during or just after such a stall. Then the mean shuttles per minute and the sums of violations per placement.
+The last line is one JSON object: {"rows": [...], "means": {placement: {"shuttles_per_min": m, "violations":
+[monitor, recount, independent], "unchecked": n, "held": [recordings whose robot completed no shuttle]}}} (a count
+is null where no run of the placement measured it: the simulation has no recount).
 
 Placements (shoulders 1.35 m high, facing the robot across its sweep):
 * table_edge, X = -0.05: shoulders at x = -0.90 m, hands about 0.77 m from the base;

@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import io
+import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,7 +16,7 @@ import pytest
 from tools.cell import namespace_reason
 from tools.launch import free_port
 
-__all__ = ["ROOT", "CliRun", "free_port", "load_bench", "namespace_reason", "require_namespace", "run_hrc"]
+__all__ = ["ROOT", "CliRun", "free_port", "load_bench", "namespace_reason", "require_namespace", "run_hrc", "stopped"]
 
 ROOT = Path(__file__).resolve().parents[1]          # the repository: deploy/, bench/, tests/data/
 BENCH = ROOT / "bench"
@@ -58,3 +59,15 @@ def run_hrc(*args: str) -> CliRun:
         except SystemExit as exc:
             code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     return CliRun(int(code or 0), out.getvalue(), err.getvalue())
+
+
+@contextlib.contextmanager
+def stopped(proc: subprocess.Popen):
+    """A child process this test started, ended by its PID however the test ends: killed and reaped if it is
+    still there (a test that ends it on purpose, SIGTERM, asserts its exit code itself)."""
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from tests.util import ROOT
+from tests.util import ROOT, stopped
 from tools.stalls import AFTER_STALL, READY, StallLog, in_run, steal_seconds, steal_ticks, witness
 
 
@@ -52,16 +52,12 @@ def test_the_witness_process_writes_its_figures_when_ended(tmp_path):
     stats = tmp_path / "witness.json"
     proc = subprocess.Popen([sys.executable, "-m", "tools.stalls", "--stats", str(stats), "--period", "0.002"],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    with stopped(proc):
         said = proc.stdout.readline()
         assert said.startswith(READY) and ("SCHED_FIFO 99" in said or "normal class" in said), said
         time.sleep(0.5)
         proc.terminate()                                  # by its PID
         assert proc.wait(10) == 0, proc.stderr.read()
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     figures = json.loads(stats.read_text())
     assert figures["wakeups"] > 100 and figures["scheduling"] in said and figures["period_ms"] == 2.0
     assert set(figures["steal_s"]) == set(steal_ticks())
