@@ -163,6 +163,35 @@ def test_one_rule_takes_a_new_trajectory_without_a_jump():
     assert layer.trajectory is fresh and (layer.s, layer.sdot) == (0.0, 0.0)      # from rest, at its start
 
 
+def test_a_plan_from_rest_is_taken_at_once_where_the_joints_stand_whatever_the_path_speed():
+    """The one knot a cell holds before its first plan, and the end of a rest-to-rest leg, move nothing however
+    fast they are followed: a plan from rest there is taken in the same call and the next step moves on it (it
+    used to be stopped for one period first, which stopped nothing). A robot moving along its path is still
+    brought to rest at the plan's start first."""
+    lim = ROBOT.limits
+    standing = straight_line_trajectory(Q_START, Q_START, lim.velocity, lim.acceleration, version=0)
+    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters())
+    lay.set_trajectory(standing)
+    lay.step(ScalingInputs(humans=NOBODY))
+    assert lay.sdot > 0.0                                    # "followed" at full path speed, the joints at rest
+    plan = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
+    assert lay.take(plan, True, 0.0, q_here=Q_START, start_tolerance=1e-3) is None
+    assert lay.trajectory is plan and (lay.s, lay.sdot) == (0.0, 0.0)
+    step = lay.step(ScalingInputs(humans=NOBODY))
+    assert step.trajectory_version == 1 and step.s > 0.0 and step.pending is None
+    leg = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=2)
+    lay.set_trajectory(leg, leg.duration)                  # at the end of its leg, the path speed left at 1
+    lay.sdot = 1.0
+    back = straight_line_trajectory(Q_GOAL, Q_START, lim.velocity, lim.acceleration, version=3)
+    assert lay.take(back, True, 0.0, q_here=Q_GOAL, start_tolerance=1e-3) is None and lay.trajectory is back
+    lay.set_trajectory(leg, 0.5 * leg.duration)            # moving in the middle of it: stopped there first
+    lay.sdot = 1.0
+    ahead = straight_line_trajectory(leg.sample(0.5 * leg.duration + 0.3)[0], Q_START, lim.velocity,
+                                     lim.acceleration, version=4)
+    assert lay.take(ahead, True, 0.0, q_here=leg.sample(0.5 * leg.duration)[0], start_tolerance=1e-3) is None
+    assert lay.trajectory is leg and lay.step(ScalingInputs(humans=NOBODY)).pending == 4
+
+
 def test_a_plan_from_rest_ahead_of_a_crawling_robot_is_taken_where_the_robot_stops():
     """A plan for a crawling robot starts a few millimetres ahead on its path (shared.planning.replanner's
     stop plan): the layer brings the robot to rest exactly there, never braking harder than the joints'
