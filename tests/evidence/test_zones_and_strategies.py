@@ -203,3 +203,18 @@ def test_a_goal_whose_search_seldom_pays_is_left_at_once_and_searched_on_the_way
         assert any(e.reason == "search" and t < e.t <= t + 0.2 for e in result.replans), result.replans
     assert all(g.detail in ("", "left at once, searched on the way", "searched from rest", "prepared on the way here")
                for g in result.goals)
+
+
+def test_the_planning_layers_first_leg_leaves_at_t0_as_the_fixed_path_does(strategies):
+    """The first leg is planned before the clock starts, as the fixed path is made: with nobody in the cell the
+    goal's plan is the direct line (no search charged), and full commands what scaling alone commands from the
+    first cycle on (it used to stand at its start for two periods: the plan taken the period after its turn,
+    then a stop of one period on the one-knot path it stood on)."""
+    from evidence.scenarios import EmptyCell
+
+    full = strategies._run("full", EmptyCell(), 1.0)
+    alone = strategies._run("scale_only", EmptyCell(), 1.0)
+    assert full.records[0].step.trajectory_version >= 1 and full.records[0].step.s > 0.0
+    assert full.goals and full.goals[0].t == 0.0
+    for mine, theirs in zip(full.records[:90], alone.records[:90]):
+        assert np.allclose(mine.step.q_command, theirs.step.q_command, atol=1e-9), mine.t
