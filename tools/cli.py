@@ -298,9 +298,9 @@ def _feed(args: argparse.Namespace, what: str, human, rate: float | None = None,
 
     with _client(args, "tracker_ingest") as (session, keys):
         human.at(0.0)                                 # its first evaluation before SCHED_FIFO, not under it
+        scheduling = realtime("human_feed")
         feed = HumanFeed(session, keys, human, time.monotonic(), source=f"hrc {what}", rate=rate, speed=speed,
                          until=until)
-        scheduling = realtime("human_feed")
         print(f"hrc human {what}: sending at {feed.rate:.1f} Hz, {scheduling}", flush=True)
         try:
             feed.run()                                # this thread, to the motion's end
