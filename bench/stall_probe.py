@@ -83,7 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"window {window:.1f} s from monotonic {t0:.3f}; steal (the hypervisor's, CPU-s): "
           + ", ".join(f"{cpu} {s:.2f}" for cpu, s in steal.items()))
     for r in results:
-        top = ", ".join(f"{t:.3f}: {ms} ms on cpu{c}" for t, ms, c in sorted(r["longest"], key=lambda s: -s[1])[:5])
+        top = ", ".join(f"{t:.3f}: {ms} ms on cpu{c}, steal {st:.0f} ms"
+                        for t, ms, c, st in sorted(r["longest"], key=lambda s: -s[1])[:5])
         print(f"{r['scheduling']:>14}: late p99 {r['late_ms_p99']} ms, "
               f"max {r['late_ms_max']} ms; {r['stalls']} stalls > {1e3 * args.stall:.0f} ms  [{top}]")
     print(json.dumps({"bench": "stall_probe", "window_s": round(window, 2), "t0_monotonic": round(t0, 3),

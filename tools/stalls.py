@@ -30,6 +30,7 @@ PRIORITY = 99                 # SCHED_FIFO: above the whole cell (shared.schedul
 PERIOD = 0.005                # s between wake-ups: 200 a second, well under 1 % of a core
 THRESHOLD = 0.02              # s late: a stall listed (two control periods)
 KEPT = 100                    # the longest stalls kept
+STEAL_EVERY = 0.1             # s: how often the steal time is read, so that a stall's own steal can be told
 RESOLUTION, LIMIT = 1e-4, 1.0  # s: the lateness histogram's bins and range
 
 
@@ -62,34 +63,38 @@ def steal_seconds(before: dict[str, int], after: dict[str, int]) -> dict[str, fl
 
 class StallLog:
     """How late a witness woke (a bounded histogram, for hours of it) and its stalls later than `threshold` s: the
-    `kept` longest as (due, ms late, the CPU it woke on). Pure but for the CPU, which the caller reads."""
+    `kept` longest as (due, ms late, the CPU it woke on, the steal time in ms the hypervisor took from the most
+    robbed CPU since shortly before it, -1 unknown). A stall as long as its steal is the hypervisor's; one with
+    little steal is the machine's own kernel (a real-time task throttled, an interrupt storm). Pure: the caller
+    reads the CPU and the steal."""
 
     def __init__(self, threshold: float = THRESHOLD, kept: int = KEPT) -> None:
         self.threshold, self.kept = threshold, kept
         self.late = DelayHistogram(RESOLUTION, LIMIT)
         self.stalls = 0
-        self.longest: list[tuple[float, float, int]] = []
+        self.longest: list[tuple[float, float, int, float]] = []
 
-    def add(self, due: float, woke: float, cpu: int = -1) -> bool:
+    def add(self, due: float, woke: float, cpu: int = -1, steal_ms: float = -1.0) -> bool:
         """One wake-up due at `due` that came at `woke` (s, one clock); True when it was a stall."""
         self.late.add(woke - due)
         if woke - due <= self.threshold:
             return False
         self.stalls += 1
-        self.longest.append((due, woke - due, cpu))
+        self.longest.append((due, woke - due, cpu, steal_ms))
         if len(self.longest) > 2 * self.kept:
             self.longest = sorted(self.longest, key=lambda s: -s[1])[:self.kept]
         return True
 
     def figures(self, t0: float = 0.0) -> dict:
-        """wakeups, late_ms_p99, late_ms_max, stalls (how many beyond the threshold), longest ([s after t0, ms, cpu],
-        in time order)."""
+        """wakeups, late_ms_p99, late_ms_max, stalls (how many beyond the threshold), longest ([s after t0, ms late,
+        cpu, steal ms], in time order)."""
         kept = sorted(sorted(self.longest, key=lambda s: -s[1])[:self.kept])
         empty = self.late.total == 0
         return {"wakeups": self.late.total, "threshold_ms": round(1e3 * self.threshold, 1),
                 "late_ms_p99": None if empty else round(1e3 * self.late.percentile(99), 2),
                 "late_ms_max": None if empty else round(1e3 * self.late.largest, 2), "stalls": self.stalls,
-                "longest": [[round(due - t0, 3), round(1e3 * late, 2), cpu] for due, late, cpu in kept]}
+                "longest": [[round(due - t0, 3), round(1e3 * late, 2), cpu, round(steal, 1)]
+                            for due, late, cpu, steal in kept]}
 
 
 def fifo(priority: int) -> str:
@@ -105,17 +110,26 @@ def fifo(priority: int) -> str:
 
 def witness(log: StallLog, period: float, running, start: float | None = None, until: float | None = None) -> None:
     """Wake every `period` s on the grid from `start` (monotonic s; default now) while running() and before
-    `until`, each wake-up into `log`; deadlines missed meanwhile are gone, not made up in a burst."""
+    `until`, each wake-up into `log`, a stall with the CPU it woke on and the steal since the last reading (taken
+    every STEAL_EVERY s); deadlines missed meanwhile are gone, not made up in a burst."""
     start = time.monotonic() if start is None else start
     k = 0
+    steal, read_at = steal_ticks(), start
     while running():
         due = start + k * period
         if until is not None and due > until:
             return
         time.sleep(max(0.0, due - time.monotonic()))
         woke = time.monotonic()
-        late = woke - due > log.threshold
-        log.add(due, woke, last_cpu() if late else -1)
+        if woke - due > log.threshold:
+            now = steal_ticks()
+            robbed = max(steal_seconds(steal, now).values(), default=-1e-3)
+            log.add(due, woke, last_cpu(), 1e3 * robbed)
+            steal, read_at = now, woke
+        else:
+            log.add(due, woke)
+            if woke - read_at >= STEAL_EVERY:
+                steal, read_at = steal_ticks(), woke
         k = max(k + 1, int((woke - start) / period) + 1)
 
 
@@ -153,8 +167,8 @@ def in_run(figures: dict, t0: float, events) -> dict:
     times counted from t0, and ``after_stall``: the cell's warnings and stops (``SafetyEvent``s of another
     severity than info, as "source:event") that came during one of them or within AFTER_STALL s of its end. An
     event listed there may still be the cell's own; one not listed was not the machine's stopping."""
-    stalls = [(due - t0, ms, cpu) for due, ms, cpu in figures.get("longest", [])]
+    stalls = [(stall[0] - t0, *stall[1:]) for stall in figures.get("longest", [])]
     after = sorted({f"{e.source}:{e.event}" for e in events if e.severity != "info"
-                    and any(due <= e.stamp - t0 <= due + ms / 1e3 + AFTER_STALL for due, ms, _ in stalls)})
+                    and any(st[0] <= e.stamp - t0 <= st[0] + st[1] / 1e3 + AFTER_STALL for st in stalls)})
     return {**figures, "started": round(figures.get("started", t0) - t0, 3),
-            "longest": [[round(due, 3), ms, cpu] for due, ms, cpu in stalls], "after_stall": after}
+            "longest": [[round(st[0], 3), *st[1:]] for st in stalls], "after_stall": after}

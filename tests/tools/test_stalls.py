@@ -17,16 +17,16 @@ from tools.stalls import AFTER_STALL, READY, StallLog, in_run, steal_seconds, st
 def test_a_stall_is_a_wake_up_later_than_the_threshold_and_the_longest_are_kept():
     log = StallLog(threshold=0.02, kept=2)
     assert not log.add(1.0, 1.0003)
-    assert log.add(2.0, 2.1, cpu=1) and log.add(3.0, 3.03, cpu=0) and log.add(4.0, 4.05, cpu=0)
+    assert log.add(2.0, 2.1, cpu=1, steal_ms=100.0) and log.add(3.0, 3.03, cpu=0) and log.add(4.0, 4.05, cpu=0)
     figures = log.figures(t0=1.0)
     assert figures["wakeups"] == 4 and figures["stalls"] == 3
-    assert figures["longest"] == [[1.0, 100.0, 1], [3.0, 50.0, 0]]          # the two longest, in time order
+    assert figures["longest"] == [[1.0, 100.0, 1, 100.0], [3.0, 50.0, 0, -1.0]]   # the two longest, in time order
     assert figures["late_ms_max"] == pytest.approx(100.0) and figures["threshold_ms"] == 20.0
     assert StallLog().figures()["late_ms_p99"] is None
 
 
 def test_the_cells_warnings_during_or_just_after_a_stall_are_named():
-    figures = {"started": 100.5, "longest": [[110.0, 100.0, 1]], "stalls": 1}
+    figures = {"started": 100.5, "longest": [[110.0, 100.0, 1, 90.0]], "stalls": 1}
     event = lambda t, source, name, severity="warning": SimpleNamespace(stamp=t, source=source, event=name,
                                                                        severity=severity)
     events = [event(110.05, "robot_driver", "frames_lost", "stop"),            # during the stall
@@ -35,7 +35,7 @@ def test_the_cells_warnings_during_or_just_after_a_stall_are_named():
               event(110.02, "planner", "trajectory_goal", "info"),                  # not a warning
               event(105.0, "scaler", "stale_command")]                              # before it
     run = in_run(figures, 100.0, events)
-    assert run["longest"] == [[10.0, 100.0, 1]] and run["started"] == 0.5
+    assert run["longest"] == [[10.0, 100.0, 1, 90.0]] and run["started"] == 0.5
     assert run["after_stall"] == ["robot_driver:command_clamped", "robot_driver:frames_lost"]
     assert in_run({"longest": []}, 100.0, events)["after_stall"] == []
 
