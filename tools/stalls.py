@@ -133,6 +133,21 @@ def witness(log: StallLog, period: float, running, start: float | None = None, u
         k = max(k + 1, int((woke - start) / period) + 1)
 
 
+AFTER_STALL = 0.5     # s: a warning this soon after a stall's end is listed as following it
+
+
+def in_run(figures: dict, t0: float, events) -> dict:
+    """The witness's figures (``main``'s, monotonic times) for a run that began at t0 (monotonic s): its stalls'
+    times counted from t0, and ``after_stall``: the cell's warnings and stops (``SafetyEvent``s of another
+    severity than info, as "source:event") that came during one of them or within AFTER_STALL s of its end. An
+    event listed there may still be the cell's own; one not listed was not the machine's stopping."""
+    stalls = [(stall[0] - t0, *stall[1:]) for stall in figures.get("longest", [])]
+    after = sorted({f"{e.source}:{e.event}" for e in events if e.severity != "info"
+                    and any(st[0] <= e.stamp - t0 <= st[0] + st[1] / 1e3 + AFTER_STALL for st in stalls)})
+    return {**figures, "started": round(figures.get("started", t0) - t0, 3),
+            "longest": [[round(st[0], 3), *st[1:]] for st in stalls], "after_stall": after}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tools.stalls", description=__doc__.split("\n\n")[0])
     parser.add_argument("--stats", type=Path, required=True, help="where the figures go at the end (JSON)")
@@ -158,17 +173,3 @@ def main(argv: list[str] | None = None) -> int:
 if __name__ == "__main__":
     sys.exit(main())
 
-
-AFTER_STALL = 0.5     # s: a warning this soon after a stall's end is listed as following it
-
-
-def in_run(figures: dict, t0: float, events) -> dict:
-    """The witness's figures (``main``'s, monotonic times) for a run that began at t0 (monotonic s): its stalls'
-    times counted from t0, and ``after_stall``: the cell's warnings and stops (``SafetyEvent``s of another
-    severity than info, as "source:event") that came during one of them or within AFTER_STALL s of its end. An
-    event listed there may still be the cell's own; one not listed was not the machine's stopping."""
-    stalls = [(stall[0] - t0, *stall[1:]) for stall in figures.get("longest", [])]
-    after = sorted({f"{e.source}:{e.event}" for e in events if e.severity != "info"
-                    and any(st[0] <= e.stamp - t0 <= st[0] + st[1] / 1e3 + AFTER_STALL for st in stalls)})
-    return {**figures, "started": round(figures.get("started", t0) - t0, 3),
-            "longest": [[round(st[0], 3), *st[1:]] for st in stalls], "after_stall": after}
