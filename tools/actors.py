@@ -176,15 +176,18 @@ class HumanFeed(threading.Thread):
         self.finished = False             # a finite feed sent its last sample
         self.last_sent = 0.0              # monotonic time (s) of the last sample put
         self.lateness = DelayHistogram(LATE_RESOLUTION, LATE_LIMIT)   # how late it woke for each sample (s)
+        self.latest_at: float | None = None   # when (s after t0) the sample it woke latest for was due
 
     def lateness_figures(self) -> dict:
         """How late the feed woke for its samples, after their due times (ms: p99, max): a feed that the machine
         does not run in time looks, to the tracker, like a person lost from view (issue 41, item 6). A
-        histogram, not a list: a replay may run for hours."""
+        histogram, not a list: a replay may run for hours. late_max_at_s: when the latest one was due (s after t0),
+        to set beside the report's events and the machine's stalls."""
         if self.lateness.total == 0:
-            return {"late_ms_p99": None, "late_ms_max": None}
+            return {"late_ms_p99": None, "late_ms_max": None, "late_max_at_s": None}
         return {"late_ms_p99": round(1e3 * self.lateness.percentile(99), 1),
-                "late_ms_max": round(1e3 * self.lateness.largest, 1)}
+                "late_ms_max": round(1e3 * self.lateness.largest, 1),
+                "late_max_at_s": None if self.latest_at is None else round(self.latest_at, 3)}
 
     def figures(self) -> dict:
         """What the feed did: its rate (Hz), samples sent and skipped, and how late it woke."""
@@ -197,6 +200,8 @@ class HumanFeed(threading.Thread):
             due = self.t0 + schedule.offset(k) / self.speed
             time.sleep(max(0.0, due - time.monotonic()))
             woke = time.monotonic()
+            if self.latest_at is None or woke - due > self.lateness.largest:
+                self.latest_at = due - self.t0
             self.lateness.add(woke - due)                     # before a skip moves `due` on
             newest = schedule.newest((woke - self.t0) * self.speed)
             if newest > k:                                    # late: the samples missed are gone

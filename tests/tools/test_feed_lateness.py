@@ -23,7 +23,7 @@ def _feed() -> HumanFeed:
 
 
 def test_no_wake_up_no_figures():
-    assert _feed().lateness_figures() == {"late_ms_p99": None, "late_ms_max": None}
+    assert _feed().lateness_figures() == {"late_ms_p99": None, "late_ms_max": None, "late_max_at_s": None}
 
 
 def test_p99_and_max_from_the_histogram():
