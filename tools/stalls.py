@@ -148,6 +148,19 @@ def in_run(figures: dict, t0: float, events) -> dict:
             "longest": [[round(st[0], 3), *st[1:]] for st in stalls], "after_stall": after}
 
 
+def said(figures: dict) -> str | None:
+    """One line for the operator when the witness saw the machine stall (None when it did not, or wrote nothing):
+    how many stalls, the longest with the steal meanwhile, and the cell's warnings that followed them."""
+    if not figures.get("stalls"):
+        return None
+    worst = max(figures.get("longest") or [[0.0, figures.get("late_ms_max") or 0.0, -1, -1.0]], key=lambda st: st[1])
+    steal = f", {worst[3]:.0f} ms of it the hypervisor's steal" if len(worst) > 3 and worst[3] >= 0 else ""
+    after = figures.get("after_stall") or []
+    return (f"the machine itself stalled {figures['stalls']} time(s) beyond {figures.get('threshold_ms', 20):.0f} ms "
+            f"(the longest {worst[1]:.0f} ms at t={worst[0]:.2f} s{steal}); "
+            + (f"during or just after them: {', '.join(after)}" if after else "no warning of the cell came with them"))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tools.stalls", description=__doc__.split("\n\n")[0])
     parser.add_argument("--stats", type=Path, required=True, help="where the figures go at the end (JSON)")

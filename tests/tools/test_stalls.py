@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import pytest
 
 from tests.util import ROOT, stopped
-from tools.stalls import AFTER_STALL, READY, StallLog, in_run, steal_seconds, steal_ticks, witness
+from tools.stalls import AFTER_STALL, READY, StallLog, in_run, said, steal_seconds, steal_ticks, witness
 
 
 def test_a_stall_is_a_wake_up_later_than_the_threshold_and_the_longest_are_kept():
@@ -64,3 +64,12 @@ def test_the_witness_process_writes_its_figures_when_ended(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "tools.stalls", "--stats", str(stats), "--period", "0"], cwd=ROOT,
                          capture_output=True, text=True, timeout=30)
     assert bad.returncode == 2 and "positive" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_the_operator_is_told_of_the_machines_stalls_and_what_followed_them():
+    assert said({"stalls": 0, "longest": []}) is None and said({"error": "no figures"}) is None
+    line = said({"stalls": 2, "threshold_ms": 20.0, "longest": [[3.0, 24.0, 0, 0.0], [10.0, 101.0, 1, 90.0]],
+                 "after_stall": ["robot_driver:frames_lost"]})
+    assert line.startswith("the machine itself stalled 2 time(s) beyond 20 ms (the longest 101 ms at t=10.00 s, 90 ms")
+    assert line.endswith("during or just after them: robot_driver:frames_lost")
+    assert "no warning of the cell" in said({"stalls": 1, "longest": [[1.0, 30.0, 0, -1.0]], "after_stall": []})
