@@ -4,10 +4,11 @@ every process of the cell, that sleeps to a deadline every few milliseconds and 
 On a slow day the cell's timing has hiccups (the robot driver misses SYNC answers, the scaler sends two commands
 20 ms apart, the person feed wakes 75 ms late), and a report has to say whose they were. Nothing on the machine
 delays a FIFO 99 process that does almost nothing by more than the kernel's own work (a millisecond or so, here),
-but the machine itself: when the hypervisor takes a virtual CPU away (its steal time, /proc/stat), every process on
-that CPU stops, the drives' emulator included. A stall this
-witness sees is the machine's; a lag the cell reports with no stall here is the cell's own. ``bench/stall_probe.py``
-runs the same witness at several priorities at once, to tell which of the cell's processes held the others off.
+but the machine itself: when the hypervisor takes a virtual CPU away (its steal time, /proc/stat), or the kernel
+throttles real-time work (which the cell's own real-time load can cause), every process on that CPU stops, the
+drives' emulator included. A stall with as much steal is the hypervisor's, one without is the kernel's; a lag the
+cell reports with no stall here is the cell's own. ``bench/stall_probe.py`` runs the same witness at several
+priorities at once, to tell which of the cell's processes held the others off.
 
 The protocol with the parent (``tools.demo``): the child sets its scheduling, prints READY and runs until SIGTERM,
 then writes its figures (``StallLog.figures``: monotonic times) as JSON to --stats.
