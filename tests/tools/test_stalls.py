@@ -44,7 +44,10 @@ def test_the_witness_wakes_on_its_grid_and_makes_up_no_missed_deadline():
     log = StallLog(threshold=0.05)
     start = time.monotonic() - 0.2                     # 200 ms of deadlines already gone: one late wake-up, no burst
     witness(log, 0.005, lambda: True, start=start, until=start + 0.3)
-    assert log.stalls == 1 and 18 <= log.late.total <= 22, log.figures()
+    # 61 deadlines in all, 40 of them gone: the first wake-up is the 200 ms stall, then at most the 20 left (fewer
+    # on a loaded machine, which skips what it misses), never the 40 made up in a burst
+    first = min(log.longest)
+    assert first[1] >= 0.19 and 5 <= log.late.total <= 21, log.figures()
     assert steal_seconds(steal_ticks(), steal_ticks()).keys() == steal_ticks().keys()
 
 
