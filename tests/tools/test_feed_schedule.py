@@ -68,7 +68,7 @@ def test_the_schedule_of_a_recording_a_script_and_a_given_rate():
 
 
 def test_a_replay_sends_each_frame_once_at_its_time_and_nothing_in_a_dropout():
-    motion = _motion([0.0, 0.02, 0.03, 0.07, 0.08], dropout_at=0.07)
+    motion = _motion([0.0, 0.05, 0.08, 0.2, 0.25], dropout_at=0.2)     # 30 ms apart at least: none skipped
     session = _Session()
     t0 = time.monotonic() + 0.02
     feed = HumanFeed(session, KeySpace("t/feed"), motion, t0, source="test", until=motion.duration)
@@ -76,8 +76,8 @@ def test_a_replay_sends_each_frame_once_at_its_time_and_nothing_in_a_dropout():
     assert feed.finished and feed.skipped == 0
     sent = session.publisher.sent
     assert [m.seq for _, m in sent] == [0, 1, 2, 4]            # the dropout frame (3) is silence
-    assert [m.sample_time - t0 for _, m in sent] == pytest.approx([0.0, 0.02, 0.03, 0.08])
-    assert [float(m.segments[0, 0, 1]) for _, m in sent] == pytest.approx([0.0, 0.02, 0.03, 0.08])
+    assert [m.sample_time - t0 for _, m in sent] == pytest.approx([0.0, 0.05, 0.08, 0.25])
+    assert [float(m.segments[0, 0, 1]) for _, m in sent] == pytest.approx([0.0, 0.05, 0.08, 0.25])
     for at, message in sent:                                  # each went out when it was due, not before
         assert at >= message.sample_time - 1e-6
 
@@ -89,18 +89,19 @@ def test_a_late_feed_skips_to_the_newest_sample_instead_of_a_burst():
     feed = HumanFeed(session, KeySpace("t/feed"), motion, t0, until=motion.duration)
     feed.run()
     seqs = [m.seq for _, m in session.publisher.sent]
-    assert seqs[0] == 5 and feed.skipped == 5 and seqs == list(range(5, 11))
+    # the first sample sent is the newest due (5, or later on a loaded machine), then on in order to the last one
+    assert seqs[0] >= 5 and seqs == sorted(set(seqs)) and seqs[-1] == 10 and feed.skipped == 11 - len(seqs)
     assert feed.lateness.largest >= 0.05 and feed.figures()["late_max_at_s"] == 0.0   # the first sample, due at t0
 
 
 def test_speed_plays_the_motion_faster_and_inject_moves_its_capsule():
-    motion = _motion([0.0, 0.04, 0.08])
+    motion = _motion([0.0, 0.1, 0.2])
     session = _Session()
     t0 = time.monotonic()
     feed = HumanFeed(session, KeySpace("t/feed"), motion, t0, until=motion.duration, speed=2.0)
     feed.run()
-    assert feed.rate == pytest.approx(50.0)
-    assert [m.sample_time - t0 for _, m in session.publisher.sent] == pytest.approx([0.0, 0.02, 0.04])
+    assert feed.rate == pytest.approx(20.0)
+    assert [m.sample_time - t0 for _, m in session.publisher.sent] == pytest.approx([0.0, 0.05, 0.1])
     person = MovingCapsule([-2.0, 0.0, 0.9], [-2.0, 0.0, 1.4], 0.17, [0.5, 0.0, 0.0])
     caps = person.at(2.0)
     assert isinstance(caps, HumanCapsules) and caps.segments[0, :, 0].tolist() == pytest.approx([-1.0, -1.0])
