@@ -236,18 +236,21 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         else:
             take(t, outcome, elapsed * 1e3)
 
-    if loop is not None:      # the first leg planned before the clock starts, as the fixed path's is made
-        planning_turn(0.0, 0, human.at(0.0))
-        if waiting is not None and waiting[0] <= 0.0:     # planned with no search charged: ready at the start
-            take(0.0, waiting[1], waiting[2])
-            waiting = None
-    for k in range(int(round(duration / period))):
-        t = k * period
-        humans = human.at(t)
-        if waiting is not None and t >= waiting[0]:         # a charged result is ready now
+    def take_ready(t: float) -> None:
+        """A charged result whose time has passed, taken now."""
+        nonlocal waiting
+        if waiting is not None and t >= waiting[0]:
             _, outcome, elapsed = waiting
             waiting = None
             take(t, outcome, elapsed)
+
+    if loop is not None:      # the first leg planned before the clock starts, as the fixed path's is made
+        planning_turn(0.0, 0, human.at(0.0))
+        take_ready(0.0)       # planned with no search charged: ready at the start
+    for k in range(int(round(duration / period))):
+        t = k * period
+        humans = human.at(t)
+        take_ready(t)
         if loop is not None and t >= busy_until:
             planning_turn(t, k, humans)
         step = layer.step(ScalingInputs(humans=humans))

@@ -71,22 +71,26 @@ def start_witness(cell: CellProcesses, stats: Path):
     return cell.spawn_helper("stall_witness", ["tools.stalls", "--stats", str(stats)], WITNESS_READY)
 
 
-def machine_figures(stats: Path, t0: float, events) -> dict:
-    """What the stall witness wrote at its end, for the run that began at t0 (``tools.stalls.in_run``: its
-    stalls from t0, and the cell's warnings that followed one); {"error": ...} when it wrote nothing."""
-    try:
-        return in_run(json.loads(stats.read_text()), t0, events)
-    except (OSError, ValueError) as exc:
-        return {"error": f"the stall witness wrote no figures ({exc.__class__.__name__}); see logs/stall_witness.log"}
-
-
-def feed_figures(stats: Path) -> dict:
-    """What the feed process wrote at its end: rate_hz, skipped, sent, late_ms_p99, late_ms_max (how late it woke
-    for its samples); {"error": ...} when it wrote nothing."""
+def helper_figures(stats: Path, helper: str) -> dict:
+    """What a helper process (the feed, the stall witness) wrote to `stats` at its end; {"error": ...} naming its
+    log when it wrote nothing readable."""
     try:
         return json.loads(stats.read_text())
     except (OSError, ValueError) as exc:
-        return {"error": f"the feed wrote no figures ({exc.__class__.__name__}); see logs/human_feed.log"}
+        return {"error": f"the {helper} wrote no figures ({exc.__class__.__name__}); see logs/{stats.stem}.log"}
+
+
+def machine_figures(stats: Path, t0: float, events) -> dict:
+    """The stall witness's figures for the run that began at t0 (``tools.stalls.in_run``: its stalls from t0, and
+    the cell's warnings that followed one); {"error": ...} when it wrote nothing."""
+    figures = helper_figures(stats, "stall witness")
+    return figures if "error" in figures else in_run(figures, t0, events)
+
+
+def feed_figures(stats: Path) -> dict:
+    """What the feed process wrote at its end: rate_hz, skipped, sent, late_ms_p99, late_ms_max, late_max_at_s
+    (how late it woke for its samples, and when); {"error": ...} when it wrote nothing."""
+    return helper_figures(stats, "feed")
 
 
 def run(out: Path, duration: float, phase_length: float, config_path: Path | None, seed: int, no_beta: bool,
