@@ -46,7 +46,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from shared.core.humans import STANDING_SPEED, HumanCapsules
+from shared.core.humans import STANDING_SPEED, HumanCapsules, standing
 from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.blocked import GoalBlock, goal_block
 from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
@@ -70,12 +70,6 @@ class PlanningOutcome:
     refused: str | None = None
     searches: int = 0
     prepared: Trajectory | None = None
-
-
-def standing(humans: HumanCapsules, speed: float = STANDING_SPEED) -> bool:
-    """Every capsule's velocity known and below `speed` (m/s) at both ends (True for nobody)."""
-    return humans.count == 0 or (bool(humans.velocity_known.all())
-                                 and float(np.linalg.norm(humans.velocities, axis=2).max()) < speed)
 
 
 class StillClock:

@@ -42,7 +42,8 @@ class ReplanOptions:
     gives the same path in any order, see ``Replanner._rng``); search, cost:
     the search's bounds and the time cost's sampling; posture_gap (m): while someone is nearer than this to the
     robot's reach, a new goal's default leg is the folded one (``shared.planning.postures``; None: never; the
-    shipped 2.5 m and why: ``PlanningParameters``);
+    shipped 2.5 m and why: ``PlanningParameters``); still_gap (m): unless everyone stands still farther than this
+    from the reach (``PlanningParameters``);
     judge: what a decision's trajectories are predicted by, "cost" (the time cost's model,
     ``shared.planning.time_cost``) or "scaling" (a forward run of the scaling layer itself against the same
     forecast, ``shared.planning.executed``: slower, for a bound or a cell with the budget for it)."""
@@ -61,6 +62,7 @@ class ReplanOptions:
     slow_excess: float = PlanningParameters.slow_excess
     action_budget: float | None = None
     posture_gap: float | None = PlanningParameters.posture_gap
+    still_gap: float = PlanningParameters.still_gap
     seed: int = 0
     judge: str = PlanningParameters.judge
     search: SearchOptions = SearchOptions()

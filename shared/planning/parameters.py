@@ -13,6 +13,10 @@ None or negative: never). Shipped at 2.5 m (anyone who could reach the robot wit
 same scenarios it is above the straight line in every walking kind and on the paper's own phases under the
 paper's formula, where the folded leg already clears the reaching arm and the paper's phase-3 replan is not
 needed (docs/measurements.md). The paper's planner had no posture: ``deploy/cell-paper.yaml`` sets null.
+still_gap (m): people who all stand still (every body part slower than ``STANDING_SPEED``) and are farther than
+this from the robot's reach make no folded leg: only someone walking comes near within a leg. Shipped at 1.0 m:
+on 60 seeds a kind it gained in the paper (a person waiting 2.8 m off in its first phase) and lost nowhere
+(docs/measurements.md, 2026-12-03, session 55); at or above posture_gap, standing people fold as walkers do.
 judge: what a decision's trajectories are predicted by, "cost" (the time cost's model) or "scaling" (a
 forward run of the scaling layer itself, ``shared.planning.executed``). forecast_horizon (s): how far ahead the
 planning layer's forecast moves the tracked people on along their velocities, then holds them (the time cost's
@@ -42,6 +46,7 @@ class PlanningParameters:
     min_saving: float = 0.25
     slow_excess: float = 1.0
     posture_gap: float | None = 2.5
+    still_gap: float = 1.0
     judge: str = "cost"
     forecast_horizon: float = 2.0
     worth_waiting: float = 0.5
@@ -68,5 +73,6 @@ class PlanningParameters:
 
         return {"patience": float(self.patience), "min_gain": float(self.min_gain),
                 "min_saving": float(self.min_saving), "slow_excess": float(self.slow_excess),
-                "posture_gap": self.folds, "judge": self.judge, "worth_waiting": float(self.worth_waiting),
+                "posture_gap": self.folds, "still_gap": float(self.still_gap), "judge": self.judge,
+                "worth_waiting": float(self.worth_waiting),
                 "cost": TimeCostOptions(extrapolation=float(self.forecast_horizon))}

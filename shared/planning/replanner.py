@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from shared.core.humans import HumanCapsules
+from shared.core.humans import HumanCapsules, standing
 from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.budget import ActionBudget
 from shared.planning.candidates import Candidates
@@ -217,10 +217,12 @@ class Replanner:
     def _posture(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules,
                  version: int) -> Trajectory | None:
         """The folded leg from q_start to q_goal, numbered `version`, where someone is within options.posture_gap
-        (m) of the robot's reach and it is free of them (never closer to them than its ends are); else None.
-        Timed once per pair of ends (``FoldedLegs``)."""
+        (m) of the robot's reach, unless everyone stands still beyond options.still_gap (m) of it, and it is
+        free of them (never closer to them than its ends are); else None. Timed once per pair of ends
+        (``FoldedLegs``)."""
         gap = self.options.posture_gap
-        if gap is None or reach_gap(self.collision, humans) >= gap:
+        nearest = reach_gap(self.collision, humans)
+        if gap is None or nearest >= gap or (nearest >= self.options.still_gap and standing(humans)):
             return None
         try:
             leg = self.postures.leg(q_start, q_goal, version)

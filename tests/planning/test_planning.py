@@ -513,3 +513,28 @@ def test_a_new_goal_takes_the_folded_leg_by_default_while_someone_is_near():
     assert near._posture(Q_START, Q_GOAL, far, 5) is None                          # nobody near: no posture
     paper = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(posture_gap=None))
     assert paper._posture(Q_START, Q_GOAL, STANDING, 5) is None                    # the paper's planner: none
+
+
+def test_people_standing_still_beyond_the_still_gap_make_no_folded_leg_but_walking_there_they_do():
+    """ReplanOptions.still_gap (1.0 m as shipped): a person waiting well off (the paper's first phase, 2.8 m from
+    the base) cannot come near within a leg; the straight line is faster then. The same person walking, or
+    standing nearer than the still gap, still makes the fold."""
+    from shared.planning.horizon import reach_gap
+
+    replanner = Replanner(CM, PLANNER, PAPER_SSM)
+    assert replanner.options.still_gap == 1.0
+
+    def person(x: float, speed: float) -> HumanCapsules:
+        return HumanCapsules.from_arrays([[[x, 0.0, 0.0], [x, 0.0, 1.7]]], [0.2],
+                                         np.tile([speed, 0.0, 0.0], (1, 2, 1)), [True])
+
+    waiting, walking = person(-2.8, 0.0), person(-2.8, 1.2)
+    assert replanner.options.still_gap < reach_gap(CM, waiting) < replanner.options.posture_gap
+    assert replanner._posture(Q_START, Q_GOAL, waiting, 1) is None                 # standing well off: the line
+    assert replanner._posture(Q_START, Q_GOAL, walking, 1) is not None             # walking: the fold
+    unknown = HumanCapsules(waiting.segments, waiting.radii, waiting.velocities, np.array([False]))
+    assert replanner._posture(Q_START, Q_GOAL, unknown, 1) is not None             # not known to stand: the fold
+    assert reach_gap(CM, STANDING) < replanner.options.still_gap
+    assert replanner._posture(Q_START, Q_GOAL, STANDING, 1) is not None            # standing near: the fold
+    everyone = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(still_gap=2.5))
+    assert everyone._posture(Q_START, Q_GOAL, waiting, 1) is not None              # at posture_gap: like walkers
