@@ -8,14 +8,14 @@ the cell's own real-time processes held both cores for that long and starved tho
 priority sleeps to a deadline every `--period` and records how late it woke and every wake-up later than `--stall`
 with its monotonic time (``tools.stalls``, the witness the demo runs at FIFO 99): a stall seen at every priority,
 FIFO 99 included, is the machine's; one seen only below some priority is the work of the processes above it
-(``shared.scheduling.PRIORITY``: robot_driver 60, hwsim 55, scaler 50, tracker_ingest 45, human_feed 40). Priority
-0 is the normal class, where the planner, the monitor and the demo's recorder run. The machine's steal time
+(``shared.scheduling.PRIORITY``: robot_driver 60, hwsim 55, scaler 50, tracker_ingest 45, human_feed 40,
+safety_monitor 30). Priority 0 is the normal class, where the planner and the demo's recorder run. The machine's steal time
 (/proc/stat, per virtual CPU) over the window is printed beside it, and the CPU each probe woke on after a stall.
 
 Run it beside the cell: ``python bench/stall_probe.py --seconds 60 & hrc demo ...``; the stall times are monotonic
 seconds, the clock of every process on the machine (the demo's report counts from its own t0, printed in its log).
 
-    python bench/stall_probe.py [--seconds 30] [--period 0.002] [--stall 0.005] [--priorities 99,57,52,47,42,0]
+    python bench/stall_probe.py [--seconds 30] [--period 0.002] [--stall 0.005] [--priorities 99,57,52,47,42,32,0]
 
 Last line: one JSON object.
 """
@@ -52,7 +52,7 @@ def arguments(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--seconds", type=float, default=30.0)
     parser.add_argument("--period", type=float, default=0.002, help="s between a probe's wake-ups")
     parser.add_argument("--stall", type=float, default=0.005, help="s late: a wake-up listed as a stall")
-    parser.add_argument("--priorities", default="99,57,52,47,42,0",
+    parser.add_argument("--priorities", default="99,57,52,47,42,32,0",
                         help="SCHED_FIFO priorities, one probe each (0: the normal class)")
     args = parser.parse_args(argv)
     try:

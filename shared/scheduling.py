@@ -3,9 +3,10 @@
 On a small machine (two cores here, seven Python processes) the threads that carry a human sample to the
 drives must not wait behind a plan or the witness. Where the operating system allows it they run in
 SCHED_FIFO, highest first: the driver's SYNC cycle, the emulated drives, the scaler, tracker_ingest (and, in
-``hrc demo``, below them, the process that plays the person, as a camera would). The
-planner and the safety monitor stay in the normal class and are niced (planner +10, monitor +5: in
-deploy/supervisord.conf and in hrc demo's launcher).
+``hrc demo``, below them, the process that plays the person, as a camera would); below all of them the safety
+monitor, the independent witness, which must keep up with the robot (``monitor_behind``) but never delays a
+command. The planner stays in the normal class and is niced (+10: in deploy/supervisord.conf and in hrc demo's
+launcher); the monitor is niced too (+5), for where the OS refuses SCHED_FIFO.
 
 With HRC_PIN_CPUS=1 in the environment, on a machine with two or more CPUs, the driver, which paces the
 drives' SYNC, gets the last CPU to itself and the emulated drives, the scaler and tracker_ingest share the
@@ -27,11 +28,15 @@ import os
 import threading
 
 # SCHED_FIFO priorities of the safety chain, highest first: the driver's SYNC cycle, the emulated drives,
-# the scaler, tracker_ingest. The planner and the safety monitor stay in the normal class (and niced): a
-# slow plan or a busy witness must never delay a command.
+# the scaler, tracker_ingest. The planner stays in the normal class (and niced): a slow plan must never
+# delay a command.
 # Below them, the demo's person feed (tools.feed): like the emulated drives it stands for hardware outside the
 # machine (a camera and its skeleton tracker), which neither the chain nor a busy planner delays.
-PRIORITY = {"robot_driver": 60, "hwsim": 55, "scaler": 50, "tracker_ingest": 45, "human_feed": 40}
+# Below everything of the chain, the safety monitor: in the normal class (nice 5) the planner's searches and
+# the demo's recorder held it more than 0.1 s behind the robot (``monitor_behind`` in 2 of 24 real-people runs,
+# docs/real-people.md); its checks (about 0.1 CPU) now wait for nothing but the chain and the feed.
+PRIORITY = {"robot_driver": 60, "hwsim": 55, "scaler": 50, "tracker_ingest": 45, "human_feed": 40,
+            "safety_monitor": 30}
 
 
 OWN_CPU = "robot_driver"                             # the SYNC cycle: the last CPU is its own

@@ -47,8 +47,8 @@ class Program:
 
 # The planner (nice 10) and the monitor (nice 5) yield the CPU to the control path: on a small machine a
 # restarting planner (OMPL, compiled kernels) otherwise starved the driver's SYNC thread past the drives'
-# watchdog (found by hrc faults on a 2-core VM). The safety chain itself asks for SCHED_FIFO at start-up
-# (shared.scheduling).
+# watchdog (found by hrc faults on a 2-core VM). The safety chain, and below it the monitor, ask for SCHED_FIFO
+# once warmed up (shared.scheduling); the monitor's niceness holds for its warm-up and where the OS refuses.
 PROGRAMS: tuple[Program, ...] = (
     Program("hwsim", "hwsim", on_can=True, on_zenoh=False, reads_config=False, priority=10,
             ready="hwsim: PRBT emulator"),
@@ -72,7 +72,8 @@ _HEADER = """\
 ;   HRC_RUN     a run folder (sockets, logs)       HRC_PYTHON  the interpreter of the installed project
 ;   HRC_CAN     python-can interface               HRC_PREFIX  the cell's key prefix
 ;   HRC_PORT    the first of six loopback ports (robot driver, then one per service; the sixth: ros2_bridge)
-; The planner (nice 10) and the monitor (nice 5) yield the CPU to the control path.
+; The planner (nice 10) and the monitor (nice 5) yield the CPU to the control path; once warmed up, the
+; safety chain and, below it, the monitor take SCHED_FIFO themselves (shared/scheduling.py).
 [supervisord]
 nodaemon=true
 logfile=%(ENV_HRC_RUN)s/supervisord.log
