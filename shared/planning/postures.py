@@ -5,7 +5,8 @@ with nobody near it costs a little (a longer path). People walking near the cell
 (``bench/calibration.py``: the cost's choice among candidates is the executed fastest in about half the choices
 where people walk), and the fold pays wherever they turn out to be. It is a new goal's default leg while someone
 is within ``ReplanOptions.posture_gap`` of the robot's reach (``Replanner.plan_goal``; shipped at 2.5 m,
-``PlanningParameters``); the search may still find a faster one."""
+``PlanningParameters``), unless everyone stands still beyond ``still_gap`` of it; the search may still find a
+faster one."""
 
 from __future__ import annotations
 
