@@ -39,8 +39,6 @@ def test_the_driver_gets_the_last_cpu_and_the_rest_of_the_chain_the_others():
     assert cpus_for("scaler", {3}) is None                 # one CPU: nothing to place
 
 
-
-
 def test_the_monitor_runs_in_sched_fifo_below_every_process_of_the_safety_chain_and_the_feed():
     # the witness must keep up with the robot (monitor_behind), but never take the CPU from a command
     from shared.scheduling import PRIORITY
