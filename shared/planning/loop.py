@@ -54,6 +54,7 @@ from shared.planning.inputs import PlanningInputs
 from shared.planning.ompl_planner import PlanningError
 from shared.planning.replanner import PreparedPlan, Replanner
 from shared.planning.timing import TimingError
+from shared.planning.trust import ForecastTrust
 
 
 @dataclass(frozen=True)
@@ -130,12 +131,18 @@ class PlanningLoop:
         self.last_sample: int | None = None
         self.still = StillClock(still_speed) if still_speed is not None else None
         self.last_still_sample: int | None = None
+        options = replanner.options             # whether the forecast has held (a new goal's line or fold)
+        self.trust = ForecastTrust(replanner.cost.forecaster, options.trust_span, options.trust_tolerance) \
+            if options.trust_tolerance > 0 else None
 
     def step(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
         """At most one planning action for this moment (see the module docstring); None when none is due."""
-        if self.still is not None and inputs.human_sample != self.last_still_sample:
+        if inputs.human_sample != self.last_still_sample:
             self.last_still_sample = inputs.human_sample
-            self.still.update(now, inputs.humans)
+            if self.still is not None:
+                self.still.update(now, inputs.humans)
+            if self.trust is not None:
+                self.trust.update(now, inputs.humans)
         if inputs.goal is None or inputs.q is None:
             return None
         if self.still is not None:
@@ -150,7 +157,7 @@ class PlanningLoop:
 
     def _act(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
         if inputs.new_goal:
-            return self._goal(inputs)
+            return self._goal(now, inputs)
         if inputs.following is None:
             return None
         trajectory, s = inputs.following
@@ -197,9 +204,9 @@ class PlanningLoop:
                 return PlanningOutcome("slow", refused=str(exc))
             if result is not None:
                 return PlanningOutcome("slow", result)
-        return self._prepare(inputs)
+        return self._prepare(now, inputs)
 
-    def _prepare(self, inputs: PlanningInputs) -> PlanningOutcome | None:
+    def _prepare(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
         """The next leg's plan, once per trajectory followed, within prepare_ahead of its end (None when it
         is not due): from the end of the followed trajectory (where its commands stop the robot) to the
         goal after, for the people as they are now, while they stand (``standing``: a prepared plan is taken
@@ -217,13 +224,18 @@ class PlanningLoop:
         self.prepared_for, self.prepared = key, None
         remembered = self.replanner.remembered
         try:
-            plan = self.replanner.plan_goal(trajectory.positions[-1], inputs.then, inputs.humans, 0, inputs.waited)
+            plan = self.replanner.plan_goal(trajectory.positions[-1], inputs.then, inputs.humans, 0, inputs.waited,
+                                            trusted=self._trusted(now))
         except (PlanningError, TimingError) as exc:
             return PlanningOutcome("prepare", refused=f"{type(exc).__name__}: {exc}")
         finally:
             self.replanner.remembered = remembered
         self.prepared = PreparedPlan(plan, inputs.humans)
         return PlanningOutcome("prepare", prepared=plan)
+
+    def _trusted(self, now: float) -> bool:
+        """The forecast of the people has held lately (``shared.planning.trust``; never where it is off)."""
+        return self.trust is not None and self.trust.trusted(now)
 
     def _search_due(self, inputs: PlanningInputs) -> bool:
         """The goal's search left for the way is due: the robot follows that leg and has left (moving at
@@ -244,14 +256,14 @@ class PlanningLoop:
         block = self._block(inputs)
         return refused if block is None else f"{refused}; {block.describe()}"
 
-    def _goal(self, inputs: PlanningInputs) -> PlanningOutcome:
+    def _goal(self, now: float, inputs: PlanningInputs) -> PlanningOutcome:
         self.replanner.forget()
         prepared, self.prepared, self.prepared_for = self.prepared, None, None
         self.search_due = None
         try:
             if inputs.following is None:
                 trajectory = self.replanner.plan_goal(inputs.q, inputs.goal, inputs.humans, inputs.version,
-                                                      inputs.waited, prepared, leaving=True)
+                                                      inputs.waited, prepared, leaving=True, trusted=self._trusted(now))
                 if self.replanner.search_deferred:
                     self.search_due = trajectory.version
                 detail = "prepared on the way here" if self.replanner.took_prepared else \

@@ -43,7 +43,9 @@ class ReplanOptions:
     the search's bounds and the time cost's sampling; posture_gap (m): while someone is nearer than this to the
     robot's reach, a new goal's default leg is the folded one (``shared.planning.postures``; None: never; the
     shipped 2.5 m and why: ``PlanningParameters``); still_gap (m): unless everyone stands still farther than this
-    from the reach (``PlanningParameters``);
+    from the reach (``PlanningParameters``); trust_tolerance (m), trust_span (s): where the forecast has held that
+    well over that long (``shared.planning.trust``), the straight line takes the fold's place where predicted faster
+    (0: never);
     judge: what a decision's trajectories are predicted by, "cost" (the time cost's model,
     ``shared.planning.time_cost``) or "scaling" (a forward run of the scaling layer itself against the same
     forecast, ``shared.planning.executed``: slower, for a bound or a cell with the budget for it)."""
@@ -59,6 +61,8 @@ class ReplanOptions:
     rrt_budget: float = 0.2
     worth_searching: float = 0.25
     worth_waiting: float = PlanningParameters.worth_waiting
+    trust_tolerance: float = PlanningParameters.trust_tolerance
+    trust_span: float = PlanningParameters.trust_span
     slow_excess: float = PlanningParameters.slow_excess
     action_budget: float | None = None
     posture_gap: float | None = PlanningParameters.posture_gap

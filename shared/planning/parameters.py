@@ -26,6 +26,10 @@ worth_waiting (s): a new goal's robot waits at the goal for its search only wher
 line by more than this; below it, it leaves at once and the search runs on the way (``shared.planning.loop``).
 0.5 s shipped: on 20 seeds a kind, against the fixed fold, 0.25 s (waiting for every search) lost 0.5 % with
 two people walking, never waiting lost the paper's phase 4 at 3 s phases (docs/architecture.md, Goals).
+trust_tolerance (m), trust_span (s): where the planning layer's forecast has held over the last trust_span
+(every snapshot of the people moved on by the forecast lands within trust_tolerance of where they are:
+``shared.planning.trust``), a new goal's leg is the straight line instead of the fold where the cost predicts it
+faster; elsewhere the fold, which pays wherever people turn out to be. 0: never trusted.
 """
 
 from __future__ import annotations
@@ -50,6 +54,8 @@ class PlanningParameters:
     judge: str = "cost"
     forecast_horizon: float = 2.0
     worth_waiting: float = 0.5
+    trust_tolerance: float = 0.08
+    trust_span: float = 1.0
 
     def __post_init__(self) -> None:
         check_numbers(self, "planning", skip=("posture_gap", "judge"), non_negative=True)
@@ -58,6 +64,8 @@ class PlanningParameters:
             raise ConfigError(f"planning.posture_gap: expected a finite number (m) or null, got {gap!r}")
         if self.judge not in JUDGES:
             raise ConfigError(f"planning.judge: expected one of {JUDGES}, got {self.judge!r}")
+        if not self.trust_span > 0:
+            raise ConfigError(f"planning.trust_span: expected a positive number of seconds, got {self.trust_span!r}")
 
     @property
     def folds(self) -> float | None:
@@ -74,5 +82,6 @@ class PlanningParameters:
         return {"patience": float(self.patience), "min_gain": float(self.min_gain),
                 "min_saving": float(self.min_saving), "slow_excess": float(self.slow_excess),
                 "posture_gap": self.folds, "still_gap": float(self.still_gap), "judge": self.judge,
-                "worth_waiting": float(self.worth_waiting),
+                "worth_waiting": float(self.worth_waiting), "trust_tolerance": float(self.trust_tolerance),
+                "trust_span": float(self.trust_span),
                 "cost": TimeCostOptions(extrapolation=float(self.forecast_horizon))}

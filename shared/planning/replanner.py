@@ -167,7 +167,8 @@ class Replanner:
         return self.candidates.from_rest(self.path(q_start, q_goal, humans, waited), humans, version)
 
     def plan_goal(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
-                  waited: float = 0.0, prepared: PreparedPlan | None = None, leaving: bool = False) -> Trajectory:
+                  waited: float = 0.0, prepared: PreparedPlan | None = None, leaving: bool = False,
+                  trusted: bool = False) -> Trajectory:
         """A new goal from rest: the direct line (the exact trapezoid) when the static scene allows it, even
         if a person is in its way now (the scaling layer holds the robot back), unless the searched path is
         predicted faster by what a replan must save (``required_gain``); else the searched path (raises
@@ -175,7 +176,9 @@ class Replanner:
         plan made a moment before, while the robot was still on its way here (``PlanningLoop`` prepares the
         next leg): it takes the search's place where it is still good (``_still_good``), and the robot
         leaves without waiting for a search. While someone is within ``posture_gap`` of the robot's reach, the
-        folded leg (``shared.planning.postures``) takes the direct line's place, where it is free. leaving:
+        folded leg (``shared.planning.postures``) takes the direct line's place, where it is free, unless the
+        forecast has held lately (trusted: ``shared.planning.trust``, the planning loop's) and the cost predicts the
+        line faster: a walker's steady course is worth betting on, a wanderer's is not. leaving:
         where a search would decide but the direct line is predicted slower than nominal by no more than
         ``worth_waiting``, the direct line (or the fold) is returned at once and ``search_deferred`` says so: the
         robot leaves on it and the search runs on the way (``PlanningLoop``, action 'search'), so nobody waits
@@ -193,9 +196,11 @@ class Replanner:
         if humans is None or humans.count == 0:
             return direct
         posture = self._posture(q_start, q_goal, humans, version)
-        if posture is not None:              # someone near: the folded leg is the one to beat
-            direct = posture
         direct_time = self.predicted_time(direct, 0.0, humans, waited)
+        if posture is not None:              # someone near: the folded leg is the one to beat ...
+            posture_time = self.predicted_time(posture, 0.0, humans, waited)
+            if not (trusted and direct_time < posture_time):     # ... unless a forecast that has held says the line
+                direct, direct_time = posture, posture_time
         if direct_time <= direct.duration + self.options.worth_searching:
             return direct                   # the people hardly slow it: a search would cost more than it saves
         # a searched leg must beat it as a replan must beat the trajectory it would replace (min_gain, or

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
+from shared.planning.forecast import ConstantVelocity
 from shared.planning.horizon import reach_gap
 from shared.planning.inputs import planning_inputs
 from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, StillClock, idle_time, warm_up
@@ -50,6 +52,7 @@ class RecordingReplanner:
         self.defers, self.search_deferred = defers, False
         self.leaving: list[bool] = []        # plan_goal's leaving argument, call by call
         self.options = ReplanOptions()
+        self.cost = SimpleNamespace(forecaster=ConstantVelocity())     # whose record the loop keeps (ForecastTrust)
         self.searches = 0
         self.forgotten = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
@@ -72,9 +75,10 @@ class RecordingReplanner:
         self.searches += 1
         return ReplanResult(OLD, 0.5, reason, 0.0)
 
-    def plan_goal(self, q, goal, humans, version, waited, prepared=None, leaving=False):
+    def plan_goal(self, q, goal, humans, version, waited, prepared=None, leaving=False, trusted=False):
         self.calls.append(f"plan_goal v{version}")
         self.leaving.append(leaving)
+        self.trusted = trusted
         self.took_prepared = prepared is not None
         if np.allclose(goal, 99.0):
             raise PlanningError("the goal is out of reach")
@@ -714,3 +718,25 @@ def test_the_planner_refuses_a_missing_scene_file_saying_which(tmp_path, capsys)
     assert main(["--scene", str(missing), "--connect", "tcp/127.0.0.1:9"]) == 2
     err = capsys.readouterr().err
     assert str(missing) in err and "cannot read scene" in err
+
+
+def test_a_new_goal_is_told_whether_the_forecast_of_the_people_has_held():
+    """The loop keeps the forecast's record on every new human sample (ForecastTrust) and tells plan_goal: a steady
+    walker seen for a span, trusted; the same walker just after stopping, not."""
+    def walker(x: float, vx: float) -> HumanCapsules:
+        return HumanCapsules.from_arrays([[[x, -2.0, 0.0], [x, -2.0, 1.7]]], [0.2], np.tile([vx, 0.0, 0.0], (1, 2, 1)),
+                                         [True])
+
+    replanner = RecordingReplanner()
+    loop = PlanningLoop(replanner)
+    k = 0
+    for t in np.arange(0.0, 1.5, 1 / 30):
+        k += 1
+        loop.step(float(t), inputs(goal=None, human_sample=k, humans=walker(-3.0 + 1.2 * t, 1.2)))
+    loop.step(1.5, inputs(new_goal=True, following=None, human_sample=k + 1, humans=walker(-3.0 + 1.8, 1.2)))
+    assert replanner.trusted is True
+    for t in np.arange(1.5 + 1 / 30, 1.8, 1 / 30):             # stopped where they got to
+        k += 1
+        loop.step(float(t), inputs(goal=None, human_sample=k, humans=walker(-1.2, 0.0)))
+    loop.step(1.8, inputs(new_goal=True, following=None, human_sample=k + 1, humans=walker(-1.2, 0.0)))
+    assert replanner.trusted is False
