@@ -50,11 +50,13 @@ def convert(recording: Path, placement: str, out: Path) -> Path:
     return motion
 
 
-def run(motion: Path, report: Path, sim: bool, paper: bool) -> dict:
-    """One ``hrc demo --human`` run; its summary.json, or {"error": ...} where the run gave none."""
+def run(motion: Path, report: Path, sim: bool, paper: bool, config: Path | None = None) -> dict:
+    """One ``hrc demo --human`` run (with the cell configuration `config`, where given); its summary.json, or
+    {"error": ...} where the run gave none."""
     cmd = HRC + ["demo", "--human", str(motion), "--out", str(report), "--quiet"]
     cmd += ["--sim"] if sim else []
     cmd += ["--paper-formula"] if paper else []
+    cmd += ["--config", str(config)] if config is not None else []
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
     summary = report / "summary.json"
     if not summary.exists():
@@ -123,6 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sim", action="store_true", help="in the simulation (hrc demo --sim) instead of the processes")
     parser.add_argument("--paper-formula", action="store_true", help="the paper's configuration (deploy/cell-paper.yaml)")
+    parser.add_argument("--config", type=Path, default=None,
+                        help="another cell configuration (hrc demo --config), e.g. to compare a planning setting")
     parser.add_argument("--placements", default="table_edge,step_back",
                         help=f"comma-separated, of {', '.join(PLACEMENTS)} (default: both)")
     parser.add_argument("--recordings", type=Path, default=RECORDINGS, help="the folder of *.txt recordings")
@@ -154,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
                 r = row(recording.stem, placement, {"error": f"conversion: {exc.stderr.strip()[-300:]}"})
             else:
                 r = row(recording.stem, placement, run(motion, out / f"{recording.stem}-{placement}", args.sim,
-                                                       args.paper_formula))
+                                                       args.paper_formula, args.config))
             rows.append(r)
             cells = [r["recording"], r["placement"]] + ([f"error: {r['error']}"] if r["error"] else
                      [_cell(r["shuttles_per_min"]), _cell(r["stopped"], share=True)]
@@ -170,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
               f"violations {_cell(m['violations'])}, unchecked {_cell(m['unchecked'])}, "
               f"no shuttle done: {', '.join(m['held']) or 'none'}")
     print(f"reports in {out}")
-    print(json.dumps({"rows": rows, "means": summary, "sim": args.sim, "paper_formula": args.paper_formula}))
+    print(json.dumps({"rows": rows, "means": summary, "sim": args.sim, "paper_formula": args.paper_formula,
+                      "config": None if args.config is None else str(args.config)}))
     return 0 if all(r["error"] is None for r in rows) else 1
 
 

@@ -191,16 +191,26 @@ def test_the_fixed_path_folds_the_elbow_over_the_middle_of_the_sweep_and_costs_a
 
 
 def test_a_goal_whose_search_seldom_pays_is_left_at_once_and_searched_on_the_way(strategies):
-    """Two people walking (seed 6003, charged 80 ms a search): at 6.94 s the direct leg is predicted slower than
-    nominal, but by less than worth_waiting. The robot leaves in the cycle after its goal (not 80 ms later),
-    and the search runs on the way the next cycle (refused here: the way round did not pay), as a replan."""
-    result = strategies.run("full", "two_humans", 6003, 12.0)
-    left = [g.t for g in result.goals if g.detail == "left at once, searched on the way"]
-    assert left and result.violations == 0
-    for t in left:
-        after = [r for r in result.records if t < r.t <= t + 0.025]
-        assert after[-1].step.s > 0.0 and after[-1].step.alpha > 0.0, [(r.t, r.step.s) for r in after]
-        assert any(e.reason == "search" and t < e.t <= t + 0.2 for e in result.replans), result.replans
+    """Two people walking (seeds 6003 and 6007, charged 80 ms a search): a goal's direct leg is predicted slower than
+    nominal, but by less than worth_waiting. The leg is taken in the cycle of its goal (not 80 ms later, after a
+    search), the robot leaves on it at once wherever the SSM lets it move, and the search runs on the way within
+    0.2 s, as a replan (or the scaling layer's replan request searches in its place, where the robot is
+    held: seed 6003 at 6.44 s, a person by the start holds the robot at alpha 0 on the leg taken)."""
+    moved = 0
+    for seed in (6003, 6007):
+        result = strategies.run("full", "two_humans", seed, 12.0)
+        left = [g.t for g in result.goals if g.detail == "left at once, searched on the way"]
+        assert left and result.violations == 0
+        for t in left:
+            before = [r for r in result.records if t - 0.015 < r.t <= t][0]
+            after = [r for r in result.records if t < r.t <= t + 0.025]
+            assert all(r.step.trajectory_version > before.step.trajectory_version for r in after)     # taken
+            if any(r.step.safe_alpha > 0.0 for r in after):                                          # free to move
+                assert after[-1].step.s > 0.0 and after[-1].step.alpha > 0.0, [(r.t, r.step.s) for r in after]
+                moved += 1
+            # the search on the way, or a replan request that searched in its place (the robot held where it stands)
+            assert any(e.reason in ("search", "beta") and t < e.t <= t + 0.2 for e in result.replans), result.replans
+    assert moved >= 1
     assert all(g.detail in ("", "left at once, searched on the way", "searched from rest", "prepared on the way here")
                for g in result.goals)
 
