@@ -196,10 +196,12 @@ class Replanner:
         if humans is None or humans.count == 0:
             return direct
         posture = self._posture(q_start, q_goal, humans, version)
+        if posture is not None and not trusted:      # someone near: the folded leg is the one to beat ...
+            direct = posture
         direct_time = self.predicted_time(direct, 0.0, humans, waited)
-        if posture is not None:              # someone near: the folded leg is the one to beat ...
+        if posture is not None and trusted:          # ... unless a forecast that has held says the line is faster
             posture_time = self.predicted_time(posture, 0.0, humans, waited)
-            if not (trusted and direct_time < posture_time):     # ... unless a forecast that has held says the line
+            if posture_time <= direct_time:
                 direct, direct_time = posture, posture_time
         if direct_time <= direct.duration + self.options.worth_searching:
             return direct                   # the people hardly slow it: a search would cost more than it saves
