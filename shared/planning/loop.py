@@ -130,15 +130,15 @@ class PlanningLoop:
         self.answered: float | None = None   # the last stop_at a replan request was answered for
         self.last_sample: int | None = None
         self.still = StillClock(still_speed) if still_speed is not None else None
-        self.last_still_sample: int | None = None
+        self.last_people_sample: int | None = None   # the sample the people clocks last saw
         options = replanner.options             # whether the forecast has held (a new goal's line or fold)
         self.trust = ForecastTrust(replanner.cost.forecaster, options.trust_span, options.trust_tolerance) \
             if options.trust_tolerance > 0 else None
 
     def step(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
         """At most one planning action for this moment (see the module docstring); None when none is due."""
-        if inputs.human_sample != self.last_still_sample:
-            self.last_still_sample = inputs.human_sample
+        if inputs.human_sample != self.last_people_sample:
+            self.last_people_sample = inputs.human_sample
             if self.still is not None:
                 self.still.update(now, inputs.humans)
             if self.trust is not None:

@@ -40,11 +40,11 @@ class ForecastTrust:
 
     def update(self, now: float, humans: HumanCapsules | None) -> None:
         """A new human sample at `now` (s): kept as the present, and as a snapshot every SNAPSHOT_EVERY s."""
-        if humans is None or humans.count == 0 or not bool(np.all(humans.velocity_known)) \
-                or (self.now is not None and humans.count != self.now.count):
+        seen = humans is not None and humans.count > 0 and bool(np.all(humans.velocity_known))
+        if not seen or (self.now is not None and humans.count != self.now.count):
             self.snapshots.clear()
         self.now = humans
-        if humans is None or humans.count == 0 or not bool(np.all(humans.velocity_known)):
+        if not seen:
             return
         if not self.snapshots or now - self.snapshots[-1][0] >= SNAPSHOT_EVERY - 1e-9:
             self.snapshots.append((now, humans))

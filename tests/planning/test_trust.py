@@ -11,6 +11,7 @@ from shared.core.humans import HumanCapsules
 from shared.planning.collision import CollisionModel
 from shared.planning.forecast import ConstantVelocity
 from shared.planning.horizon import reach_gap
+from shared.planning.loop import PlanningLoop
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.postures import ELBOW
 from shared.planning.replanner import Replanner, ReplanOptions
@@ -97,5 +98,4 @@ def test_a_new_goal_takes_the_line_instead_of_the_fold_only_where_the_forecast_h
     kept = replanner.plan_goal(Q_START, Q_GOAL, away, 5, trusted=True)
     assert kept.positions[:, ELBOW].max() > Q_START[ELBOW] + 0.5 and replanner.searches == 0
     off = Replanner(CM, replanner.planner, SsmParameters(), options=ReplanOptions(trust_tolerance=0.0))
-    from shared.planning.loop import PlanningLoop
     assert PlanningLoop(off).trust is None and PlanningLoop(replanner).trust is not None
