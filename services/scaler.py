@@ -14,8 +14,9 @@ behind the commands at its velocity limit, and the catch-up overshot a stop towa
 * no trajectory yet, or none taken: it commands the measured position (hold), so the driver can enable;
 * a new trajectory version is taken without a jump: a fresh plan (base_version -1) when the robot is at
   its start; a merged one when the follower has not passed its junction (it continues at the same s);
-* a replan request raised while the robot crawls brings it to rest, where it awaits the plan (the status's
-  stop_s says where; the core's rule, ``ScalingLayer._await``; not with --no-await);
+* with scaling.await_plan > 0 (0 shipped), a replan request raised while the robot crawls brings it to rest,
+  where it awaits the plan (the status's stop_s says where; the core's rule, ``ScalingLayer._await``; not with
+  --no-await);
 * the tracking margin covers the drive lag the robot driver measures (its DriveLagReport, once a second,
   and the lag each joint state says to cover, every SYNC), where that is longer than the configured
   ssm.drive_lag (``SsmParameters.covering_lag``);

@@ -19,8 +19,13 @@ class ScalingParameters:
     human_timeout (s): human data older than this stops the robot (5 periods at 100 Hz).
     acceleration_weight: price of one unit of acceleration slack (in units of the limit) against alpha.
     solver: 'piqp' (closed form as fallback) or 'closed_form'. await_plan (s): how long a robot that asked for a
-    replan while crawling stands, at rest where it stopped, for the plan from there (``ScalingLayer._await``;
-    0: never, where no planning layer answers). The planner's answers came within 100-190 ms in hrc demo."""
+    replan while crawling stands, at rest where it stopped, for the plan from there (``ScalingLayer._await``).
+    0, shipped: it never stands to wait, and crawls on to where the planner's stop plan starts
+    (``Candidates.stop_plan``). The stand shortened an accepted replan's stall in hrc demo (100-190 ms against
+    300-350), but it is decided before the planner has weighed the request: the crawl is lost where the request
+    is refused, the robot may stand just short of where a crawl would have cleared the person, and the old
+    trajectory is then judged from rest too, which tips the decision to a detour (docs/measurements.md,
+    2026-12-04, session 58: 0 s against 0.3 s, the paper's kind 1.9-2.1 % more shuttles, worse in none of 100)."""
 
     period: float = 0.01
     alpha_min: float = 0.2
@@ -28,7 +33,7 @@ class ScalingParameters:
     human_timeout: float = 0.05
     acceleration_weight: float = 100.0
     solver: str = "piqp"
-    await_plan: float = 0.3
+    await_plan: float = 0.0
 
     def __post_init__(self) -> None:
         check_numbers(self, "scaling", skip=("solver",))

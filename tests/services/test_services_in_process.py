@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from shared.robot.model import default_robot
 from shared.safety.monitor import SafetyMonitor
 from shared.safety.parameters import SsmParameters
 from shared.scaling.layer import ScalingLayer
+from shared.scaling.parameters import ScalingParameters
 from shared.scheduling import WAKE_LATE as LATE
 from shared.tracking.tracker import HumanTracker, TrackerParameters
 from shared.wire.convert import humans_to_msg, trajectory_to_msg
@@ -51,10 +53,10 @@ def joint_state(q, enabled: bool = True) -> JointState:
 
 
 # ---------------------------------------------------------------------------------------------- scaler
-def scaler_at_start() -> tuple[FakeShell, Scaler, object]:
+def scaler_at_start(scaling: ScalingParameters = CONFIG.scaling) -> tuple[FakeShell, Scaler, object]:
     """A scaler on a fake shell, told that the robot stands at q_s and follows commands."""
     shell = FakeShell("scaler")
-    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, CONFIG.scaling))
+    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, scaling))
     shell.deliver(shell.keys.joint_state, joint_state(Q_START))
     return shell, scaler, shell.keys
 
@@ -306,9 +308,10 @@ def test_the_monitor_checks_states_paired_with_people_and_counts_the_rest_unchec
 
 
 def test_the_scaler_says_where_it_awaits_the_replan_it_asked_for_and_takes_the_plan_from_there():
-    """A crawling robot that asks for a replan is stopped, and the status says where (stop_s): the planner's plan
-    from rest there is taken at once. Before the request, and once the plan is taken, stop_s is None."""
-    shell, scaler, keys = scaler_at_start()
+    """With scaling.await_plan > 0 (0 shipped), a crawling robot that asks for a replan is stopped, and the status
+    says where (stop_s): the planner's plan from rest there is taken at once. Before the request, and once the plan
+    is taken, stop_s is None."""
+    shell, scaler, keys = scaler_at_start(replace(CONFIG.scaling, await_plan=0.3))
     traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
     shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
     now = time.monotonic()
