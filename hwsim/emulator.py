@@ -50,7 +50,7 @@ from shared.drives.prbt import (
 )
 from shared.robot.model import default_robot
 from shared.robot.poses import PAPER_START
-from shared.scheduling import name_callback_thread, realtime, sleep_until
+from shared.scheduling import freeze_heap, name_callback_thread, realtime, sleep_until
 
 log = logging.getLogger("hwsim")
 WATCHDOG_STEP = 0.005        # s: the braking step of a fault reaction on the drives' own clock (no SYNC)
@@ -249,6 +249,7 @@ def run(interface: str, channel: str | None, start: np.ndarray, seed: int, stop:
             n.on_sync(time.monotonic())
 
     network.subscribe(0x80, on_sync)
+    freeze_heap()                           # the drives and their object dictionaries are built: keep them frozen
     print(f"hwsim: PRBT emulator, nodes {NODE_IDS[0]}-{NODE_IDS[-1]} on {describe(interface, channel)}, {scheduling}",
           flush=True)
     try:

@@ -24,6 +24,7 @@ planner too made a replan under load take 1.1 s.
 from __future__ import annotations
 
 import ctypes
+import gc
 import os
 import threading
 
@@ -68,8 +69,23 @@ def realtime(name: str) -> str:
 
     Where the OS refuses (no CAP_SYS_NICE, a container's limits) the threads stay in the normal class and
     the cell relies on niceness alone (planner +10, monitor +5 in supervisord and hrc demo): said, not
-    hidden."""
+    hidden.
+
+    First the heap is frozen (``freeze_heap``): a real-time loop must not stop for Python's full collection."""
+    freeze_heap()
     return f"{_fifo(name)}, {_pin(name)}"
+
+
+def freeze_heap() -> None:
+    """Collect once, then move every object there is into the collector's permanent generation (``gc.freeze``),
+    so that its full collections no longer walk them. Why: a full collection walks every tracked object, 55 000
+    to 68 000 in a service of the cell after its imports (more once running), and holds the GIL meanwhile:
+    8-15 ms on this VM idle, longer on a slow day. In the driver or the emulated drives that is a SYNC answer
+    missed and a command the drives cannot follow (``command_clamped``); in the scaler, a command a period late.
+    Objects made later are still collected as usual; call it again once a process has built what it keeps
+    (the emulator's drives). Measured: docs/measurements.md, session 59."""
+    gc.collect()
+    gc.freeze()
 
 
 def _threads() -> list[int]:

@@ -10,15 +10,23 @@ drives' emulator included. A stall with as much steal is the hypervisor's, one w
 cell reports with no stall here is the cell's own. ``bench/stall_probe.py`` runs the same witness at several
 priorities at once, to tell which of the cell's processes held the others off.
 
-The protocol with the parent (``tools.demo``): the child sets its scheduling, prints READY and runs until SIGTERM,
-then writes its figures (``StallLog.figures``: monotonic times) as JSON to --stats.
+One witness per CPU, each pinned to its own (``pinned``, a child process each; the parent merges their logs): a
+hypervisor that takes one virtual CPU away stops only what runs there, and a single witness that happened to be
+on the other CPU woke on time. On this VM the driver missed SYNC answers in runs where one unpinned witness saw
+no stall of 20 ms, and those runs had about twice the steal time of the others (docs/measurements.md, session 59).
+
+The protocol with the parent (``tools.demo``): the process sets its scheduling, starts its witnesses, prints READY
+and runs until SIGTERM, then writes its figures (``StallLog.figures`` of every CPU's log together, monotonic times;
+``per_cpu``: each CPU's stalls and latest wake-up) as JSON to --stats.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
+import queue
 import signal
 import sys
 import time
@@ -85,6 +93,15 @@ class StallLog:
         if len(self.longest) > 2 * self.kept:
             self.longest = sorted(self.longest, key=lambda s: -s[1])[:self.kept]
         return True
+
+    def absorb(self, other: "StallLog") -> None:
+        """Take another witness's log into this one (the same resolution and range): every wake-up and stall of
+        both, the longest kept."""
+        self.late.counts += other.late.counts
+        self.late.total += other.late.total
+        self.late.largest = max(self.late.largest, other.late.largest)
+        self.stalls += other.stalls
+        self.longest = sorted(self.longest + other.longest, key=lambda s: -s[1])[:2 * self.kept]
 
     def figures(self, t0: float = 0.0) -> dict:
         """wakeups, late_ms_p99, late_ms_max, stalls (how many beyond the threshold), longest ([s after t0, ms late,
@@ -175,13 +192,45 @@ def main(argv: list[str] | None = None) -> int:
     running = [True]
     signal.signal(signal.SIGTERM, lambda *_: running.__setitem__(0, False))
     scheduling = fifo(args.priority)
-    log, steal0, started = StallLog(args.threshold), steal_ticks(), time.monotonic()
-    print(f"{READY}: {scheduling}, every {1e3 * args.period:.0f} ms", flush=True)
-    witness(log, args.period, lambda: running[0])
+    cpus = sorted(os.sched_getaffinity(0))
+    context = multiprocessing.get_context("fork")
+    stop, logs = context.Event(), context.Queue()
+    children = [context.Process(target=pinned, args=(cpu, args.threshold, args.period, stop, logs), daemon=True)
+                for cpu in cpus]
+    steal0, started = steal_ticks(), time.monotonic()
+    for child in children:
+        child.start()
+    print(f"{READY}: {scheduling}, every {1e3 * args.period:.0f} ms, one witness on each of CPUs "
+          f"{','.join(map(str, cpus))}", flush=True)
+    while running[0] and all(child.is_alive() for child in children):
+        time.sleep(0.05)
+    stop.set()
+    log, per_cpu = StallLog(args.threshold), {}
+    for _ in children:
+        try:
+            cpu, own = logs.get(timeout=5.0)
+        except queue.Empty:               # a witness died without its log: said in the figures
+            break
+        log.absorb(own)
+        per_cpu[str(cpu)] = {"stalls": own.stalls, "late_ms_max": round(1e3 * own.late.largest, 2)}
+    for child in children:
+        child.join(timeout=5.0)
     figures = {"scheduling": scheduling, "period_ms": round(1e3 * args.period, 2), "started": round(started, 3),
-               **log.figures(), "steal_s": steal_seconds(steal0, steal_ticks())}
+               **log.figures(), "per_cpu": per_cpu, "steal_s": steal_seconds(steal0, steal_ticks())}
+    if len(per_cpu) < len(children):       # a witness that died: its CPU's stalls are not in the figures
+        figures["unwitnessed_cpus"] = [cpu for cpu in map(str, cpus) if cpu not in per_cpu]
     args.stats.write_text(json.dumps(figures))
     return 0
+
+
+def pinned(cpu: int, threshold: float, period: float, stop, logs) -> None:
+    """One witness on CPU `cpu` alone (in the parent's scheduling, inherited) until `stop` is set; puts (cpu, its
+    StallLog) on `logs`. SIGTERM is left to the parent: the witnesses end together when it sets `stop`."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    os.sched_setaffinity(0, {cpu})
+    log = StallLog(threshold)
+    witness(log, period, lambda: not stop.is_set())
+    logs.put((cpu, log))
 
 
 if __name__ == "__main__":

@@ -47,3 +47,30 @@ def test_the_monitor_runs_in_sched_fifo_below_every_process_of_the_safety_chain_
     assert set(chain) == {"robot_driver", "hwsim", "scaler", "tracker_ingest", "human_feed"}
     assert 0 < PRIORITY["safety_monitor"] < min(chain.values())
     assert "planner" not in PRIORITY                  # a search never preempts anything of the cell
+
+
+FROZEN = """
+import gc, weakref
+from shared.scheduling import freeze_heap
+kept = [[i] for i in range(200_000)]           # a large heap of tracked objects, as a service has after its imports
+walked_before = sum(len(gc.get_objects(generation)) for generation in range(3))
+freeze_heap()
+walked_after = sum(len(gc.get_objects(generation)) for generation in range(3))   # what a full collection walks
+
+class Node:
+    pass
+cycle = Node(); cycle.me = cycle; alive = weakref.ref(cycle); del cycle    # garbage made after the freeze
+gc.collect()
+print(gc.get_freeze_count() >= 200_000, alive() is None, walked_before > 200_000, walked_after < 1_000)
+"""
+
+
+def test_a_frozen_heap_is_not_walked_by_a_full_collection_and_new_garbage_is_still_collected():
+    # in a process of its own: freezing this test process's heap would change every test after it
+    import subprocess
+    import sys
+
+    from tests.util import ROOT
+    out = subprocess.run([sys.executable, "-c", FROZEN], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True"] * 4, out.stdout

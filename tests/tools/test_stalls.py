@@ -3,6 +3,7 @@ of the cell's warnings came during or just after one, so that a report tells the
 cell's own."""
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -23,6 +24,19 @@ def test_a_stall_is_a_wake_up_later_than_the_threshold_and_the_longest_are_kept(
     assert figures["longest"] == [[1.0, 100.0, 1, 100.0], [3.0, 50.0, 0, -1.0]]   # the two longest, in time order
     assert figures["late_ms_max"] == pytest.approx(100.0) and figures["threshold_ms"] == 20.0
     assert StallLog().figures()["late_ms_p99"] is None
+
+
+def test_the_logs_of_the_witnesses_on_each_cpu_are_merged_into_one():
+    on_cpu0, on_cpu1 = StallLog(threshold=0.02, kept=2), StallLog(threshold=0.02, kept=2)
+    on_cpu0.add(1.0, 1.0001)
+    on_cpu0.add(2.0, 2.03, cpu=0)
+    on_cpu1.add(1.5, 1.5002)
+    on_cpu1.add(3.0, 3.08, cpu=1, steal_ms=70.0)          # only CPU 1 was taken away: only its witness saw it
+    on_cpu0.absorb(on_cpu1)
+    figures = on_cpu0.figures()
+    assert figures["wakeups"] == 4 and figures["stalls"] == 2
+    assert figures["late_ms_max"] == pytest.approx(80.0)
+    assert figures["longest"] == [[2.0, pytest.approx(30.0), 0, -1.0], [3.0, pytest.approx(80.0), 1, 70.0]]
 
 
 def test_the_cells_warnings_during_or_just_after_a_stall_are_named():
@@ -63,6 +77,10 @@ def test_the_witness_process_writes_its_figures_when_ended(tmp_path):
         assert proc.wait(10) == 0, proc.stderr.read()
     figures = json.loads(stats.read_text())
     assert figures["wakeups"] > 100 and figures["scheduling"] in said and figures["period_ms"] == 2.0
+    # one witness pinned to each CPU this process may use: a hypervisor that stops one CPU is seen there
+    cpus = sorted(os.sched_getaffinity(0))
+    assert sorted(figures["per_cpu"], key=int) == [str(cpu) for cpu in cpus] and "unwitnessed_cpus" not in figures
+    assert f"one witness on each of CPUs {','.join(map(str, cpus))}" in said
     assert set(figures["steal_s"]) == set(steal_ticks())
     bad = subprocess.run([sys.executable, "-m", "tools.stalls", "--stats", str(stats), "--period", "0"], cwd=ROOT,
                          capture_output=True, text=True, timeout=30)
