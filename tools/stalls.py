@@ -224,13 +224,16 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def pinned(cpu: int, threshold: float, period: float, stop, logs) -> None:
-    """One witness on CPU `cpu` alone (in the parent's scheduling, inherited) until `stop` is set; puts (cpu, its
-    StallLog) on `logs`. SIGTERM is left to the parent: the witnesses end together when it sets `stop`."""
+    """One witness on CPU `cpu` alone (in the parent's scheduling, inherited) until `stop` is set, or its parent is
+    gone (killed: a witness in SCHED_FIFO 99 must not outlive it); puts (cpu, its StallLog) on `logs`. SIGTERM is
+    left to the parent: the witnesses end together when it sets `stop`."""
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    parent = os.getppid()
     os.sched_setaffinity(0, {cpu})
     log = StallLog(threshold)
-    witness(log, period, lambda: not stop.is_set())
-    logs.put((cpu, log))
+    witness(log, period, lambda: not stop.is_set() and os.getppid() == parent)
+    if os.getppid() == parent:          # nobody would read it: the put would block this process's exit for good
+        logs.put((cpu, log))
 
 
 if __name__ == "__main__":

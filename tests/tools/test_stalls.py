@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -94,3 +95,26 @@ def test_the_operator_is_told_of_the_machines_stalls_and_what_followed_them():
     assert line.startswith("the machine itself stalled 2 time(s) beyond 20 ms (the longest 101 ms at t=10.00 s, 90 ms")
     assert line.endswith("during or just after them: robot_driver:frames_lost")
     assert "no warning of the cell" in said({"stalls": 1, "longest": [[1.0, 30.0, 0, -1.0]], "after_stall": []})
+
+
+def running(pid: int) -> bool:
+    """Whether process `pid` exists and is not a zombie (its state, after the name, in /proc/PID/stat)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+def test_the_witnesses_on_each_cpu_end_with_their_parent_even_when_it_is_killed(tmp_path):
+    proc = subprocess.Popen([sys.executable, "-m", "tools.stalls", "--stats", str(tmp_path / "w.json"), "--period",
+                             "0.002"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    with stopped(proc):
+        assert proc.stdout.readline().startswith(READY)
+        children = [int(pid) for pid in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
+        assert len(children) == len(os.sched_getaffinity(0)) and all(map(running, children))
+        proc.kill()                                       # no SIGTERM, no stop event: only the parent's absence
+        proc.wait(10)
+    deadline = time.monotonic() + 10.0
+    while time.monotonic() < deadline and any(map(running, children)):
+        time.sleep(0.05)
+    assert not any(map(running, children)), "a witness in SCHED_FIFO 99 outlived its parent"
