@@ -97,9 +97,7 @@ class StallLog:
     def absorb(self, other: "StallLog") -> None:
         """Take another witness's log into this one (the same resolution and range): every wake-up and stall of
         both, the longest kept."""
-        self.late.counts += other.late.counts
-        self.late.total += other.late.total
-        self.late.largest = max(self.late.largest, other.late.largest)
+        self.late.absorb(other.late)
         self.stalls += other.stalls
         self.longest = sorted(self.longest + other.longest, key=lambda s: -s[1])[:2 * self.kept]
 

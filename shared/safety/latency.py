@@ -208,6 +208,15 @@ class DelayHistogram:
         self.largest = max(self.largest, delay)
         self.total += 1
 
+    def absorb(self, other: "DelayHistogram") -> None:
+        """Add another histogram's delays to this one (the same bins: resolution and limit), as if each had been
+        added here."""
+        if other.resolution != self.resolution or other.counts.size != self.counts.size:
+            raise ValueError("histograms with other bins cannot be merged")
+        self.counts += other.counts
+        self.total += other.total
+        self.largest = max(self.largest, other.largest)
+
     def percentile(self, q: float) -> float:
         """The q-th percentile (0-100), to one bin (its upper edge; never above the largest delay); 0 when
         empty."""

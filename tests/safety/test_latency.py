@@ -132,3 +132,18 @@ def test_the_delay_histogram_keeps_a_delay_beyond_its_range_and_is_zero_when_emp
     hist.add(30.0)                          # a monitor 30 s behind: counted, reported as the largest
     assert hist.percentile(100) == 30.0 and hist.largest == 30.0
     assert hist.percentile(50) == pytest.approx(0.003)
+
+
+def test_two_delay_histograms_merged_are_one_histogram_of_both_and_other_bins_are_refused():
+    first, second, both = (DelayHistogram(resolution=0.001, limit=1.0) for _ in range(3))
+    for d in (0.002, 0.010, 0.5):
+        first.add(d)
+        both.add(d)
+    for d in (0.004, 3.0):
+        second.add(d)
+        both.add(d)
+    first.absorb(second)
+    assert np.array_equal(first.counts, both.counts) and first.total == 5 and first.largest == 3.0
+    assert first.percentile(50) == both.percentile(50)
+    with pytest.raises(ValueError, match="other bins"):
+        first.absorb(DelayHistogram(resolution=0.002, limit=1.0))
