@@ -1,6 +1,7 @@
 """The fault campaign's CAN requests: retried, and a clear error (never a traceback) when unanswered."""
 
 import canopen
+import numpy as np
 import pytest
 
 from tools.faults import CanProbe, InjectionError
@@ -135,3 +136,23 @@ def test_a_human_data_faults_bound_is_the_cells_stale_bound_at_the_sources_measu
     at_30_hz = human_stop(config, robot, 1 / 30)
     assert at_30_hz.bound_s == pytest.approx(2.5 / 30 + rest) and "measured interval 33.3 ms" in at_30_hz.why
     assert human_stop(config, robot, 0.2).bound_s == pytest.approx(0.1 + rest)      # never past the ceiling
+
+
+def test_the_interval_judged_is_the_one_the_tracker_held_when_the_fault_came():
+    """The tracker's interval is the median of its last ones and stays as it was once the samples stop, so the
+    newest human state says it, however long before the injection the (loaded) campaign received it: a CI run
+    with no state in the last 0.1 s judged the tracker's 94 ms dropout by 50 ms and failed a stop the cell made
+    by its own rule. A state older than HELD_FOR says nothing (the configured bound alone)."""
+    from shared.wire.messages import HumanState
+    from tools.faults import HELD_FOR, held_interval
+
+    def state(stamp: float, interval: float) -> HumanState:
+        return HumanState(segments=np.zeros((0, 2, 3)), radii=np.zeros(0), velocities=np.zeros((0, 2, 3)),
+                          velocity_known=np.zeros(0, dtype=bool), valid=True, sample_stamp=stamp,
+                          sample_interval=interval, stamp=stamp)
+
+    states = [state(10.0, 0.0083), state(10.05, 0.0375), state(10.03, 0.0083)]    # out of order on the wire
+    assert held_interval(states, 10.3) == pytest.approx(0.0375)          # the newest, 250 ms before
+    assert held_interval(states, 10.05 + HELD_FOR + 0.01) == 0.0          # too old to say anything
+    assert held_interval([], 10.0) == 0.0
+    assert held_interval([state(10.5, 0.02)], 10.3) == 0.0                # stamped after now: not yet held
