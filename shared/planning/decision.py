@@ -64,6 +64,7 @@ def keep_or_replace(result: ReplanResult, baseline: float, gain: float, started:
     `gain`, else ReplanFailed; either way the reason carries both predicted times. started: the
     perf_counter time the replan began (the result's plan_s)."""
     how = "from rest" if result.from_rest else f"merged at s={result.junction:.2f}"
+    how += f", {result.detail}" if result.detail else ""
     if result.predicted <= (1.0 - gain) * baseline:
         return ReplanResult(result.trajectory, result.junction, result.reason, time.perf_counter() - started,
                             result.predicted, baseline, f"{what}, {how}: predicted {result.predicted:.2f} s "

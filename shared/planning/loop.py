@@ -257,7 +257,7 @@ class PlanningLoop:
         return refused if block is None else f"{refused}; {block.describe()}"
 
     def _goal(self, now: float, inputs: PlanningInputs) -> PlanningOutcome:
-        self.replanner.forget()
+        self.replanner.forget(inputs.q if inputs.following is None else None)   # where the leg begins, at rest
         prepared, self.prepared, self.prepared_for = self.prepared, None, None
         self.search_due = None
         try:

@@ -99,7 +99,7 @@ class Replanner:
         self.paths = SearchedPaths(collision, planner, self.search, options)
         self.budget = ActionBudget(self.search, options.action_budget)
         self.candidates = Candidates(collision, options, self.cost, self.budget, self.path, self.predicted_time,
-                                     self.stay)
+                                     self.stay, self.default_leg)
         self.took_prepared = False     # the last plan_goal took the prepared trajectory it was given
         self.search_deferred = False   # the last plan_goal left a search to be run on the way (leaving)
         self.goal_searched = False     # the last plan_goal took the leg its search found
@@ -122,9 +122,12 @@ class Replanner:
     def finishing(self, value: float) -> None:
         self.budget.finishing = value
 
-    def forget(self) -> None:
-        """Drop the remembered paths (a new goal, or a new run: the same inputs give the same plans)."""
+    def forget(self, leg_start: np.ndarray | None = None) -> None:
+        """Drop the remembered paths (a new goal, or a new run: the same inputs give the same plans). leg_start:
+        where the robot stands as the new goal's leg begins (None: unknown, or it moves), the place a plan
+        from rest may go back to (``Candidates.retreat``)."""
         self.paths.forget()
+        self.candidates.leg_start = None if leg_start is None else np.array(leg_start, dtype=float)
 
     @property
     def searches(self) -> int:
@@ -220,6 +223,19 @@ class Replanner:
             return direct
         self.goal_searched = self.predicted_time(searched, 0.0, humans, waited) < beat
         return searched if self.goal_searched else direct
+
+    def default_leg(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
+                    version: int) -> Trajectory | None:
+        """The leg a new goal takes from rest at q_start without a search, numbered `version`: the folded one
+        where someone is near (``_posture``), else the direct line; None where the line is not free of the
+        static scene."""
+        posture = None if humans is None or humans.count == 0 else self._posture(q_start, q_goal, humans, version)
+        if posture is not None:
+            return posture
+        if not self.collision.motion_free(q_start, q_goal)[0]:
+            return None
+        return straight_line_trajectory(q_start, q_goal, self.limits.velocity, self.limits.acceleration,
+                                        version=version)
 
     def _posture(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules,
                  version: int) -> Trajectory | None:

@@ -68,8 +68,9 @@ class RecordingReplanner:
     def end(self) -> None:
         self.open_actions -= 1
 
-    def forget(self) -> None:
+    def forget(self, leg_start=None) -> None:
         self.forgotten += 1
+        self.leg_start = leg_start
 
     def _result(self, reason: str) -> ReplanResult:
         self.searches += 1
