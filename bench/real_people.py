@@ -82,7 +82,7 @@ def row(recording: str, placement: str, summary: dict) -> dict:
             "speedups": independent.get("speedups"),
             "drive_lag_p99_ms": max(lags) if lags else None,
             "events": summary.get("events") or [],
-            # the machine's own stalls (tools.stalls: how many beyond 20 ms, the longest), and the events after one
+            # the machine's own stalls (tools.stalls: how many beyond 10 ms, the longest), and the events after one
             "machine": [machine.get("stalls"), machine.get("late_ms_max")] if "stalls" in machine else [None, None],
             "after_stall": machine.get("after_stall") or []}
 
@@ -147,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     header = ["recording", "placement", "shuttles/min", "stopped", "violations (monitor / recount / independent)",
               "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups", "drive lag p99 ms",
-              "machine stalls > 20 ms (count, longest ms)", "events (machine: during or just after a stall)"]
+              "machine stalls > 10 ms (count, longest ms)", "events (machine: during or just after a stall)"]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header), flush=True)
     for placement in placements:

@@ -24,6 +24,7 @@ def test_a_stall_is_a_wake_up_later_than_the_threshold_and_the_longest_are_kept(
     assert figures["wakeups"] == 4 and figures["stalls"] == 3
     assert figures["longest"] == [[1.0, 100.0, 1, 100.0], [3.0, 50.0, 0, -1.0]]   # the two longest, in time order
     assert figures["late_ms_max"] == pytest.approx(100.0) and figures["threshold_ms"] == 20.0
+    assert StallLog().threshold == pytest.approx(0.01)      # one SYNC period: long enough to cost a drive answer
     assert StallLog().figures()["late_ms_p99"] is None
 
 
