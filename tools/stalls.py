@@ -174,7 +174,8 @@ def said(figures: dict) -> str | None:
     worst = max(figures.get("longest") or [[0.0, figures.get("late_ms_max") or 0.0, -1, -1.0]], key=lambda st: st[1])
     steal = f", {worst[3]:.0f} ms of it the hypervisor's steal" if len(worst) > 3 and worst[3] >= 0 else ""
     after = figures.get("after_stall") or []
-    return (f"the machine itself stalled {figures['stalls']} time(s) beyond {figures.get('threshold_ms', 1e3 * THRESHOLD):.0f} ms "
+    threshold = figures.get("threshold_ms", 1e3 * THRESHOLD)
+    return (f"the machine itself stalled {figures['stalls']} time(s) beyond {threshold:.0f} ms "
             f"(the longest {worst[1]:.0f} ms at t={worst[0]:.2f} s{steal}); "
             + (f"during or just after them: {', '.join(after)}" if after else "no warning of the cell came with them"))
 

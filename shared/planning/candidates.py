@@ -126,17 +126,18 @@ class Candidates:
         (raises ReplanFailed)."""
         started = time.perf_counter()
         q_now = old.sample(float(s_now))[0]
-        back = self.retreat(q_now, q_goal, humans, old.version + 1)
-        back_time = np.inf if back is None else self.predict(back, 0.0, humans, waited)
-        try:
+        failed = None
+        try:                       # the search first: the way back takes no time from its budget
             waypoints = self.path(q_now, q_goal, humans, waited)
             traj = self.from_rest(waypoints, humans, old.version + 1)
             predicted = self.predict(traj, 0.0, humans, waited)
         except (PlanningError, TimingError) as exc:
-            if back is None:
-                raise ReplanFailed(f"from rest: {type(exc).__name__}: {exc}") from None
-            traj, predicted = back, np.inf
-        if back_time < predicted:
+            failed, traj, predicted = f"from rest: {type(exc).__name__}: {exc}", None, np.inf
+        back = self.retreat(q_now, q_goal, humans, old.version + 1)
+        back_time = np.inf if back is None else self.predict(back, 0.0, humans, waited)
+        if back is None and failed is not None:
+            raise ReplanFailed(failed)
+        if traj is None or back_time < predicted:
             return ReplanResult(back, s_now, reason, time.perf_counter() - started, back_time,
                                 detail="back by where the leg began", from_rest=True)
         return ReplanResult(traj, s_now, reason, time.perf_counter() - started, predicted, from_rest=True)
