@@ -88,3 +88,19 @@ def test_no_way_back_is_offered_from_where_the_leg_began_or_when_it_is_not_known
     assert planner.candidates.retreat(LEG_START + 0.01, GOAL, PERSON, 1) is None
     assert replanner(None).candidates.retreat(HELD_AT, GOAL, PERSON, 1) is None
     assert planner.candidates.retreat(HELD_AT, GOAL, PERSON, 1) is not None
+
+
+def test_where_the_search_finds_nothing_the_way_back_is_still_a_plan_and_without_it_the_refusal_says_why():
+    from shared.planning.ompl_planner import PlanningError
+
+    def nothing(*args, **kwargs):
+        raise PlanningError("no path found")
+
+    planner = replanner(LEG_START)
+    planner.candidates.path = nothing
+    result = planner.candidates.rest_plan(HELD, 0.0, GOAL, PERSON, "beta", 14.0)
+    assert result.detail == "back by where the leg began" and np.allclose(result.trajectory.positions[-1], GOAL)
+    bare = replanner(None)
+    bare.candidates.path = nothing
+    with pytest.raises(ReplanFailed, match="from rest: PlanningError: no path found"):
+        bare.candidates.rest_plan(HELD, 0.0, GOAL, PERSON, "beta", 14.0)
