@@ -17,7 +17,7 @@ from pathlib import Path
 import zenoh
 
 from shared.core.errors import MessageError
-from shared.scheduling import name_callback_thread, name_os_thread, realtime
+from shared.scheduling import SWITCH_INTERVAL, name_callback_thread, name_os_thread, realtime
 from shared.transport.pki import TlsIdentity
 from shared.transport.zenoh_session import open_session
 from shared.wire.keys import KeySpace
@@ -153,9 +153,6 @@ class Queue(_Inbox):
             if msg is not None:
                 out.append(msg)
         return out
-
-
-SWITCH_INTERVAL = 0.0005      # s: how often Python hands the GIL over (its default is 5 ms)
 
 
 def prepare_loop_thread() -> None:

@@ -74,3 +74,24 @@ def test_a_frozen_heap_is_not_walked_by_a_full_collection_and_new_garbage_is_sti
     out = subprocess.run([sys.executable, "-c", FROZEN], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["True"] * 4, out.stdout
+
+
+REALTIME = """
+import sys
+from shared.scheduling import SWITCH_INTERVAL, realtime
+before = sys.getswitchinterval()
+said = realtime("name-of-no-service")          # no priority of its own: stays in the normal class
+print(before, sys.getswitchinterval() == SWITCH_INTERVAL, SWITCH_INTERVAL <= 0.001, said.startswith("normal"))
+"""
+
+
+def test_a_real_time_process_hands_the_gil_over_every_half_millisecond_not_every_five():
+    # a process that called only realtime() (the emulated drives) kept Python's 5 ms: a thread that released the
+    # GIL to send a frame waited up to 5 ms to get it back behind one that computed
+    import subprocess
+    import sys
+
+    from tests.util import ROOT
+    out = subprocess.run([sys.executable, "-c", REALTIME], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["0.005", "True", "True", "True"], out.stdout
