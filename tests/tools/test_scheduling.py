@@ -86,8 +86,8 @@ print(before, sys.getswitchinterval() == SWITCH_INTERVAL, SWITCH_INTERVAL <= 0.0
 
 
 def test_a_real_time_process_hands_the_gil_over_every_half_millisecond_not_every_five():
-    # a process that called only realtime() (the emulated drives) kept Python's 5 ms: a thread that released the
-    # GIL to send a frame waited up to 5 ms to get it back behind one that computed
+    # a process that called only realtime() (the emulated drives) kept Python's 5 ms: a thread that releases the
+    # GIL to send a frame can wait up to 5 ms to get it back behind one that computes
     import subprocess
     import sys
 
