@@ -8,8 +8,9 @@ but the machine itself: when the hypervisor takes a virtual CPU away (its steal 
 throttles real-time work (which the cell's own real-time load can cause), every process on that CPU stops, the
 drives' emulator included. A stall with as much steal is the hypervisor's, one without is the kernel's; a lag the
 cell reports with no stall here is not shown to be the machine's, though a CPU taken away for a few milliseconds
-can cost a drive answer (the SYNC answers missed follow the run's steal time: docs/measurements.md, session 60). ``bench/stall_probe.py`` runs the same witness at several
-priorities at once, to tell which of the cell's processes held the others off.
+can cost a drive answer (the SYNC answers missed follow the run's steal time: docs/measurements.md, session
+60). ``bench/stall_probe.py`` runs the same witness at several priorities at once, to tell which of the cell's
+processes held the others off.
 
 One witness per CPU, each pinned to its own (``pinned``, a child process each; the parent merges their logs): a
 hypervisor that takes one virtual CPU away stops only what runs there, and a single witness that happened to be
