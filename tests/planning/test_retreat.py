@@ -65,7 +65,7 @@ def test_every_way_on_waits_for_the_person_as_the_old_one_does():
     assert searched.predicted > without.predicted_time(HELD, 0.0, PERSON, 14.0) - 1.0
 
 
-def test_held_long_the_robot_goes_back_by_where_the_leg_began_and_never_nearer_the_person():
+def test_held_long_the_robot_goes_back_by_where_the_leg_began_clear_of_the_person():
     """With the leg's start known, the plan from rest goes back there on the straight line, comes to rest, and
     takes the leg from there (the fold: the person is near); predicted seconds faster than waiting, and free of
     the person's margin all along. Held only a moment, waiting is still predicted the better bet
