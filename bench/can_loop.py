@@ -46,7 +46,8 @@ def measure(interface: str, channel: str | None, seconds: float) -> dict:
 
     from shared.scheduling import realtime
     # this process plays the scaler (it sends the commands and takes the joint states): it runs as the
-    # scaler does in the cell, so what is measured is the loop, not this process waiting behind a busy CPU
+    # scaler does in the cell (the GIL handed over every 0.5 ms too), so what is measured is the loop, not this
+    # process waiting behind a busy CPU
     scheduling = realtime("scaler")
 
     if interface == "udp_multicast":
@@ -129,7 +130,6 @@ def main() -> int:
     parser.add_argument("--channel", default=None)
     parser.add_argument("--seconds", type=float, default=10.0)
     args = parser.parse_args()
-    sys.setswitchinterval(0.0005)       # the measuring threads should not wait 5 ms for the GIL either
     if args.interface == "udp_multicast" and not in_private_namespace():
         from tools.cell import unshare_flags
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import zenoh
 
 from shared.core.errors import MessageError
-from shared.scheduling import SWITCH_INTERVAL, name_callback_thread, name_os_thread, realtime
+from shared.scheduling import name_callback_thread, name_os_thread, realtime
 from shared.transport.pki import TlsIdentity
 from shared.transport.zenoh_session import open_session
 from shared.wire.keys import KeySpace
@@ -156,10 +156,10 @@ class Queue(_Inbox):
 
 
 def prepare_loop_thread() -> None:
-    """What every loop thread of a service sets before it loops: the GIL handed over every 0.5 ms, so no
-    callback thread waits 5 ms behind the loop (nor the loop behind a callback), and the thread's name in
-    the OS (``name_os_thread``; the main thread keeps the process's)."""
-    sys.setswitchinterval(SWITCH_INTERVAL)
+    """What every loop thread of a service sets before it loops: the thread's name in the OS
+    (``name_os_thread``; the main thread keeps the process's). The GIL is already handed over every 0.5 ms,
+    so no callback thread waits 5 ms behind the loop (nor the loop behind a callback): ``serve`` took the
+    process real-time first (``shared.scheduling.realtime`` sets the switch interval)."""
     name_os_thread()
 
 
@@ -167,9 +167,9 @@ def run_paced(period: float, tick, stop: threading.Event) -> None:
     """Call tick(now) every period: deadline sleeping (clock_nanosleep, tens of microseconds late), no
     spinning (that would hold the GIL while a callback waits); an overrun re-syncs instead of bursting.
     Python hands the GIL over every 5 ms by default, which would let any callback thread delay a tick that
-    long: the switch interval is set to 0.5 ms. The thread runs with its process's scheduling, which the
-    process took after its warm-up (``serve``, or the driver's and emulator's own start-up). A thread of its
-    own is named in the OS after its Python name (``prepare_loop_thread``)."""
+    long: the process's scheduling, taken after its warm-up (``serve``: ``shared.scheduling.realtime``), sets
+    the switch interval to 0.5 ms, and the thread runs in that scheduling. A thread of its own is named in the
+    OS after its Python name (``prepare_loop_thread``)."""
     prepare_loop_thread()
     deadline = time.monotonic()
     while not stop.is_set():

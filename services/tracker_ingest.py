@@ -75,8 +75,9 @@ class TrackerIngest:
                 (self.shell.log.warning if not valid else self.shell.log.info)(text)
 
     def watch(self, stop: threading.Event) -> None:
-        """check() at the moments next_check says, until stopped (set up as every loop thread:
-        ``prepare_loop_thread``, so a sample's callback never waits 5 ms behind this thread)."""
+        """check() at the moments next_check says, until stopped (set up as every loop thread,
+        ``prepare_loop_thread``; the process hands the GIL over every 0.5 ms, ``serve``, so a sample's callback
+        never waits 5 ms behind this thread)."""
         prepare_loop_thread()
         while not stop.is_set():
             now = time.monotonic()

@@ -76,9 +76,9 @@ def realtime(name: str) -> str:
 
     First the heap is frozen (``freeze_heap``): a real-time loop must not stop for Python's full collection. And
     the GIL is handed over every SWITCH_INTERVAL, not Python's 5 ms: a thread that releases the GIL to send a frame
-    can wait up to 5 ms to get it back where another thread of its process computes meanwhile. The services set it
-    in their loops; the emulated drives, which answer each SYNC with six frames, kept 5 ms until session 60 (no
-    change in the SYNC answers they missed was measured: those follow the hypervisor's steal time,
+    can wait up to 5 ms to get it back where another thread of its process computes meanwhile. Until session 60
+    the services set it in their loops and the emulated drives, which answer each SYNC with six frames, kept
+    5 ms (no change in the SYNC answers they missed was measured: those follow the hypervisor's steal time,
     docs/measurements.md)."""
     freeze_heap()
     sys.setswitchinterval(SWITCH_INTERVAL)
