@@ -58,6 +58,7 @@ def measure(interface: str, channel: str | None, seconds: float) -> dict:
     cell.start()
     frames: dict[int, list[float]] = {}     # setpoint counts -> times RPDO1 of node 3 carried it
     tpdo: dict[int, list[float]] = {}       # position counts -> times TPDO3 of node 3 carried it
+    syncs_seen: list[float] = []            # receive stamps (CLOCK_REALTIME) of every SYNC frame
     lock = threading.Lock()
 
     # a frame is timed by its kernel receive stamp (CLOCK_REALTIME, as the SYNC jitter is), brought onto the
@@ -77,14 +78,21 @@ def measure(interface: str, channel: str | None, seconds: float) -> dict:
             with lock:
                 tpdo.setdefault(counts, []).append(time.monotonic())
 
-    cell.tool.subscribe(0x203, on_rpdo)
-    cell.tool.subscribe(0x383, on_tpdo)
+    def on_sync(can_id, data, ts):
+        with lock:
+            syncs_seen.append(ts)
+
+    # the campaign's own CAN node (the harness's CanProbe) listens beside the driver: the frames as on the bus
+    cell.can.network.subscribe(0x203, on_rpdo)
+    cell.can.network.subscribe(0x383, on_tpdo)
+    cell.can.network.subscribe(0x080, on_sync)
     try:
         if cell.hold_until(lambda s: s.enabled, 10.0) is None:
             raise RuntimeError("the drives did not enable")
         q = cell.latest().q.copy()
         sent: list[tuple[int, float]] = []
-        sync_start = len(cell.sync_stamps)
+        with lock:
+            sync_start = len(syncs_seen)
         state_start = len(cell.states)
         t_end = time.monotonic() + seconds
         k = 0
@@ -99,7 +107,8 @@ def measure(interface: str, channel: str | None, seconds: float) -> dict:
             sent.append((counts, t_pub))
             time.sleep(0.01 - (time.monotonic() - t_pub) % 0.01)
         time.sleep(0.1)
-        syncs = np.diff(np.array(cell.sync_stamps[sync_start:])) * 1e3
+        with lock:
+            syncs = np.diff(np.array(syncs_seen[sync_start:])) * 1e3
         jitter = np.abs(syncs - 10.0)
         with lock:
             # the first frame with that setpoint after it was published; the last TPDO3 with that
