@@ -72,6 +72,7 @@ def row(recording: str, placement: str, summary: dict) -> dict:
     tracker = summary.get("tracker") or {}
     lags = (summary.get("drives") or {}).get("lag_p99_ms") or []     # per joint (report.py)
     machine = summary.get("machine") or {}
+    silences = summary.get("scaler_silences") or {}
     return {"recording": recording, "placement": placement, "error": summary.get("error"),
             "shuttles_per_min": summary.get("shuttles_per_min"),
             "stopped": summary.get("stopped_fraction"),
@@ -84,7 +85,11 @@ def row(recording: str, placement: str, summary: dict) -> dict:
             "events": summary.get("events") or [],
             # the machine's own stalls (tools.stalls: how many beyond 10 ms, the longest), and the events after one
             "machine": [machine.get("stalls"), machine.get("late_ms_max")] if "stalls" in machine else [None, None],
-            "after_stall": machine.get("after_stall") or []}
+            "after_stall": machine.get("after_stall") or [],
+            # SYNCs the scaler let pass without a command (tools.silences: how many, the longest ms, the joint
+            # states the driver published meanwhile)
+            "scaler_silences": [silences["count"], *silences["longest"][0][1:4:2]] if silences.get("longest") else
+            [silences.get("count"), None, None]}
 
 
 def _cell(value, share: bool = False) -> str:
@@ -147,7 +152,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     header = ["recording", "placement", "shuttles/min", "stopped", "violations (monitor / recount / independent)",
               "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups", "drive lag p99 ms",
-              "machine stalls > 10 ms (count, longest ms)", "events (machine: during or just after a stall)"]
+              "machine stalls > 10 ms (count, longest ms)", "scaler silences (count, longest ms, joint states in it)",
+              "events (machine: during or just after a stall)"]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header), flush=True)
     for placement in placements:
@@ -166,6 +172,7 @@ def main(argv: list[str] | None = None) -> int:
                      + [f"{_cell(r['velocity_unknown'][0], share=True)}, {_cell(r['velocity_unknown'][1])}"]
                      + [_cell(r[k]) for k in ("speedups", "drive_lag_p99_ms")]
                      + [f"{_cell(r['machine'][0])}, {_cell(r['machine'][1])}"]
+                     + [", ".join(_cell(v) for v in r["scaler_silences"])]
                      + [", ".join(e + (" (machine)" if e in r["after_stall"] else "") for e in r["events"]) or "-"])
             print("| " + " | ".join(cells) + " |", flush=True)
     summary = means(rows)

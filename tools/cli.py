@@ -82,11 +82,11 @@ def _demo_processes(args: argparse.Namespace) -> int:
     finally:
         if server is not None:
             server.stop()
-    from tools.stalls import said
+    from tools import silences, stalls
 
-    stalls = said(summary.get("machine") or {})
-    if stalls is not None:
-        print(f"hrc demo: {stalls}")
+    for line in (stalls.said(summary.get("machine") or {}), silences.said(summary.get("scaler_silences") or {})):
+        if line is not None:
+            print(f"hrc demo: {line}")
     accepted = sum(1 for e in summary["replans"] if e["ok"])
     print(json.dumps({k: v for k, v in summary.items() if k not in ("replan_stall_ms", "replans")}
                      | {"replans_accepted": accepted, "replans_refused": len(summary["replans"]) - accepted,

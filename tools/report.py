@@ -31,6 +31,7 @@ from shared.wire.messages import (
     TrajectoryMsg,
 )
 from tools.judge import Recount, recount
+from tools.silences import scaler_silences
 from tools.view import write_recording
 
 MOVING_ALPHA = 0.01          # a stall ends once the robot moves on at more than this fraction of its speed
@@ -265,6 +266,9 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
                     "processing_ms": _percentiles(proc, 50, 99)},
         "scaling_cycle": scaling_cycle(st),
         "drives": drive_summary(rec),
+        "scaler_silences": scaler_silences(stamps, np.array([s.compute_us for s in st]),
+                                           np.array([j.stamp for j in rec.joint_states]), config.scaling.period,
+                                           rec.t0),
         "monitor_check": monitor_summary(rec, series, violations,
                                          recount(robot, config, rec.joint_states, rec.human_states)),
         "tracker": tracker,

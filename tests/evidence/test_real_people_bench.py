@@ -54,3 +54,13 @@ def test_a_row_says_the_machines_stalls_and_the_events_after_them():
     row = bench.row("r", "step_back", summary)
     assert row["machine"] == [2, 100.2] and row["after_stall"] == ["robot_driver:frames_lost"]
     assert bench.row("r", "step_back", {"shuttles_per_min": 1.0})["machine"] == [None, None]   # --sim: no witness
+
+
+def test_a_row_says_the_scalers_silences():
+    bench = load_bench("real_people")
+    summary = {"shuttles_per_min": 12.0, "scaler_silences": {"count": 2, "longest": [[3.447, 41.4, 0.25, 3, 23.3],
+                                                                                    [9.1, 26.0, 0.2, 0, 26.0]]}}
+    assert bench.row("r", "table_edge", summary)["scaler_silences"] == [2, 41.4, 3]
+    quiet = {"shuttles_per_min": 12.0, "scaler_silences": {"count": 0, "longest": []}}
+    assert bench.row("r", "table_edge", quiet)["scaler_silences"] == [0, None, None]
+    assert bench.row("r", "table_edge", {"shuttles_per_min": 1.0})["scaler_silences"] == [None, None, None]  # --sim
