@@ -23,6 +23,9 @@ behind the commands at its velocity limit, and the catch-up overshot a stop towa
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
   (the core's rule; the bound at a slow source's rate is shared.tracking.tracker.stale_bound); an invalid
   or malformed message counts as no message;
+* a tick more than ``GAP_PERIODS`` control periods after the last one (a SYNC passed without a command) is
+  logged with how long the first joint state since the last tick had waited in this process and how long the
+  last tick took (the report's ``scaler_silences``, ``tools.silences``, has only the stamps);
 * while the driver reports that the robot is not following (stopped, enabling: JointState.enabled false)
   the trajectory is dropped and the measured position held: after a quick stop the robot stands off the
   path, the driver re-enables only on a command where the robot is, and the planner (which sees
@@ -35,6 +38,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -43,7 +47,7 @@ from services.common import ServiceShell, open_service, run_synced, serve, servi
 from shared.core.humans import HumanCapsules
 from shared.robot.model import default_robot
 from shared.scaling.layer import ScalingInputs, ScalingLayer
-from shared.scaling.sync_clock import SyncClock
+from shared.scaling.sync_clock import GAP_PERIODS, SyncClock
 from shared.tracking.tracker import stale_bound
 from shared.wire.convert import humans_from_msg, status_from_step, trajectory_from_msg
 from shared.wire.messages import (
@@ -78,6 +82,8 @@ class Scaler:
         self.joint_q = None
         self.robot_following = False       # the driver runs and follows commands (JointState.enabled)
         self.joint_state_arrived = threading.Event()       # wakes the tick: one a SYNC
+        self.woken_by: tuple[float, float] | None = None   # the first state due since the last tick: (came, stamp)
+        self.last_tick: tuple[float, float] | None = None  # (when the last tick began, how long it took), s
         self.clock = SyncClock()
         self.pending: TrajectoryMsg | None = None
         self.version = -1
@@ -137,6 +143,8 @@ class Scaler:
             self.robot_following = msg.enabled
             self.state_lag = msg.drive_lag or 0.0
             due = self.clock.arrived(msg.sync)
+            if due and self.woken_by is None:
+                self.woken_by = (time.monotonic(), msg.stamp)
         if due:
             self.joint_state_arrived.set()
 
@@ -162,7 +170,33 @@ class Scaler:
         self.version = msg.version
         self.shell.log.info("following trajectory %d (%s)", msg.version, msg.reason)
 
+    def say_silence(self, now: float, woken_by: tuple[float, float] | None) -> None:
+        """Log a tick that began more than GAP_PERIODS control periods after the last one (a SYNC passed
+        without a command: ``tools.silences``), with what the report cannot see: how long the first joint state
+        due since the last tick (woken_by: when it came, its stamp) had waited, how late it reached this process,
+        and how long the last tick took."""
+        if self.last_tick is None:
+            return
+        began, took = self.last_tick
+        if now - began <= GAP_PERIODS * self.layer.params.period:
+            return
+        if woken_by is None:
+            woke = "with no new joint state (the fallback)"
+        else:
+            woke = (f"with a joint state that had waited {(now - woken_by[0]) * 1e3:.1f} ms for it, "
+                    f"{(woken_by[0] - woken_by[1]) * 1e3:.1f} ms after the driver published it")
+        self.shell.log.warning("no tick for %.1f ms (the last took %.1f ms): woke %s", (now - began) * 1e3,
+                               took * 1e3, woke)
+
     def tick(self, now: float) -> None:
+        started = time.monotonic()
+        with self.lock:
+            woken_by, self.woken_by = self.woken_by, None
+        self.say_silence(now, woken_by)
+        self._tick(now)
+        self.last_tick = (now, time.monotonic() - started)
+
+    def _tick(self, now: float) -> None:
         self.cover_drive_lag()
         with self.lock:
             self.clock.ticked()

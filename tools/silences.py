@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-GAP_PERIODS = 2.5     # control periods between two ticks: at least one SYNC passed without a new command
+from shared.scaling.sync_clock import GAP_PERIODS
+
 LISTED = 10           # the longest silences listed
 
 

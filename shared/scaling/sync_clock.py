@@ -14,6 +14,9 @@ one is a restarted driver, whose count starts again.
 from __future__ import annotations
 
 RESTART_GAP = 50          # SYNCs: a state this far behind the clock comes from a driver that restarted
+# control periods between two ticks: more, and at least one SYNC passed without a new command (a silence of the
+# scaler: the scaler's log and the report's scaler_silences, tools.silences, name each)
+GAP_PERIODS = 2.5
 
 
 class SyncClock:

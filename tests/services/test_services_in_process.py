@@ -5,6 +5,7 @@ run the same classes over Zenoh."""
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from dataclasses import replace
@@ -163,6 +164,38 @@ def test_the_scaler_is_woken_once_per_sync_of_the_drives():
     assert np.allclose(scaler.joint_q, Q_START + 0.001)
     shell.deliver(keys.joint_state, state(9))
     assert scaler.joint_state_arrived.is_set()
+
+
+def test_the_scaler_logs_a_sync_it_let_pass_without_a_command_with_what_woke_it(caplog):
+    """A tick more than 2.5 periods after the last one: the log says how long, how long the last tick took, and
+    how long the first joint state since the last tick had waited in this process (tools.silences has only the
+    stamps)."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    def state(sync: int) -> JointState:
+        return JointState(q=Q_START, qd=np.zeros(6), drive_state="running:operation_enabled", enabled=True,
+                          fault=False, stamp=time.monotonic() - 0.003, sync=sync)
+
+    with caplog.at_level(logging.WARNING, logger="scaler"):
+        now = time.monotonic()
+        for k in range(3):
+            scaler.tick(now + 0.01 * k)                  # on time: nothing said
+        scaler.tick(now + 0.02 + 0.024)                  # the fallback, 24 ms after the last: 2.4 periods, no silence
+        assert not [r for r in caplog.records if "no tick" in r.getMessage()]
+        shell.deliver(keys.joint_state, state(5))
+        came = scaler.woken_by[0]                        # when this process had it: the first state since the tick
+        shell.deliver(keys.joint_state, state(6))
+        assert scaler.woken_by[0] == came
+        scaler.tick(now + 0.044 + 0.061)                 # 61 ms after the last tick
+        scaler.tick(now + 0.105 + 0.049)                 # a fallback 49 ms later, with no new state
+    said = [r.getMessage() for r in caplog.records if "no tick" in r.getMessage()]
+    assert len(said) == 2
+    waited = (now + 0.105 - came) * 1e3
+    assert said[0].startswith("no tick for 61.0 ms (the last took ")
+    assert f"with a joint state that had waited {waited:.1f} ms for it" in said[0]
+    assert "after the driver published it" in said[0]
+    assert "with no new joint state (the fallback)" in said[1] and said[1].startswith("no tick for 49.0 ms")
 
 
 def test_a_camera_rate_source_is_stale_after_its_own_bound():
