@@ -89,7 +89,21 @@ def row(recording: str, placement: str, summary: dict) -> dict:
             # SYNCs the scaler let pass without a command (tools.silences: how many, the longest ms, the joint
             # states the driver published meanwhile)
             "scaler_silences": [silences["count"], *silences["longest"][0][1:4:2]] if silences.get("longest") else
-            [silences.get("count"), None, None]}
+            [silences.get("count"), None, None],
+            # each stale_command stop: the commands the scaler had published meanwhile (tools.silences.stale_stops)
+            "stale_stops": silences.get("stale_stops") or []}
+
+
+def event_cell(r: dict) -> str:
+    """The events of a run, each marked where it came with a stall of the machine, and a stale_command stop with the
+    commands the scaler had sent meanwhile (none: its silence; some: they had not reached the driver)."""
+    out = []
+    for e in r["events"]:
+        notes = ["machine"] if e in r["after_stall"] else []
+        if e == "robot_driver:stale_command" and r["stale_stops"]:
+            notes += [f"{sum(stop[2] for stop in r['stale_stops'])} commands sent meanwhile"]
+        out.append(e + (f" ({', '.join(notes)})" if notes else ""))
+    return ", ".join(out) or "-"
 
 
 def _cell(value, share: bool = False) -> str:
@@ -173,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
                      + [_cell(r[k]) for k in ("speedups", "drive_lag_p99_ms")]
                      + [f"{_cell(r['machine'][0])}, {_cell(r['machine'][1])}"]
                      + [", ".join(_cell(v) for v in r["scaler_silences"])]
-                     + [", ".join(e + (" (machine)" if e in r["after_stall"] else "") for e in r["events"]) or "-"])
+                     + [event_cell(r)])
             print("| " + " | ".join(cells) + " |", flush=True)
     summary = means(rows)
     for placement, m in summary.items():

@@ -93,7 +93,7 @@ class Driver:
 
     def _publish_event(self, event) -> None:
         self._publish(self.event_pub, SafetyEvent(source="robot_driver", event=event.event, severity=event.severity,
-                                                  text=event.text))
+                                                  text=event.text, value=event.value))
         (log.warning if event.severity != "info" else log.info)("%s: %s", event.event, event.text)
 
     def cycle(self, now: float) -> None:

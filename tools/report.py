@@ -31,7 +31,7 @@ from shared.wire.messages import (
     TrajectoryMsg,
 )
 from tools.judge import Recount, recount
-from tools.silences import scaler_silences
+from tools.silences import scaler_silences, stale_stops
 from tools.view import write_recording
 
 MOVING_ALPHA = 0.01          # a stall ends once the robot moves on at more than this fraction of its speed
@@ -268,7 +268,10 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "drives": drive_summary(rec),
         "scaler_silences": scaler_silences(stamps, np.array([s.compute_us for s in st]),
                                            np.array([j.stamp for j in rec.joint_states]), config.scaling.period,
-                                           rec.t0),
+                                           rec.t0)
+        | {"stale_stops": stale_stops([(e.stamp, e.value) for e in rec.events if e.source == "robot_driver"
+                                       and e.event == "stale_command" and e.value is not None],
+                                      np.array([c.stamp for c in rec.commands]), rec.t0)},
         "monitor_check": monitor_summary(rec, series, violations,
                                          recount(robot, config, rec.joint_states, rec.human_states)),
         "tracker": tracker,

@@ -56,6 +56,7 @@ class Event:
     event: str
     severity: str                      # info | warning | stop
     text: str
+    value: float | None = None         # the figure the text gives, where one (stale_command: s without a command)
 
 
 @dataclass
@@ -213,11 +214,11 @@ class DriverCore:
             self._stop("requested", "stop requested")
 
     # ------------------------------------------------------------------------------------------ cycle
-    def _stop(self, event: str, text: str) -> list[Event]:
+    def _stop(self, event: str, text: str, value: float | None = None) -> list[Event]:
         if self.mode is Mode.STOPPED:
             return []
         self.mode, self.stop_reason, self._recover = Mode.STOPPED, text, False
-        return [Event(event, "stop", text)]
+        return [Event(event, "stop", text, value)]
 
     def _faults(self, feedback: list[Feedback], states: list[State]) -> tuple[str, str] | None:
         for k, (fb, st) in enumerate(zip(feedback, states)):
@@ -255,7 +256,8 @@ class DriverCore:
                 events += self._stop("frames_lost", f"{missed} of the last {MISSED_WINDOW} SYNCs not answered by "
                                                     f"every drive in time: frames are being lost")
             elif now - self._command_time > self.command_timeout:
-                events += self._stop("stale_command", f"no command for {(now - self._command_time) * 1000:.0f} ms")
+                events += self._stop("stale_command", f"no command for {(now - self._command_time) * 1000:.0f} ms",
+                                     now - self._command_time)
             elif any(st is not State.OPERATION_ENABLED for st in states):
                 events += self._stop("drive_disabled", "a drive left operation enabled")
         if self.mode is Mode.STOPPED:

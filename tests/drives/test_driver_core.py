@@ -86,6 +86,8 @@ def test_follows_a_trajectory_and_stops_on_a_stale_command():
         if out.mode is Mode.STOPPED and stopped_at is None:
             stopped_at = k
             assert out.events[0].event == "stale_command" and out.events[0].severity == "stop"
+            # the figure the text gives, for the report to pair with the commands sent meanwhile
+            assert out.events[0].value > 0.05 and f"no command for {out.events[0].value * 1e3:.0f} ms" == out.events[0].text
     assert stopped_at is not None and stopped_at * T <= 0.05 + 2 * T
     assert all(d.state.value == "quick_stop_active" for d in cell.drives)
     assert max(abs(d.velocity) for d in cell.drives) == 0.0

@@ -64,3 +64,18 @@ def test_a_row_says_the_scalers_silences():
     quiet = {"shuttles_per_min": 12.0, "scaler_silences": {"count": 0, "longest": []}}
     assert bench.row("r", "table_edge", quiet)["scaler_silences"] == [0, None, None]
     assert bench.row("r", "table_edge", {"shuttles_per_min": 1.0})["scaler_silences"] == [None, None, None]  # --sim
+
+
+def test_a_stale_command_says_how_many_commands_were_sent_meanwhile():
+    bench = load_bench("real_people")
+    summary = {"shuttles_per_min": 5.0, "events": ["robot_driver:stale_command"],
+               "scaler_silences": {"count": 0, "longest": [], "stale_stops": [[9.855, 56.0, 3, 39.8]]},
+               "machine": {"stalls": 0, "late_ms_max": 9.0, "after_stall": []}}
+    row = bench.row("r", "table_edge", summary)
+    assert row["stale_stops"] == [[9.855, 56.0, 3, 39.8]]
+    assert bench.event_cell(row) == "robot_driver:stale_command (3 commands sent meanwhile)"
+    summary["machine"]["after_stall"] = ["robot_driver:stale_command"]
+    summary["scaler_silences"]["stale_stops"] = [[9.855, 56.0, 0, None]]
+    assert bench.event_cell(bench.row("r", "table_edge", summary)) == \
+        "robot_driver:stale_command (machine, 0 commands sent meanwhile)"
+    assert bench.event_cell(bench.row("r", "table_edge", {"shuttles_per_min": 1.0})) == "-"

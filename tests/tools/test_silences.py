@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from tools.silences import GAP_PERIODS, LISTED, said, scaler_silences
+from tools.silences import GAP_PERIODS, LISTED, said, scaler_silences, stale_stops
 
 PERIOD = 0.01
 
@@ -76,4 +76,19 @@ def test_every_report_says_the_scalers_silences():
                                              trajectory_version=1, status="running", method="piqp",
                                              min_separation=None, min_margin=None, compute_us=80.0, stamp=t))
     summary, _ = analyse(default_robot(), CellConfig(), rec)
-    assert summary["scaler_silences"] == {"count": 1, "longest": [[0.2, 50.0, 0.08, 5, 10.0]]}
+    assert summary["scaler_silences"] == {"count": 1, "longest": [[0.2, 50.0, 0.08, 5, 10.0]], "stale_stops": []}
+
+
+def test_a_stop_for_commands_that_were_sent_but_not_taken_is_no_silence_of_the_scaler():
+    """The recorded case (this session, a stale_command with no silence): ticks at 9.797, 9.815, 9.823 and
+    9.841 s, the driver's stop at 9.855 s 'no command for 56 ms': three commands had not reached it."""
+    commands = np.array([9.769810, 9.776940, 9.787192, 9.797071, 9.815071, 9.823056, 9.841383, 9.865466]) + 100.0
+    (row,) = stale_stops([(100.0 + 9.854887, 0.056)], commands, 100.0)
+    assert row[:3] == [9.855, 56.0, 3] and row[3] == pytest.approx(39.8, abs=0.05)
+    line = said({"count": 0, "longest": [], "stale_stops": [row]})
+    assert line.startswith("the driver stopped at t=9.86 s without a command for 56 ms: the scaler had published 3")
+    # none published meanwhile: the scaler's own silence
+    (quiet,) = stale_stops([(100.0 + 9.854887, 0.056)], commands[commands < 100.0 + 9.80], 100.0)
+    assert quiet[2] == 0 and quiet[3] is None
+    assert "the scaler had published none meanwhile" in said({"count": 1, "longest": [[9.797, 58.0, 0.3, 5, 12.0]],
+                                                              "stale_stops": [quiet]})
