@@ -19,6 +19,9 @@ Thin shell around ``shared.drives.driver_core.DriverCore`` (what to command) and
   a LatencyReport on <prefix>/diag/latency and the drive figures as a DriveLagReport on
   <prefix>/diag/drive_lag, with a warning event when the whole chain (sample -> frame p99 + drive lag p99)
   exceeds the configured T_r or the lag exceeds ssm.drive_lag;
+* a command that comes more than 2.5 SYNC periods after the scaler sent it (its stamp) is logged with how late:
+  beside a ``stale_command`` stop it tells a command on its way from a scaler that fell silent (the report's
+  ``scaler_silences``, ``tools.silences``);
 * Zenoh subscriptions (joint commands, stop / recover requests), liveliness token once the drives are up,
   SIGTERM. A malformed message is logged and dropped; the service goes on.
 
@@ -48,6 +51,7 @@ from shared.drives.master import CanMaster
 from shared.drives.prbt import PERIOD
 from shared.robot.model import default_robot
 from shared.safety.latency import DriveLagMeter, LatencyMeter
+from shared.scaling.sync_clock import GAP_PERIODS
 from shared.wire.messages import DriveLagReport, DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent, encode
 
 log = logging.getLogger("robot_driver")
@@ -77,7 +81,10 @@ class Driver:
         shell.subscribe(shell.keys.driver_request, DriverRequest, self.on_request)
 
     def on_command(self, msg: JointCommand) -> None:
-        with self.core_lock:
+        late = time.monotonic() - msg.stamp
+        if msg.stamp > 0.0 and late > GAP_PERIODS * self.period:     # a SYNC or more passed on its way
+            log.warning("a command came %.1f ms after the scaler sent it", late * 1e3)
+        with self.core_lock:          # (the time it is taken at: inside the lock, ordered with the SYNC cycle's)
             early = self.core.command(msg.q, time.monotonic(), msg.qd)
         if early is not None:           # on the bus now; the drives take the latest setpoint at the next SYNC
             self.master.send(None, early, sync=False)
