@@ -95,6 +95,34 @@ def freeze_heap() -> None:
     (the emulator's drives). Measured: docs/measurements.md, session 59."""
     gc.collect()
     gc.freeze()
+    watch_collections()
+
+
+SLOW_COLLECTION = 0.005     # s: a collection this long is logged (half a SYNC period, with the GIL held)
+_watch: dict[int, float] = {}
+
+
+def _on_collection(phase: str, info: dict) -> None:
+    """gc callback: time each collection; log one longer than SLOW_COLLECTION."""
+    import logging
+    import time
+
+    generation = info.get("generation", -1)
+    if phase == "start":
+        _watch[generation] = time.perf_counter()
+        return
+    began = _watch.pop(generation, None)
+    if began is not None and time.perf_counter() - began > SLOW_COLLECTION:
+        logging.getLogger("gc").warning("a collection of generation %d took %.1f ms with the GIL held (%d collected)",
+                                        generation, (time.perf_counter() - began) * 1e3, info.get("collected", 0))
+
+
+def watch_collections() -> None:
+    """Log every collection of Python's garbage collector that takes longer than SLOW_COLLECTION, from now on, once
+    per process: with the heap frozen they should be short; one that is not holds every thread of the process
+    (a SYNC answer missed, a command late) and its log line says so."""
+    if _on_collection not in gc.callbacks:
+        gc.callbacks.append(_on_collection)
 
 
 def _threads() -> list[int]:

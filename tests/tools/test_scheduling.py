@@ -76,6 +76,36 @@ def test_a_frozen_heap_is_not_walked_by_a_full_collection_and_new_garbage_is_sti
     assert out.stdout.split() == ["True"] * 4, out.stdout
 
 
+SLOW = """
+import gc, logging
+logging.basicConfig(level=logging.WARNING, format="%(name)s %(message)s")
+import shared.scheduling as scheduling
+scheduling.freeze_heap()
+scheduling.freeze_heap()                        # twice (the emulator does): one watch
+assert gc.callbacks.count(scheduling._on_collection) == 1
+gc.collect()                                    # nothing to walk: not logged
+scheduling.SLOW_COLLECTION = 0.0
+gc.disable()                                    # no automatic collection meanwhile: only the one below
+class Node:
+    pass
+for _ in range(50_000):
+    n = Node(); n.me = n
+gc.collect()                                    # 50 000 cycles of garbage: logged, as longer than 0 s
+"""
+
+
+def test_a_collection_longer_than_half_a_sync_period_is_logged_once_the_heap_is_frozen():
+    import subprocess
+    import sys
+
+    from tests.util import ROOT
+    out = subprocess.run([sys.executable, "-c", SLOW], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    lines = [line for line in out.stderr.splitlines() if line.startswith("gc a collection of generation 2 took")]
+    assert len(lines) == 1 and "ms with the GIL held (" in lines[0], out.stderr
+    assert int(lines[0].rsplit("(", 1)[1].split()[0]) >= 40_000           # the nodes of the cycles (at least)
+
+
 REALTIME = """
 import sys
 from shared.scheduling import SWITCH_INTERVAL, realtime
