@@ -25,9 +25,11 @@ from __future__ import annotations
 
 import ctypes
 import gc
+import logging
 import os
 import sys
 import threading
+import time
 
 SWITCH_INTERVAL = 0.0005      # s: how often a real-time process hands the GIL over (Python's default is 5 ms)
 
@@ -102,19 +104,18 @@ SLOW_COLLECTION = 0.005     # s: a collection this long is logged (half a SYNC p
 _watch: dict[int, float] = {}
 
 
-def _on_collection(phase: str, info: dict) -> None:
-    """gc callback: time each collection; log one longer than SLOW_COLLECTION."""
-    import logging
-    import time
-
+def _on_collection(phase: str, info: dict, clock=time.perf_counter, log=logging.getLogger("gc")) -> None:
+    """gc callback: time each collection; log one longer than SLOW_COLLECTION. What it uses is bound when it is
+    defined: a collection during the interpreter's shutdown finds no module to import."""
     generation = info.get("generation", -1)
     if phase == "start":
-        _watch[generation] = time.perf_counter()
+        _watch[generation] = clock()
         return
     began = _watch.pop(generation, None)
-    if began is not None and time.perf_counter() - began > SLOW_COLLECTION:
-        logging.getLogger("gc").warning("a collection of generation %d took %.1f ms with the GIL held (%d collected)",
-                                        generation, (time.perf_counter() - began) * 1e3, info.get("collected", 0))
+    took = clock() - began if began is not None else 0.0
+    if took > SLOW_COLLECTION:
+        log.warning("a collection of generation %d took %.1f ms with the GIL held (%d collected)", generation,
+                    took * 1e3, info.get("collected", 0))
 
 
 def watch_collections() -> None:

@@ -106,6 +106,33 @@ def test_a_collection_longer_than_half_a_sync_period_is_logged_once_the_heap_is_
     assert int(lines[0].rsplit("(", 1)[1].split()[0]) >= 40_000           # the nodes of the cycles (at least)
 
 
+SHUTDOWN = """
+import gc
+import shared.scheduling as scheduling
+scheduling.freeze_heap()
+scheduling.SLOW_COLLECTION = 0.0
+class Node:
+    def __del__(self):
+        pass
+keep = []
+for _ in range(20_000):
+    n = Node(); n.me = n; keep.append(n)
+gc.set_threshold(1)                             # collections while the interpreter tears its modules down
+"""
+
+
+def test_the_collection_watch_does_not_fail_while_the_interpreter_shuts_down():
+    """It once imported what it needed when called: at the shutdown of every process of the cell it raised
+    ('import of time halted') and filled the end of each log with tracebacks."""
+    import subprocess
+    import sys
+
+    from tests.util import ROOT
+    out = subprocess.run([sys.executable, "-c", SHUTDOWN], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and "Traceback" not in out.stderr and "Exception ignored" not in out.stderr, \
+        out.stderr[-2000:]
+
+
 REALTIME = """
 import sys
 from shared.scheduling import SWITCH_INTERVAL, realtime
