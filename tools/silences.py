@@ -7,7 +7,8 @@ than ``GAP_PERIODS`` control periods apart left a SYNC without a new command: th
 period on, then brakes, and after its command timeout stops the robot (``stale_command``); a late command then
 lies ahead of the braked setpoint (``command_clamped``). A stop with commands published meanwhile was a delay
 between the two processes (``stale_stops``), not a silence. A silence is the scaler's own where the driver's
-joint states kept coming meanwhile (the scaler had a state to tick on and did not run), and the driver's too
+joint states kept coming meanwhile (the scaler had a state to tick on and did not: its last tick ran long, or its
+process was held; its log says which), and the driver's too
 where none came. The machine's part (a CPU stopped, the hypervisor's steal) is the stall witness's to say
 (``tools.stalls``): a silence beside none of its stalls is a process of the cell not being run while a CPU was
 free to the witness, which the chain's priorities (``shared.scheduling``) can do when one CPU is taken away and
