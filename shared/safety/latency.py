@@ -22,12 +22,14 @@ import numpy as np
 
 @dataclass(frozen=True)
 class LatencyCheck:
-    """A change of verdict: event 'reaction_time_exceeded' (severity warning) or 'reaction_time_ok' (info)."""
+    """A change of verdict: event 'reaction_time_exceeded' / 'drive_lag_exceeded' (severity warning) or its
+    '_ok' (info). value (s): the figure the text gives (the chain's or the worst joint's p99), as a driver
+    event's (``shared.drives.driver_core.Event``): the robot driver publishes both the same way."""
 
     event: str
     severity: str
     text: str
-    p99: float
+    value: float
 
 
 class Episode:

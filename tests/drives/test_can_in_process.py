@@ -76,13 +76,15 @@ def hold(shell: FakeShell, driver: Driver, answered: threading.Event, q: np.ndar
         sync_and_wait(driver, answered)
 
 
-def enabled_driver(master: CanMaster) -> tuple[FakeShell, Driver, threading.Event]:
+def enabled_driver(master: CanMaster, lag_bound: float | None = None) -> tuple[FakeShell, Driver, threading.Event]:
     """The Driver class on a fake shell, its joint states published from the CAN thread as in the service,
-    held at q_s until the core has walked the drives to operation enabled."""
+    held at q_s until the core has walked the drives to operation enabled. lag_bound (s): the drive lag its
+    meter judges against (default the configuration's ssm.drive_lag)."""
     shell = FakeShell("robot_driver")
     config = CellConfig()
     driver = Driver(master, DriverCore(default_robot().limits, PERIOD), shell, PERIOD,
-                    LatencyMeter(config.ssm.reaction_time), DriveLagMeter(config.ssm.drive_lag))
+                    LatencyMeter(config.ssm.reaction_time),
+                    DriveLagMeter(config.ssm.drive_lag if lag_bound is None else lag_bound))
     answered = threading.Event()
     publish = driver.publish_state
     master.on_complete = lambda q, qd: (publish(q, qd), answered.set())
@@ -105,6 +107,23 @@ def test_the_driver_enables_the_drives_and_follows_commands(drives):
     assert last.q[0] == pytest.approx(Q_START[0] - 0.5, abs=0.02)        # one period behind at most
     assert not [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.severity == "stop"]
     assert nodes[0].drive.position == pytest.approx(last.q[0], abs=1e-3)
+
+
+def test_a_lag_verdict_is_published_with_its_figure_and_the_cycle_goes_on(drives):
+    """The drive lag's verdict goes out as a safety event with the lag it names, as a driver event does, from
+    the SYNC cycle's own thread. It once raised there instead (the verdict had no `value`): the cycle thread
+    died with the process still up, the drives stopped for want of SYNC, and the robot never moved again."""
+    master, _ = drives
+    shell, driver, answered = enabled_driver(master, lag_bound=0.001)     # any motion lags more than 1 ms
+    q = Q_START.copy()
+    for _ in range(2 * driver.report_every):            # two reports' worth, joint 1 at 0.5 rad/s
+        q = q.copy()
+        q[0] -= 0.5 * PERIOD
+        hold(shell, driver, answered, q, 1, qd=np.array([-0.5, 0, 0, 0, 0, 0]))
+    (lag,) = [e for e in shell.published(shell.keys.safety_events, SafetyEvent) if e.event == "drive_lag_exceeded"]
+    assert lag.severity == "warning" and lag.value is not None and 0.001 < lag.value < 0.1
+    assert f"{lag.value * 1e3:.1f} ms" in lag.text
+    assert driver.core.mode is Mode.RUNNING
 
 
 def test_a_drive_fault_stops_the_driver_with_the_emcy(drives):
