@@ -196,6 +196,30 @@ def run_synced(period: float, tick, stop: threading.Event, ready: threading.Even
         tick(time.monotonic())
 
 
+def run_in_thread(name: str, loop, stop: threading.Event) -> BaseException | None:
+    """Run loop(stop) in a thread of its own, named `name`, until `stop` is set (by the service's signal handler,
+    or by this when the loop ends); returns what the loop raised, None when it returned. A loop that raises
+    sets `stop` with it: its service must then end (and be restarted by its supervisor), not live on without
+    the loop. Why: the robot driver's SYNC cycle once raised in its thread while the process stayed up; the
+    drives stopped for want of SYNC, and the supervisor saw a running driver that never moved the robot again."""
+    failure: list[BaseException] = []
+
+    def guarded() -> None:
+        try:
+            loop(stop)
+        except BaseException as exc:          # whatever it was, the loop is gone: the service must go too
+            failure.append(exc)
+            logging.getLogger(name).critical("the %s loop failed; the service ends", name, exc_info=exc)
+        finally:
+            stop.set()
+
+    thread = threading.Thread(target=guarded, name=name, daemon=True)
+    thread.start()
+    stop.wait()
+    thread.join(1.0)
+    return failure[0] if failure else None
+
+
 def open_service(name: str, args: argparse.Namespace):
     """(cell config, shell) of a service, or None after printing a clear error (the caller exits 2). The
     process stays in the normal scheduling class here: it takes its own (``shared.scheduling.realtime``)
@@ -214,8 +238,8 @@ def open_service(name: str, args: argparse.Namespace):
 def serve(shell: ServiceShell, ready: str, loop, on_stop=None) -> int:
     """Take the service's scheduling (every thread of the process, after its warm-up: see
     ``shared.scheduling.realtime``), stop on SIGTERM / SIGINT, announce the service (it is ready), print
-    its ready line with the scheduling, run loop(stop) until stopped, close. on_stop() is called from the
-    signal handler (e.g. to wake a worker)."""
+    its ready line with the scheduling, run loop(stop) until stopped, close; returns the loop's exit code (0 when
+    it returns none). on_stop() is called from the signal handler (e.g. to wake a worker)."""
     import signal
 
     scheduling = realtime(shell.name)
@@ -231,7 +255,7 @@ def serve(shell: ServiceShell, ready: str, loop, on_stop=None) -> int:
     try:
         shell.announce()
         print(f"{ready}, {scheduling}", flush=True)
-        loop(stop)
+        code = loop(stop)
     finally:
         shell.close()
-    return 0
+    return code or 0

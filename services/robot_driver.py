@@ -41,7 +41,7 @@ from pathlib import Path
 import canopen
 import numpy as np
 
-from services.common import ServiceShell, run_paced, serve, service_parser, setup_logging
+from services.common import ServiceShell, run_in_thread, run_paced, serve, service_parser, setup_logging
 from shared.config import load_config
 from shared.core.errors import HrcError
 from shared.drives.bus import BusError, describe, open_bus
@@ -193,12 +193,10 @@ def run(args: argparse.Namespace) -> int:
         driver = Driver(master, core, shell, args.period, LatencyMeter(config.ssm.reaction_time),
                         DriveLagMeter(config.ssm.drive_lag))
 
-        def cycle_until(stop: threading.Event) -> None:
-            thread = threading.Thread(target=run_paced, args=(args.period, driver.cycle, stop), name="can-cycle",
-                                      daemon=True)
-            thread.start()
-            stop.wait()
-            thread.join(1.0)
+        def cycle_until(stop: threading.Event) -> int:
+            """The SYNC cycle in its own thread; 1 when it failed (the process ends, its supervisor restarts it)."""
+            failed = run_in_thread("can-cycle", lambda stopped: run_paced(args.period, driver.cycle, stopped), stop)
+            return 1 if failed is not None else 0
 
         nodes = ", ".join(f"node {i['node']} fw {i['firmware']!r}" for i in master.identity)
         return serve(shell, f"robot_driver: drives up, {nodes}", cycle_until)
