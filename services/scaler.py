@@ -22,7 +22,8 @@ behind the commands at its velocity limit, and the catch-up overshot a stop towa
   ssm.drive_lag (``SsmParameters.covering_lag``);
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
   (the core's rule; the bound at a slow source's rate is shared.tracking.tracker.stale_bound); an invalid
-  or malformed message counts as no message;
+  or malformed message counts as no message; so does no joint state for scaling.robot_timeout (its age by
+  when it reached this process): the path is not run open loop towards a robot that is not heard from;
 * a tick more than ``GAP_PERIODS`` control periods after the last one (a SYNC passed without a command) is
   logged with how long the first joint state since the last tick had waited in this process and how long the
   last tick took (the report's ``scaler_silences``, ``tools.silences``, has only the stamps);
@@ -71,8 +72,9 @@ def merge_human_states(msgs: list[HumanState]) -> HumanCapsules | None:
 
 
 class Scaler:
-    def __init__(self, shell: ServiceShell, layer: ScalingLayer) -> None:
-        self.shell, self.layer = shell, layer
+    def __init__(self, shell: ServiceShell, layer: ScalingLayer, clock=time.monotonic) -> None:
+        """clock: what says when a joint state came (s, the clock ticks are given on; a test's own)."""
+        self.shell, self.layer, self.clock_now = shell, layer, clock
         self.lock = threading.Lock()
         self.humans = None                 # HumanCapsules, or None
         self.human_stamp = -np.inf         # monotonic time of the human sample
@@ -80,6 +82,7 @@ class Scaler:
         self.stale_after = layer.params.human_timeout     # s: the data's age bound at the source's rate
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
+        self.joint_arrived = -np.inf       # when the newest joint state reached this process (monotonic s)
         self.robot_following = False       # the driver runs and follows commands (JointState.enabled)
         self.joint_state_arrived = threading.Event()       # wakes the tick: one a SYNC
         self.woken_by: tuple[float, float] | None = None   # the first state due since the last tick: (came, stamp)
@@ -140,6 +143,7 @@ class Scaler:
         (``SyncClock``)."""
         with self.lock:
             self.joint_q = np.asarray(msg.q)
+            self.joint_arrived = self.clock_now()
             self.robot_following = msg.enabled
             self.state_lag = msg.drive_lag or 0.0
             due = self.clock.arrived(msg.sync)
@@ -204,6 +208,7 @@ class Scaler:
             if self.pending is not None:
                 self._take_pending()
             humans, age, q_meas = self.humans, now - self.human_stamp, self.joint_q
+            robot_age = now - self.joint_arrived
             stamp, published, following = self.human_stamp, self.human_published, self.robot_following
         if q_meas is not None and (self.layer.trajectory is None or not following):
             if not following and self.layer.trajectory is not None and self.layer.trajectory.version != -1:
@@ -215,7 +220,7 @@ class Scaler:
         if self.layer.trajectory is None:
             return
         step = self.layer.step(ScalingInputs(humans=humans, human_age=age if humans is not None else np.inf,
-                                             stale_after=self.stale_after))
+                                             stale_after=self.stale_after, robot_age=robot_age))
         if step.dropped is not None:
             self.shell.log.warning("trajectory dropped: %s", step.dropped)
             with self.lock:         # the planner numbers its next plan from the followed one: it may come with

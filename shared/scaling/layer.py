@@ -85,6 +85,7 @@ class StepStatus(str, enum.Enum):
     NO_TRAJECTORY = "no_trajectory"
     NO_HUMAN_DATA = "no_human_data"
     STALE_HUMAN_DATA = "stale_human_data"
+    STALE_JOINT_STATE = "stale_joint_state"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -93,12 +94,15 @@ class ScalingInputs:
     arrived); human_age: how old they are (s; inf or NaN count as stale); q_measured: where the robot really is
     (rad; the SSM rows are written there and its offset from the path is carried to the commanded point; None:
     where the path says); stale_after: the age at which this source's data is stale (s; None: the layer's
-    human_timeout; a slower source's bound is ``shared.tracking.tracker.stale_bound``)."""
+    human_timeout; a slower source's bound is ``shared.tracking.tracker.stale_bound``); robot_age: how long since
+    the last joint state came (s; beyond the layer's robot_timeout, or NaN, the robot is stopped along its path:
+    where it is and whether it follows is no longer known; 0 where the caller is the robot, as the simulation)."""
 
     humans: HumanCapsules | None
     human_age: float = 0.0
     q_measured: np.ndarray | None = None
     stale_after: float | None = None
+    robot_age: float = 0.0
 
 
 @dataclass(slots=True, kw_only=True)
@@ -380,14 +384,16 @@ class ScalingLayer:
         return max(0.0, self.sdot - deceleration * self.params.period)
 
     def input_status(self, humans: HumanCapsules | None, human_age: float, running: bool,
-                     stale_after: float | None = None) -> StepStatus:
+                     stale_after: float | None = None, robot_age: float = 0.0) -> StepStatus:
         """What this cycle may do with its inputs: stop for missing or stale human data (older than
-        stale_after, default human_timeout; the age check also catches NaN), finished at the end of the
-        path, else running."""
+        stale_after, default human_timeout; the age check also catches NaN), or for a robot not heard from
+        within robot_timeout (or NaN), finished at the end of the path, else running."""
         if humans is None:
             return StepStatus.NO_HUMAN_DATA
         if not human_age <= (self.params.human_timeout if stale_after is None else stale_after):
             return StepStatus.STALE_HUMAN_DATA
+        if not robot_age <= self.params.robot_timeout:
+            return StepStatus.STALE_JOINT_STATE
         return StepStatus.RUNNING if running else StepStatus.FINISHED
 
     def step(self, inputs: ScalingInputs) -> ScalingStep:
@@ -408,7 +414,7 @@ class ScalingLayer:
         running = self.s < traj.duration
         alpha, safe_alpha, method = 0.0, 0.0, "none"
         min_sep = min_margin = math.inf
-        status = self.input_status(humans, human_age, running, inputs.stale_after)
+        status = self.input_status(humans, human_age, running, inputs.stale_after, inputs.robot_age)
         if status is StepStatus.FINISHED:
             alpha, safe_alpha = 1.0, 1.0
         elif status is StepStatus.RUNNING:

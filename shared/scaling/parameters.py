@@ -16,7 +16,12 @@ SOLVERS = ("piqp", "closed_form")
 @dataclass(frozen=True)
 class ScalingParameters:
     """period (s): control period. alpha_min / alpha_release: beta hysteresis thresholds on the safe bound.
-    human_timeout (s): human data older than this stops the robot (5 periods at 100 Hz).
+    human_timeout (s): human data older than this stops the robot (5 periods at 100 Hz). robot_timeout (s): no
+    joint state from the driver for this long stops the robot along its path: the layer no longer knows where the
+    robot is, nor that it follows (a driver whose SYNC cycle had died once left the scaler running a whole path
+    open loop to "finished" while the robot stood; the fault campaign then waited for an arrival that never
+    came). 20 periods: beyond the longest delivery hold seen under load (85 ms), above the driver's own 50 ms
+    command time-out and the drives' 60 ms SYNC watchdog, which stop the robot first where the driver is gone.
     acceleration_weight: price of one unit of acceleration slack (in units of the limit) against alpha.
     solver: 'piqp' (closed form as fallback) or 'closed_form'. await_plan (s): how long a robot that asked for a
     replan while crawling stands, at rest where it stopped, for the plan from there (``ScalingLayer._await``).
@@ -31,6 +36,7 @@ class ScalingParameters:
     alpha_min: float = 0.2
     alpha_release: float = 0.3
     human_timeout: float = 0.05
+    robot_timeout: float = 0.2
     acceleration_weight: float = 100.0
     solver: str = "piqp"
     await_plan: float = 0.0
@@ -44,6 +50,8 @@ class ScalingParameters:
                               f"{self.alpha_min} and {self.alpha_release}")
         if self.human_timeout <= 0.0:
             raise ConfigError(f"scaling.human_timeout: must be positive, got {self.human_timeout}")
+        if self.robot_timeout <= 0.0:
+            raise ConfigError(f"scaling.robot_timeout: must be positive, got {self.robot_timeout}")
         if self.acceleration_weight <= 0.0:
             raise ConfigError(f"scaling.acceleration_weight: must be positive, got {self.acceleration_weight}")
         if self.await_plan < 0.0:

@@ -60,6 +60,24 @@ def test_stale_human_data_stops_the_robot(age):
     assert step.status is StepStatus.STALE_HUMAN_DATA and step.alpha == 0.0 and step.sdot == 0.0
 
 
+@pytest.mark.parametrize("age", [0.201, 1.0, math.inf, math.nan])
+def test_a_robot_not_heard_from_is_stopped_along_its_path_and_goes_on_once_it_is(age):
+    """No joint state within robot_timeout (or an age that is not a number): the layer no longer knows where
+    the robot is, so it brakes along the path as for stale human data, and runs again once a state comes."""
+    lay = layer(robot_timeout=0.2)
+    for _ in range(50):
+        lay.step(ScalingInputs(humans=NOBODY, robot_age=0.01))
+    speeds = [lay.sdot]
+    assert lay.step(ScalingInputs(humans=NOBODY, robot_age=0.2)).status is StepStatus.RUNNING
+    for _ in range(60):
+        step = lay.step(ScalingInputs(humans=NOBODY, robot_age=age))
+        assert step.status is StepStatus.STALE_JOINT_STATE and not step.beta
+        assert np.allclose(step.q_command, lay.trajectory.sample(step.s)[0])          # on the path
+        speeds.append(step.sdot)
+    assert speeds[1] > 0.0 and np.all(np.diff(speeds) <= 0.0) and speeds[-1] == 0.0   # braked, not jumped
+    assert lay.step(ScalingInputs(humans=NOBODY, robot_age=0.0)).status is StepStatus.RUNNING
+
+
 def test_path_parameter_advances_by_alpha_times_the_period_and_the_goal_is_reached():
     lay = layer()
     step = lay.step(ScalingInputs(humans=NOBODY))

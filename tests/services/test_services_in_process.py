@@ -54,10 +54,30 @@ def joint_state(q, enabled: bool = True) -> JointState:
 
 
 # ---------------------------------------------------------------------------------------------- scaler
+class TickClock:
+    """The clock a test's scaler takes joint states' arrival from: the time of the test's next tick."""
+
+    def __init__(self) -> None:
+        self.now = time.monotonic()
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def robot_follows(shell: FakeShell, scaler: Scaler, at: float) -> None:
+    """The driver's part before the tick at `at` (s): a joint state where the last command put the robot (q_s
+    before the first), as the driver publishes one a SYNC. Without it the scaler stops the robot after
+    robot_timeout."""
+    commands = shell.published(shell.keys.command, JointCommand)
+    scaler.clock_now.now = at
+    shell.deliver(shell.keys.joint_state, joint_state(commands[-1].q if commands else Q_START))
+
+
 def scaler_at_start(scaling: ScalingParameters = CONFIG.scaling) -> tuple[FakeShell, Scaler, object]:
-    """A scaler on a fake shell, told that the robot stands at q_s and follows commands."""
+    """A scaler on a fake shell, told that the robot stands at q_s and follows commands (the state's arrival
+    on a TickClock: ``robot_follows``)."""
     shell = FakeShell("scaler")
-    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, scaling))
+    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, scaling), clock=TickClock())
     shell.deliver(shell.keys.joint_state, joint_state(Q_START))
     return shell, scaler, shell.keys
 
@@ -68,6 +88,7 @@ def test_the_scaler_follows_a_fresh_trajectory_and_publishes_a_command_and_a_sta
     shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
     now = time.monotonic()
     for k in range(30):
+        robot_follows(shell, scaler, now + k * 0.01)
         shell.deliver(keys.human_state, humans_to_msg(FAR, True, now + k * 0.01))
         scaler.tick(now + k * 0.01)
     commands = shell.published(keys.command, JointCommand)
@@ -224,6 +245,36 @@ def test_the_scaler_stops_the_robot_on_stale_human_data():
     assert last.alpha == 0.0 and last.status == "stale_human_data"
 
 
+def test_the_scaler_stops_the_robot_along_its_path_when_the_driver_falls_silent():
+    """No joint state for scaling.robot_timeout (by when they reach the scaler): the path is braked to rest,
+    not run open loop to 'finished' (a driver whose SYNC cycle had died once left the robot standing mid-path
+    while the scaler reported the goal reached); the next state from a following robot sets it going again."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    for k in range(60):                               # under way, a state each SYNC
+        robot_follows(shell, scaler, now)
+        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+        scaler.tick(now)
+        now += 0.01
+    silent_from = scaler.joint_arrived
+    for k in range(100):                              # then nothing from the driver for a second
+        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+        scaler.tick(now)
+        now += 0.01
+    silent = [st for st in shell.published(keys.scaler_status, ScalerStatus)[60:]]
+    stale = [st.stamp - silent_from > CONFIG.scaling.robot_timeout for st in silent]
+    assert [st.status == "stale_joint_state" for st in silent] == stale and any(stale) and not all(stale)
+    speeds = [st.speed for st in silent if st.status == "stale_joint_state"]
+    assert speeds[0] > 0.5 and np.all(np.diff(speeds) <= 1e-12) and speeds[-1] == 0.0
+    assert silent[-1].s < traj.duration                # stopped on the path, short of its end
+    robot_follows(shell, scaler, now)
+    shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+    scaler.tick(now)
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].status == "running"
+
+
 def test_the_scaler_refuses_a_merge_into_a_trajectory_it_does_not_follow_and_drops_garbage():
     shell, scaler, keys = scaler_at_start()
     traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=5)
@@ -357,6 +408,7 @@ def test_the_scaler_says_where_it_awaits_the_replan_it_asked_for_and_takes_the_p
     scaler.layer.s, scaler.layer.sdot = 1.0, 0.17                # crawling towards the person
     for _ in range(20):
         now += 0.01
+        robot_follows(shell, scaler, now)
         shell.deliver(keys.human_state, humans_to_msg(person, True, now))
         scaler.tick(now)
     statuses = shell.published(keys.scaler_status, ScalerStatus)
