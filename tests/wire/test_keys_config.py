@@ -41,6 +41,7 @@ def test_the_shipped_config_is_the_built_in_default():
     ("scaling: {alpha_min: 0.5, alpha_release: 0.4}", "alpha_min"),
     ("scaling: {solver: magic}", "scaling.solver"),
     ("scaling: {await_plan: -0.1}", "scaling.await_plan"),
+    ("scaling: {robot_timeout: 0}", "scaling.robot_timeout"),
     ("cell: {prefix: 'a/*'}", "prefix"),
     ("planning: {patience: -1}", "planning.patience"),
     ("planning: {posture_gap: .inf}", "planning.posture_gap"),
