@@ -46,11 +46,11 @@ from shared.config import load_config
 from shared.core.errors import HrcError
 from shared.drives.bus import BusError, describe, open_bus
 from shared.drives.cia402 import State
-from shared.drives.driver_core import COMMAND_TIMEOUT, DriverCore, Mode, warm_up
+from shared.drives.driver_core import COMMAND_TIMEOUT, DriverCore, Event, Mode, warm_up
 from shared.drives.master import CanMaster
 from shared.drives.prbt import PERIOD
 from shared.robot.model import default_robot
-from shared.safety.latency import DriveLagMeter, LatencyMeter
+from shared.safety.latency import DriveLagMeter, LatencyCheck, LatencyMeter
 from shared.scaling.sync_clock import GAP_PERIODS
 from shared.wire.messages import DriveLagReport, DriverRequest, JointCommand, JointState, LatencyReport, SafetyEvent, encode
 
@@ -98,7 +98,8 @@ class Driver:
         with self.core_lock:
             self.core.request(msg.action)
 
-    def _publish_event(self, event) -> None:
+    def _publish_event(self, event: Event | LatencyCheck) -> None:
+        """A stop or warning of the core, or a verdict of the lag meters: both say event, severity, text, value."""
         self._publish(self.event_pub, SafetyEvent(source="robot_driver", event=event.event, severity=event.severity,
                                                   text=event.text, value=event.value))
         (log.warning if event.severity != "info" else log.info)("%s: %s", event.event, event.text)
