@@ -22,8 +22,9 @@ behind the commands at its velocity limit, and the catch-up overshot a stop towa
   ssm.drive_lag (``SsmParameters.covering_lag``);
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
   (the core's rule; the bound at a slow source's rate is shared.tracking.tracker.stale_bound); an invalid
-  or malformed message counts as no message; so does no joint state for scaling.robot_timeout (its age by
-  when it reached this process): the path is not run open loop towards a robot that is not heard from;
+  or malformed message counts as no message. No joint state for scaling.robot_timeout (counted from when the
+  last one reached this process) stops it too, along its path (the core's rule, status stale_joint_state): the
+  path is not run open loop for a robot that is not heard from;
 * a tick more than ``GAP_PERIODS`` control periods after the last one (a SYNC passed without a command) is
   logged with how long the first joint state since the last tick had waited in this process and how long the
   last tick took (the report's ``scaler_silences``, ``tools.silences``, has only the stamps);
