@@ -73,9 +73,10 @@ def merge_human_states(msgs: list[HumanState]) -> HumanCapsules | None:
 
 
 class Scaler:
-    def __init__(self, shell: ServiceShell, layer: ScalingLayer, clock=time.monotonic) -> None:
-        """clock: what says when a joint state came (s, the clock ticks are given on; a test's own)."""
-        self.shell, self.layer, self.clock_now = shell, layer, clock
+    def __init__(self, shell: ServiceShell, layer: ScalingLayer, arrival_clock=time.monotonic) -> None:
+        """arrival_clock: what says when a joint state came (s, on the clock ticks are given on; a test's own).
+        Not ``self.clock``: that is the SYNC clock the path steps on."""
+        self.shell, self.layer, self.arrival_clock = shell, layer, arrival_clock
         self.lock = threading.Lock()
         self.humans = None                 # HumanCapsules, or None
         self.human_stamp = -np.inf         # monotonic time of the human sample
@@ -144,7 +145,7 @@ class Scaler:
         (``SyncClock``)."""
         with self.lock:
             self.joint_q = np.asarray(msg.q)
-            self.joint_arrived = self.clock_now()
+            self.joint_arrived = self.arrival_clock()
             self.robot_following = msg.enabled
             self.state_lag = msg.drive_lag or 0.0
             due = self.clock.arrived(msg.sync)

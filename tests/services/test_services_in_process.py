@@ -69,7 +69,7 @@ def robot_follows(shell: FakeShell, scaler: Scaler, at: float) -> None:
     before the first), as the driver publishes one a SYNC. Without it the scaler stops the robot after
     robot_timeout."""
     commands = shell.published(shell.keys.command, JointCommand)
-    scaler.clock_now.now = at
+    scaler.arrival_clock.now = at
     shell.deliver(shell.keys.joint_state, joint_state(commands[-1].q if commands else Q_START))
 
 
@@ -77,7 +77,7 @@ def scaler_at_start(scaling: ScalingParameters = CONFIG.scaling) -> tuple[FakeSh
     """A scaler on a fake shell, told that the robot stands at q_s and follows commands (the state's arrival
     on a TickClock: ``robot_follows``)."""
     shell = FakeShell("scaler")
-    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, scaling), clock=TickClock())
+    scaler = Scaler(shell, ScalingLayer(ROBOT, CONFIG.ssm, scaling), arrival_clock=TickClock())
     shell.deliver(shell.keys.joint_state, joint_state(Q_START))
     return shell, scaler, shell.keys
 
