@@ -35,9 +35,10 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORDINGS = ROOT.parent / "shared" / "data" / "human-assembly"
-PLACEMENTS = {"table_edge": -0.05, "step_back": -0.75}     # m: --translate X of hrc human from-keypoints
-HEIGHT = 1.1                                                 # m: --translate Z (shoulders 1.35 m high)
+sys.path.insert(0, str(ROOT))
+
+from evidence.recorded import HEIGHT, PLACEMENTS, RECORDINGS  # noqa: E402  (the placements, one definition)
+
 HRC = [sys.executable, "-m", "tools.cli"]
 
 

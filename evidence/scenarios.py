@@ -228,8 +228,28 @@ SCENARIO_KINDS = {"paper": perturbed_paper, "crossing": crossing,
                   "standing": standing_in_path, "two_humans": two_humans, "random_walk": random_walk}
 
 
+# real people (evidence.recorded): windows of the human-assembly recordings at a placement; not among the defaults
+# of the benchmarks, which run the scripted kinds unless asked
+RECORDED_KINDS = {"real_step_back": "step_back", "real_table_edge": "table_edge"}      # kind: its placement
+KNOWN_KINDS = tuple(sorted(SCENARIO_KINDS)) + tuple(sorted(RECORDED_KINDS))
+
+
+def check_recordings(kinds) -> None:
+    """Raise ConfigError (saying where it looked) where a real-people kind is among `kinds` and there are no
+    recordings to read: a benchmark says so before it starts, not in every worker."""
+    if any(k in RECORDED_KINDS for k in kinds):
+        from evidence.recorded import recordings, recordings_folder
+
+        recordings(recordings_folder())
+
+
 def make_scenario(kind: str, seed: int, duration: float):
-    """The scripted human(s) of one seeded scenario: the same (kind, seed, duration) gives the same motion."""
+    """The human(s) of one seeded scenario: the same (kind, seed, duration) gives the same motion (a recorded
+    kind: with the same recordings, evidence.recorded)."""
+    if kind in RECORDED_KINDS:
+        from evidence.recorded import recorded_scenario
+
+        return recorded_scenario(kind, seed, duration)
     if kind not in SCENARIO_KINDS:
-        raise ValueError(f"unknown scenario kind {kind!r}; known: {sorted(SCENARIO_KINDS)}")
+        raise ValueError(f"unknown scenario kind {kind!r}; known: {list(KNOWN_KINDS)}")
     return SCENARIO_KINDS[kind](np.random.default_rng(seed), duration)

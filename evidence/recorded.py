@@ -1,0 +1,94 @@
+"""Real people as scenarios: windows of the human-assembly recordings, placed in the cell.
+
+The recordings (``../shared/data/human-assembly/``: RealSense + OpenPose, the arms of people assembling LEGO at
+a table, 30 Hz) are what a real cell sees most of the time: a person at work beside the robot, moving their arms,
+not walking. Each is read by the product's own reader (``shared.tracking.keypoints``: arm-only skeletons, a
+torso down to an assumed hip height, DIN radii) and placed as ``hrc human from-keypoints FILE OUT --format
+assembly --translate X 0 1.1`` places it (shoulders 1.35 m high, facing the robot across its sweep):
+
+* table_edge, X = -0.05: shoulders at x = -0.90 m, hands about 0.77 m from the base, within 0.3-0.5 m of the
+  links as they sweep past;
+* step_back, X = -0.75: shoulders at x = -1.60 m.
+
+Scenario kinds ``real_table_edge`` and ``real_step_back`` (``evidence.scenarios.make_scenario``): seed k is
+recording k mod n (the folder's ``*.txt`` in name order) from a start drawn from the seed within its length, so
+the seeds cycle through every recording and a run of many seeds covers each at many moments. The people are
+the recording's, frame by frame (its velocities the change since the frame before, as a tracker measures them;
+a frame OpenPose lost a keypoint in is a dropout). The same seed gives the same motion where the recordings are
+the same: the folder is ``HRC_RECORDINGS`` where set, else ``RECORDINGS``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from evidence.scenarios import RECORDED_KINDS
+from shared.core.errors import ConfigError
+from shared.core.humans import HumanCapsules
+from shared.tracking.keypoints import FrameTransform, read_assembly, to_motion
+from shared.tracking.motion import RecordedMotion, parse_json
+
+RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "human-assembly"
+PLACEMENTS = {"table_edge": -0.05, "step_back": -0.75}     # m: --translate X of hrc human from-keypoints
+HEIGHT = 1.1                                                 # m: --translate Z (shoulders 1.35 m high)
+
+
+def recordings_folder() -> Path:
+    """Where the recordings are read from: ``HRC_RECORDINGS`` where set, else ``RECORDINGS``."""
+    return Path(os.environ.get("HRC_RECORDINGS") or RECORDINGS)
+
+
+def recordings(folder: Path) -> list[Path]:
+    """The folder's recordings (``*.txt``) in name order; ConfigError where there are none."""
+    found = sorted(Path(folder).glob("*.txt")) if Path(folder).is_dir() else []
+    if not found:
+        raise ConfigError(f"no recordings (*.txt, the human-assembly format) in {folder}: the real-people scenario "
+                          "kinds read them there; set HRC_RECORDINGS to such a folder")
+    return found
+
+
+@lru_cache(maxsize=64)
+def placed_motion(recording: Path, placement: str) -> RecordedMotion:
+    """One recording at a placement, as ``hrc human from-keypoints --format assembly --translate X 0 1.1``
+    writes it and ``hrc demo --human`` reads it (the same values: the motion document goes through the file
+    format's own parser). Kept per process: a sweep runs every strategy on the same few recordings."""
+    if placement not in PLACEMENTS:
+        raise ConfigError(f"unknown placement {placement!r}; known: {', '.join(PLACEMENTS)}")
+    try:
+        text = Path(recording).read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{recording}: cannot read: {exc}") from None
+    transform = FrameTransform(camera=True, translation=(PLACEMENTS[placement], 0.0, HEIGHT))
+    doc, _ = to_motion(read_assembly(text, str(recording)), transform)
+    return RecordedMotion(parse_json(json.dumps(doc), str(recording)))
+
+
+class RecordingWindow:
+    """A recorded motion from `start` s on, as a scenario's people (``at(t)``, ``phase(t)``: t from the window's
+    start; past the recording's end its last frame holds, as ``RecordedMotion.at`` holds it)."""
+
+    def __init__(self, motion: RecordedMotion, start: float, name: str) -> None:
+        self.motion, self.start, self.name = motion, float(start), name
+
+    def at(self, t: float) -> HumanCapsules | None:
+        return self.motion.at(self.start + t)
+
+    def phase(self, t: float) -> str:
+        return f"{self.name} at {self.start + t:.1f} s: {self.motion.phase(self.start + t)}"
+
+
+def recorded_scenario(kind: str, seed: int, duration: float, folder: Path | None = None) -> RecordingWindow:
+    """The people of one real-people scenario: recording seed mod n at the kind's placement, from a start the
+    seed draws within the recording's length (0 where it is shorter than `duration`)."""
+    if kind not in RECORDED_KINDS:
+        raise ValueError(f"unknown recorded scenario kind {kind!r}; known: {sorted(RECORDED_KINDS)}")
+    files = recordings(recordings_folder() if folder is None else folder)
+    recording = files[seed % len(files)]
+    motion = placed_motion(recording, RECORDED_KINDS[kind])
+    start = float(np.random.default_rng(seed).uniform(0.0, max(0.0, motion.duration - duration)))
+    return RecordingWindow(motion, round(start, 3), recording.stem)

@@ -1,0 +1,90 @@
+"""Real people as scenario kinds (evidence.recorded): windows of the human-assembly recordings, placed as
+`hrc human from-keypoints` places them, seeded, and run by the same strategies as the scripted kinds."""
+
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evidence.recorded import PLACEMENTS, placed_motion, recorded_scenario
+from evidence.scenarios import KNOWN_KINDS, RECORDED_KINDS, SCENARIO_KINDS, make_scenario
+from shared.core.errors import ConfigError
+from shared.tracking.motion import RecordedMotion
+from tests.util import load_bench, run_hrc
+
+FIXTURE = Path(__file__).resolve().parents[1] / "data" / "human-assembly"
+SUBSET = FIXTURE / "task1_human1_trial1_first300.txt"            # 300 rows: 10 s at 30 Hz
+
+
+@pytest.fixture
+def two_recordings(tmp_path, monkeypatch):
+    """A recordings folder of two files (the shipped subset, and its second half as another), as HRC_RECORDINGS."""
+    shutil.copy(SUBSET, tmp_path / "a_first.txt")
+    (tmp_path / "b_second.txt").write_text("\n".join(SUBSET.read_text().splitlines()[150:]) + "\n")
+    monkeypatch.setenv("HRC_RECORDINGS", str(tmp_path))
+    return tmp_path
+
+
+def test_the_real_kinds_are_known_but_not_among_the_scripted_defaults():
+    assert set(RECORDED_KINDS) == {"real_table_edge", "real_step_back"} and set(RECORDED_KINDS) <= set(KNOWN_KINDS)
+    assert not set(RECORDED_KINDS) & set(SCENARIO_KINDS)
+
+
+def test_a_seed_is_one_recording_from_one_start_and_the_seeds_cycle_through_the_recordings(two_recordings):
+    names = [make_scenario("real_table_edge", seed, 2.0).name for seed in range(4)]
+    assert names == ["a_first", "b_second", "a_first", "b_second"]
+    a, b = make_scenario("real_table_edge", 2, 2.0), make_scenario("real_table_edge", 2, 2.0)
+    assert a.start == b.start and 0.0 <= a.start <= 300 / 30.0 - 2.0
+    for t in np.arange(0.0, 2.0, 0.25):
+        assert np.array_equal(a.at(t).segments, b.at(t).segments)
+    assert {make_scenario("real_table_edge", seed, 2.0).start for seed in (0, 2, 4, 6)} != {a.start}   # starts vary
+    longer = make_scenario("real_table_edge", 0, 60.0)                   # longer than the recording: from its start
+    assert longer.start == 0.0 and longer.at(59.0) is not None          # its last frame holds
+
+
+def test_the_placements_are_the_same_person_moved_along_x(two_recordings):
+    edge, back = make_scenario("real_table_edge", 1, 3.0), make_scenario("real_step_back", 1, 3.0)
+    assert edge.start == back.start
+    shift = edge.at(1.0).segments - back.at(1.0).segments
+    assert np.allclose(shift[..., 0], PLACEMENTS["table_edge"] - PLACEMENTS["step_back"], atol=2e-5)
+    assert np.allclose(shift[..., 1:], 0.0, atol=2e-5)
+    assert edge.phase(1.0).startswith("b_second at ")
+
+
+def test_the_motion_is_what_hrc_human_from_keypoints_writes_and_hrc_demo_reads(tmp_path):
+    out = tmp_path / "person.json"
+    assert run_hrc("human", "from-keypoints", str(SUBSET), str(out), "--format", "assembly", "--translate",
+                   str(PLACEMENTS["table_edge"]), "0", "1.1").returncode == 0
+    written, placed = RecordedMotion.load(out), placed_motion(SUBSET, "table_edge")
+    for t in (0.0, 0.5, 4.2, 9.9):
+        a, b = written.at(t), placed.at(t)
+        assert np.array_equal(a.segments, b.segments) and np.array_equal(a.velocities, b.velocities)
+
+
+def test_without_recordings_the_kinds_say_where_they_looked(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("HRC_RECORDINGS", str(tmp_path / "nowhere"))
+    with pytest.raises(ConfigError, match="no recordings .* HRC_RECORDINGS"):
+        make_scenario("real_step_back", 0, 12.0)
+    with pytest.raises(ConfigError, match="unknown placement"):
+        placed_motion(SUBSET, "on_the_table")
+    with pytest.raises(ValueError, match="unknown recorded scenario kind"):
+        recorded_scenario("real_on_the_table", 0, 1.0)
+    monkeypatch.setattr(sys, "argv", ["compare.py", "--kinds", "real_table_edge", "--scenarios", "2"])
+    with pytest.raises(SystemExit) as exit_:
+        load_bench("compare").main()
+    assert exit_.value.code == 2 and "no recordings" in capsys.readouterr().err
+
+
+def test_at_the_table_edge_a_real_person_blocks_the_straight_shuttle_and_the_fold_passes(two_recordings):
+    """The strategies run a real kind as any other: the person's torso at the table's edge is within reach of
+    the straight sweep (the scaling layer alone all but stands), the folded path keeps its links away."""
+    from evidence.strategies import Strategies
+    from shared.planning.scene import DEFAULT_SCENE, load_scene
+
+    strategies = Strategies(scene=load_scene(DEFAULT_SCENE))
+    straight = strategies.run("scale_only", "real_table_edge", 0, 6.0).summary()
+    folded = strategies.run("fixed_path", "real_table_edge", 0, 6.0).summary()
+    assert straight["violations"] == folded["violations"] == 0
+    assert straight["shuttle_progress"] < 0.4 and folded["shuttle_progress"] > 3 * straight["shuttle_progress"]
