@@ -88,3 +88,15 @@ def test_at_the_table_edge_a_real_person_blocks_the_straight_shuttle_and_the_fol
     folded = strategies.run("fixed_path", "real_table_edge", 0, 6.0).summary()
     assert straight["violations"] == folded["violations"] == 0
     assert straight["shuttle_progress"] < 0.4 and folded["shuttle_progress"] > 3 * straight["shuttle_progress"]
+
+
+def test_hrc_sweep_runs_a_real_kind_and_says_when_there_are_no_recordings(tmp_path, monkeypatch):
+    monkeypatch.setenv("HRC_RECORDINGS", str(tmp_path / "nowhere"))
+    args = ("sweep", "--set", "ssm.reaction_time=0.1", "--strategies", "scale_only", "--kinds", "real_step_back",
+            "--scenarios", "1", "--duration", "0.5", "--workers", "1")
+    done = run_hrc(*args, "--out", str(tmp_path / "refused"))
+    assert done.returncode == 2 and "no recordings" in done.stderr and "HRC_RECORDINGS" in done.stderr
+    monkeypatch.setenv("HRC_RECORDINGS", str(FIXTURE))
+    done = run_hrc(*args, "--out", str(tmp_path / "ran"))
+    assert done.returncode == 0 and "viol 0" in done.stdout, done.stderr[-2000:]
+    assert (tmp_path / "ran" / "sweep.csv").read_text().count("\n") == 2            # a header and the point
