@@ -60,17 +60,20 @@ class Candidates:
             return polyline_trajectory(waypoints, self.limits.velocity, self.limits.acceleration, version=version)
 
     def branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
-                humans: HumanCapsules | None, version: int, waited: float) -> tuple[Trajectory, float]:
+                humans: HumanCapsules | None, version: int, waited: float,
+                route: np.ndarray | None = None) -> tuple[Trajectory, float]:
         """Merge at a junction s_j before s_branch: from s_j the old geometry to the branch point, then the
-        searched path to the goal. First continuously through the branch point (junctions further back give
-        more room to slow down before turning); else stop-and-go: decelerate along the old path to rest at
-        the branch point, then the new path from rest. Each further try needs time left in the planning
-        action (each one times a whole law, up to three smoothings: a merge that failed at two junctions took
-        685 ms in a demo); out of it, ReplanFailed says what was tried. Returns (merged, s_j)."""
+        searched path to the goal (route: waypoints already searched, from near the branch point, taken from
+        the branch point instead of a search of its own). First continuously through the branch point (junctions
+        further back give more room to slow down before turning); else stop-and-go: decelerate along the old
+        path to rest at the branch point, then the new path from rest. Each further try needs time left in the
+        planning action (each one times a whole law, up to three smoothings: a merge that failed at two
+        junctions took 685 ms in a demo); out of it, ReplanFailed says what was tried. Returns (merged, s_j)."""
         s_first = min(s_now + self.options.lead, s_branch)     # never before the planning lead
         junctions = sorted({max(s_first, s_branch - lb) for lb in self.options.lookback}, reverse=True)
         q_branch = old.sample(float(s_branch))[0]
-        tail = self.path(q_branch, q_goal, humans, waited, from_rest=False)
+        tail = self.path(q_branch, q_goal, humans, waited, from_rest=False) if route is None else \
+            np.vstack([q_branch, route[1:]])
         # the lead-in is the old, already accepted path: the smoothed whole is verified at what it has
         check = min(0.0, self.collision.capped_inflation(0.0, old.sample(np.linspace(s_first, s_branch, 8))[0], humans))
         errors = []
@@ -105,8 +108,10 @@ class Candidates:
         return merge(merge(old, s_j, stop, version), s_j + stop.duration, go, version), s_j
 
     def merge(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-               reason: str, s_branch: float | None = None, waited: float = 0.0) -> ReplanResult:
-        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path."""
+               reason: str, s_branch: float | None = None, waited: float = 0.0,
+               route: Callable[[], np.ndarray] | None = None) -> ReplanResult:
+        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path, or on the
+        waypoints route() gives (searched elsewhere: ``branch``)."""
         started = time.perf_counter()
         s_branch = min(old.duration, s_now + self.options.lead) if s_branch is None else s_branch
         try:
@@ -114,7 +119,8 @@ class Candidates:
                 fresh = self.from_rest(self.path(old.positions[-1], q_goal, humans, waited), humans, 0)
                 merged, s_j = merge(old, old.duration, fresh, old.version + 1), old.duration
             else:
-                merged, s_j = self.branch(old, s_now, s_branch, q_goal, humans, old.version + 1, waited)
+                merged, s_j = self.branch(old, s_now, s_branch, q_goal, humans, old.version + 1, waited,
+                                          None if route is None else route())
         except (PlanningError, TimingError) as exc:
             raise ReplanFailed(f"{type(exc).__name__}: {exc}") from None
         return ReplanResult(merged, s_j, reason, time.perf_counter() - started,

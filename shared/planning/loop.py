@@ -178,9 +178,8 @@ class PlanningLoop:
         if self._search_due(inputs):
             self.search_due = None
             try:
-                return PlanningOutcome("search", self.replanner.on_beta(
-                    trajectory, s, inputs.goal, inputs.humans, inputs.speed, inputs.waited, inputs.held, reason="search",
-                    why="the new goal's search, on the way"))
+                return PlanningOutcome("search", self.replanner.on_search(
+                    trajectory, s, inputs.goal, inputs.humans, inputs.speed, inputs.waited, inputs.held))
             except ReplanFailed as exc:
                 return PlanningOutcome("search", refused=str(exc))
         if inputs.human_sample != self.last_sample and now >= self.next_horizon:

@@ -40,7 +40,7 @@ from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.budget import ActionBudget
 from shared.planning.candidates import Candidates
 from shared.planning.collision import CollisionModel
-from shared.planning.decision import ReplanResult, keep_or_replace, required_gain
+from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
 from shared.planning.executed import ExecutedTime
 from shared.planning.forecast import Forecaster
 from shared.planning.horizon import HorizonOptions, horizon_check, out_of_reach, people_passing, reach_gap
@@ -276,22 +276,23 @@ class Replanner:
         return replace(plan, version=version)
 
     def replan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
-               reason: str, s_branch: float | None = None, waited: float = 0.0) -> ReplanResult:
-        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path
-        (``Candidates.merge``)."""
-        return self.candidates.merge(old, s_now, q_goal, humans, reason, s_branch, waited)
+               reason: str, s_branch: float | None = None, waited: float = 0.0,
+               route: Callable[[], np.ndarray] | None = None) -> ReplanResult:
+        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path, or on the
+        waypoints route() gives (``Candidates.merge``)."""
+        return self.candidates.merge(old, s_now, q_goal, humans, reason, s_branch, waited, route)
 
     def _decide(self, started: float, old: Trajectory, s_now: float, q_goal: np.ndarray,
                 humans: HumanCapsules | None, speed_now: float | None, waited: float, held: bool, reason: str,
                 branch_at: Callable[[], float], gain: Callable[[float], float], why: str,
-                stop_at: float | None = None) -> ReplanResult:
+                stop_at: float | None = None, route: Callable[[], np.ndarray] | None = None) -> ReplanResult:
         """The one pattern of every trigger: the candidate the robot's state calls for (``Candidates.start``: from
         rest where it stands, waits or is stopped), else a merge branching at branch_at(); kept only when predicted
         faster than the old trajectory from the same state by gain(baseline) seconds (``keep_or_replace``; else
         ReplanFailed saying why, with both times). started: when the trigger began (its compute time)."""
         result, baseline = self.candidates.start(old, s_now, speed_now, q_goal, humans, reason, waited, held, stop_at)
         if result is None:
-            result = self.replan(old, s_now, q_goal, humans, reason, branch_at(), waited)
+            result = self.replan(old, s_now, q_goal, humans, reason, branch_at(), waited, route)
         return keep_or_replace(result, baseline, gain(baseline), started, why)
 
     def on_horizon(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
@@ -363,14 +364,44 @@ class Replanner:
         scaler brings the robot to rest to await this plan (``ScalingStep.awaiting``): the plan starts from
         rest there, and the old trajectory is predicted from rest there too."""
         started = time.perf_counter()
-
-        def branch_at() -> float:
-            stopping = float(np.max(np.abs(old.sample(float(s_now))[1]) / (self.limits.acceleration * 0.9)))
-            return min(old.duration, s_now + self.options.lead + stopping)
-
-        return self._decide(started, old, s_now, q_goal, humans, speed_now, waited, held, reason, branch_at,
+        return self._decide(started, old, s_now, q_goal, humans, speed_now, waited, held, reason,
+                            lambda: self._branch_ahead(old, s_now),
                             lambda baseline: required_gain(baseline, self.options.min_gain, self.options.min_saving),
                             why, stop_at)
+
+    def on_search(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
+                  speed_now: float | None = None, waited: float = 0.0, held: bool = False) -> ReplanResult:
+        """A new goal's search, run once the robot has left on the goal's direct leg (old, followed from its
+        start; ``PlanningLoop``, action 'search'): decided as waiting at the goal would have decided it, then
+        made from where the robot is. The search from rest where the leg began, taken where predicted faster
+        than the leg from there by what a replan must save (``required_gain``, as ``plan_goal`` takes a searched
+        leg); then merged into the leg a moment ahead of the robot (a few centimetres from that start: the merge
+        along its waypoints, at rest or crawling a plan from rest where the robot is) and kept where that is
+        still predicted faster than the leg from here. Else ReplanFailed saying why. Why not a search of the
+        merge's own, judged as a replan: the turn onto a way round costs the robot that has left some of the
+        saving, and a person standing beside the path was then passed on the fold (5.54 s) where the goal's search
+        went round (4.30 s; docs/measurements.md, session 63)."""
+        started = time.perf_counter()
+        try:
+            waypoints = self.path(old.positions[0], q_goal, humans, waited)
+            searched = self.candidates.from_rest(waypoints, humans, old.version + 1)
+        except (PlanningError, TimingError) as exc:
+            raise ReplanFailed(f"the new goal's search, on the way: {type(exc).__name__}: {exc}") from None
+        leg_time, searched_time = (self.predicted_time(t, 0.0, humans, waited) for t in (old, searched))
+        need = required_gain(leg_time, self.options.min_gain, self.options.min_saving)
+        if searched_time >= (1.0 - need) * leg_time:
+            raise ReplanFailed(f"the new goal's search, on the way, kept the old trajectory: from the leg's start the "
+                               f"searched one predicted {searched_time:.2f} s, not {need:.0%} faster than the leg's "
+                               f"{leg_time:.2f} s")
+        return self._decide(started, old, s_now, q_goal, humans, speed_now, waited, held, "search",
+                            lambda: self._branch_ahead(old, s_now), lambda baseline: 0.0,
+                            "the new goal's search, on the way", route=lambda: waypoints)
+
+    def _branch_ahead(self, old: Trajectory, s_now: float) -> float:
+        """Where a merge into a moving robot's trajectory branches: one nominal stopping time past the planning
+        lead, so that the old path gives room to come to rest before the new one leaves it."""
+        stopping = float(np.max(np.abs(old.sample(float(s_now))[1]) / (self.limits.acceleration * 0.9)))
+        return min(old.duration, s_now + self.options.lead + stopping)
 
 
 def _people_stayed(then: HumanCapsules | None, now: HumanCapsules | None) -> bool:

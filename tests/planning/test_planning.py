@@ -416,6 +416,26 @@ def test_a_new_goal_takes_the_direct_line_unless_the_searched_path_is_predicted_
     assert waits.goal_searched and not leaves.goal_searched
 
 
+def test_a_goal_left_at_once_takes_on_the_way_the_leg_its_search_from_rest_would_have_given():
+    """The search the goal would have waited for, run once the robot has left (on_search): searched from rest where
+    the leg began, taken by the goal's own rule (predicted faster than the leg from there by required_gain), then
+    merged a moment ahead of the robot and kept while still predicted faster than the leg from where it is."""
+    stays = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=5.0, posture_gap=None))
+    leg = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=8)
+    searched_from = []
+    search = stays.path
+    stays.path = lambda q_from, *args, **kw: (searched_from.append(np.array(q_from)), search(q_from, *args, **kw))[1]
+    result = stays.on_search(leg, 0.02, Q_GOAL, STANDING)
+    assert len(searched_from) == 1 and np.allclose(searched_from[0], Q_START)      # one search, from the leg's start
+    assert result.reason == "search" and not result.from_rest and 0.02 < result.junction < 0.5
+    assert result.trajectory.version == 9 and result.predicted < stays.predicted_time(leg, 0.02, STANDING)
+    assert not np.allclose(result.trajectory.sample(1.5)[0], leg.sample(1.5)[0], atol=0.05)        # gone round
+    assert_trajectory_feasible(result.trajectory, STANDING, result.junction)
+    # an arm across every way: the search from the leg's start finds nothing the goal would have taken; the leg stays
+    with pytest.raises(ReplanFailed, match="from the leg's start the searched one predicted"):
+        stays.on_search(leg, 0.02, Q_GOAL, ARM_ACROSS)
+
+
 def test_a_search_starts_from_the_paths_the_last_ones_found_to_the_same_goal():
     """The search's budget is small; the winners of the last searches to this goal are seeds of the next,
     so a replan keeps what was found while the situation stays. A search with no random candidates of its

@@ -98,6 +98,11 @@ class RecordingReplanner:
             raise ReplanFailed("not 10 % faster")
         return self._result(reason)
 
+    def on_search(self, old, s, goal, humans, speed, waited, held):
+        self.calls.append("search")
+        self.waited, self.held = waited, held
+        return self._result("search")
+
     def on_horizon(self, old, s, goal, humans, speed, waited, held):
         self.calls.append("horizon")
         self.held = held
@@ -149,7 +154,7 @@ def test_a_goal_from_rest_leaves_at_once_and_its_search_runs_on_the_way():
     assert loop.step(0.01, inputs(following=(OLD, 0.05), speed=1.0)) is None         # another trajectory: nothing
     search = loop.step(0.02, inputs(following=(leg, 0.01), speed=0.05))
     assert search.action == "search" and search.result.reason == "search" and search.searches == 1
-    assert loop.replanner.calls[-1] == "beta as search" and loop.search_due is None
+    assert loop.replanner.calls[-1] == "search" and loop.search_due is None
     assert loop.step(0.03, inputs(following=(leg, 0.02), speed=0.1)) is None         # once
     # held where it stands by the SSM: the search plans from rest there
     held = PlanningLoop(RecordingReplanner(defers=True), slow_period=None)
