@@ -5,18 +5,17 @@ where the robot is, the people, the trajectory the scaler follows and where on i
 how long it has been held) and takes at most one action, in this order:
 
 1. a new goal: from rest, ``Replanner.plan_goal`` as the robot leaves: the direct line (or the folded leg), or the
-   plan prepared for it, published at once; a search first only where the direct line is predicted slower than
-   nominal by more than ``worth_waiting`` (0.5 s); while a trajectory is being followed, a merge into it (Alg. 2,
-   reason 'goal');
+   plan prepared for it, published at once (a search first only where the direct line is predicted slower than
+   nominal by more than ``worth_waiting``; shipped: never); while a trajectory is being followed, a merge into it
+   (Alg. 2, reason 'goal');
 2. a replan request (beta raised), at most every ``beta_cooldown`` (a robot brought to rest to await its plan,
    ``stop_at``, is answered at once, once for each wait): ``Replanner.on_beta``, unless the goal
    itself is out of reach while the people stay (``shared.planning.blocked``): every path then ends in the
    same wait, and the refusal says so without a search;
 3. once the robot has left on a goal's direct leg (moving, or held by the SSM), the search that goal from
-   rest would have waited for (action and reason 'search'): a merge ahead of the robot, kept only where it
-   beats the leg followed as a replan must (``required_gain``). The robot does not stand at a goal for a
-   search that seldom pays (80 ms a search in the cell: with two people walking, waiting for every one cost
-   0.5 % of the shuttles);
+   rest would have waited for (action and reason 'search', ``Replanner.on_search``): searched from rest where
+   the leg began and taken by the goal's own rule, then merged a moment ahead of the robot. The robot does not
+   stand at a goal for a search that seldom pays (80 ms a search in the cell, 100-190 ms at a table's edge);
 4. a new human sample, at most every ``horizon_period``: the horizon check (Alg. 1) and a merge when the
    path ahead is blocked and the way round is predicted faster; after a refused one, the horizon is left
    alone for half a beta cooldown (a blocked horizon is not hammered every sample);

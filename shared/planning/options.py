@@ -30,11 +30,10 @@ class ReplanOptions:
     (0 is pure ski rental: never worse than twice the better choice, however long the person stays; a
     cell where people are known to stay at a station may set more); rrt_budget (s): RRT-Connect's time
     when it has to seed the search; worth_searching (s): a new goal's direct line is taken without a
-    search unless the people are predicted to slow it by more than this; worth_waiting (s): where the
-    planning loop leaves at once (``Replanner.plan_goal``, leaving), the robot still waits at the goal for
-    its search where the direct line is predicted slower than nominal by more than this (a plan from rest may
-    leave in any direction; one searched on the way has to leave the direct line's first stretch at its
-    speed), and leaves at once below it, the search then run on the way; slow_excess (s): the planning layer
+    search unless the people are predicted to slow it by more than this; worth_waiting (s, None: never): where
+    the planning loop leaves at once (``Replanner.plan_goal``, leaving), the robot still waits at the goal for
+    its search where the direct line is predicted slower than nominal by more than this, and leaves at once
+    below it, the search then run on the way (``Replanner.on_search``); slow_excess (s): the planning layer
     asks itself for a replan (``on_slow``) where the rest of the path followed at speed is predicted to lose more than this
     to the SSM; action_budget (s): wall clock for a whole planning
     action, searches and the rest (None: none; the simulation bounds by counts), see ``shared.planning.budget``; seed: the
@@ -60,7 +59,7 @@ class ReplanOptions:
     patience: float = PlanningParameters.patience
     rrt_budget: float = 0.2
     worth_searching: float = 0.25
-    worth_waiting: float = PlanningParameters.worth_waiting
+    worth_waiting: float | None = PlanningParameters.worth_waiting
     trust_tolerance: float = PlanningParameters.trust_tolerance
     trust_span: float = PlanningParameters.trust_span
     slow_excess: float = PlanningParameters.slow_excess

@@ -22,10 +22,13 @@ forward run of the scaling layer itself, ``shared.planning.executed``). forecast
 planning layer's forecast moves the tracked people on along their velocities, then holds them (the time cost's
 ``extrapolation``; 0: held where they are now). 2 s shipped: swept from 1 to 6 s, with the patience, it trades
 the two-person scenarios against the random walk by about 1 % either way (docs/measurements.md, 2026-12-03).
-worth_waiting (s): a new goal's robot waits at the goal for its search only where the people slow the direct
-line by more than this; below it, it leaves at once and the search runs on the way (``shared.planning.loop``).
-0.5 s shipped: on 20 seeds a kind, against the fixed fold, 0.25 s (waiting for every search) lost 0.5 % with
-two people walking, never waiting lost the paper's phase 4 at 3 s phases (docs/architecture.md, Goals).
+worth_waiting (s, or null): a new goal's robot waits at the goal for its search only where the people slow the
+direct line by more than this; below it, it leaves at once and the search runs on the way (``shared.planning.loop``,
+``Replanner.on_search``). null shipped, never waits: since the search on the way is decided as the goal's own
+(searched from rest where the leg began), waiting for it gained nothing anywhere; leaving at once gained 0.1-0.8 %
+in five kinds of seven on two sets of 48 seeds a kind and changed the standing person's kind by -0.8 % and
++0.4 % (docs/measurements.md, session 63). Before that, 0.5 s: never waiting had lost the paper's phase 4 at 3 s
+phases.
 trust_tolerance (m), trust_span (s): where the planning layer's forecast has held over the last trust_span
 (every snapshot of the people moved on by the forecast lands within trust_tolerance of where they are:
 ``shared.planning.trust``), a new goal's leg is the straight line instead of the fold where the cost predicts it
@@ -53,15 +56,20 @@ class PlanningParameters:
     still_gap: float = 1.0
     judge: str = "cost"
     forecast_horizon: float = 2.0
-    worth_waiting: float = 0.5
+    worth_waiting: float | None = None
     trust_tolerance: float = 0.08
     trust_span: float = 1.0
 
     def __post_init__(self) -> None:
-        check_numbers(self, "planning", skip=("posture_gap", "judge"), non_negative=True)
-        gap = self.posture_gap
-        if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float)) or not math.isfinite(gap)):
-            raise ConfigError(f"planning.posture_gap: expected a finite number (m) or null, got {gap!r}")
+        check_numbers(self, "planning", skip=("posture_gap", "judge", "worth_waiting"), non_negative=True)
+        for key in ("posture_gap", "worth_waiting"):
+            value = getattr(self, key)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                      or not math.isfinite(value)):
+                raise ConfigError(f"planning.{key}: expected a finite number or null, got {value!r}")
+        if self.worth_waiting is not None and self.worth_waiting < 0:
+            raise ConfigError(f"planning.worth_waiting: expected a number of seconds >= 0 or null, got "
+                              f"{self.worth_waiting!r}")
         if self.judge not in JUDGES:
             raise ConfigError(f"planning.judge: expected one of {JUDGES}, got {self.judge!r}")
         if not self.trust_span > 0:
@@ -82,6 +90,7 @@ class PlanningParameters:
         return {"patience": float(self.patience), "min_gain": float(self.min_gain),
                 "min_saving": float(self.min_saving), "slow_excess": float(self.slow_excess),
                 "posture_gap": self.folds, "still_gap": float(self.still_gap), "judge": self.judge,
-                "worth_waiting": float(self.worth_waiting), "trust_tolerance": float(self.trust_tolerance),
+                "worth_waiting": None if self.worth_waiting is None else float(self.worth_waiting),
+                "trust_tolerance": float(self.trust_tolerance),
                 "trust_span": float(self.trust_span),
                 "cost": TimeCostOptions(extrapolation=float(self.forecast_horizon))}

@@ -183,9 +183,9 @@ class Replanner:
         forecast has held lately (trusted: ``shared.planning.trust``, the planning loop's) and the cost predicts the
         line faster: a walker's steady course is worth betting on, a wanderer's is not. leaving:
         where a search would decide but the direct line is predicted slower than nominal by no more than
-        ``worth_waiting``, the direct line (or the fold) is returned at once and ``search_deferred`` says so: the
-        robot leaves on it and the search runs on the way (``PlanningLoop``, action 'search'), so nobody waits
-        at the goal for a search that seldom pays."""
+        ``worth_waiting`` (None: whatever it is predicted), the direct line (or the fold) is returned at once and
+        ``search_deferred`` says so: the robot leaves on it and the search runs on the way (``PlanningLoop``,
+        action 'search', ``on_search``), so nobody waits at the goal for a search that seldom pays."""
         q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
         self.took_prepared = self.search_deferred = self.goal_searched = False
         if not self.collision.motion_free(q_start, q_goal)[0]:
@@ -214,7 +214,7 @@ class Replanner:
         ready = self._still_good(prepared, q_start, q_goal, humans, waited, beat, version)
         if ready is not None:
             return ready
-        if leaving and direct_time <= direct.duration + self.options.worth_waiting:
+        if leaving and (self.options.worth_waiting is None or direct_time <= direct.duration + self.options.worth_waiting):
             self.search_deferred = True
             return direct
         try:
@@ -390,9 +390,9 @@ class Replanner:
         leg_time, searched_time = (self.predicted_time(t, 0.0, humans, waited) for t in (old, searched))
         need = required_gain(leg_time, self.options.min_gain, self.options.min_saving)
         if searched_time >= (1.0 - need) * leg_time:
-            raise ReplanFailed(f"the new goal's search, on the way, kept the old trajectory: from the leg's start the "
-                               f"searched one predicted {searched_time:.2f} s, not {need:.0%} faster than the leg's "
-                               f"{leg_time:.2f} s")
+            raise ReplanFailed(f"the new goal's search, on the way, kept the old trajectory: the new one (searched "
+                               f"from the leg's start) predicted {searched_time:.2f} s, not {100 * need:.0f} % faster "
+                               f"than the old {leg_time:.2f} s from there")
         return self._decide(started, old, s_now, q_goal, humans, speed_now, waited, held, "search",
                             lambda: self._branch_ahead(old, s_now), lambda baseline: 0.0,
                             "the new goal's search, on the way", route=lambda: waypoints)

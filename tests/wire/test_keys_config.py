@@ -49,6 +49,8 @@ def test_the_shipped_config_is_the_built_in_default():
     ("planning: {judge: oracle}", "planning.judge"),
     ("planning: {forecast_horizon: -2}", "planning.forecast_horizon"),
     ("planning: {worth_waiting: -0.5}", "planning.worth_waiting"),
+    ("planning: {worth_waiting: .inf}", "planning.worth_waiting"),
+    ("planning: {worth_waiting: soon}", "planning.worth_waiting"),
     ("planning: {search: 3}", "unknown key"),
     ("mystery: {}", "unknown section"),
     ("ssm: [1, 2]", "ssm: expected a mapping"),
@@ -88,7 +90,10 @@ def test_the_planning_section_reaches_the_planners_options(tmp_path):
     assert load_config(path).planning.replan_fields()["posture_gap"] is None
     assert ReplanOptions().patience == CellConfig().planning.patience      # one default, written once
     assert ReplanOptions().cost.extrapolation == CellConfig().planning.forecast_horizon
-    assert ReplanOptions().worth_waiting == CellConfig().planning.worth_waiting == 0.5
+    assert ReplanOptions().worth_waiting is CellConfig().planning.worth_waiting is None      # never waits ...
+    assert load_config(ROOT / "deploy" / "cell.yaml").planning.worth_waiting is None
+    path.write_text("planning: {worth_waiting: 0.5}")                                       # ... unless told
+    assert load_config(path).planning.replan_fields()["worth_waiting"] == 0.5
 
 
 def test_missing_file_is_a_config_error(tmp_path):
