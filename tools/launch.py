@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import random
 import signal
 import socket
 import subprocess
@@ -29,11 +30,38 @@ class LaunchError(RuntimeError):
     """A process of the cell did not come up; the message holds the tail of its log."""
 
 
+EPHEMERAL = Path("/proc/sys/net/ipv4/ip_local_port_range")
+_GIVEN: set[int] = set()             # ports this process has handed out: never twice
+
+
 def free_port() -> int:
-    """A currently free loopback TCP port (the kernel's choice)."""
-    with socket.socket() as s:
+    """A loopback TCP port free now, below the kernel's ephemeral range where it can (from the lower half of the
+    ports under it), never one this process has handed out before. Why not the kernel's own choice (bind to 0): that
+    is an ephemeral port, which the kernel may give a moment later to the local end of an outgoing connection (every
+    service connects to the others), and a service that then listens on it fails with 'Address already in use'
+    (the fault campaign's planner once failed for 12 s so, and the robot stood). Bound here without SO_REUSEADDR, so
+    a port still in TIME_WAIT from an earlier run is passed over too."""
+    try:
+        low = int(EPHEMERAL.read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        low = 32768
+    rng = random.SystemRandom()
+    for _ in range(200 if low // 2 >= 1024 else 0):
+        port = rng.randrange(low // 2, low)
+        if port in _GIVEN:
+            continue
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+        _GIVEN.add(port)
+        return port
+    with socket.socket() as s:          # no room below the range: the kernel's choice
         s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+        port = s.getsockname()[1]
+    _GIVEN.add(port)
+    return port
 
 
 
