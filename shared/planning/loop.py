@@ -15,7 +15,7 @@ how long it has been held) and takes at most one action, in this order:
 3. once the robot has left on a goal's direct leg (moving, or held by the SSM), the search that goal from
    rest would have waited for (action and reason 'search', ``Replanner.on_search``): searched from rest where
    the leg began and taken by the goal's own rule, then merged a moment ahead of the robot. The robot does not
-   stand at a goal for a search that seldom pays (80 ms a search in the cell, 100-190 ms at a table's edge);
+   stand at a goal for a search that seldom pays (80 ms charged in the simulation, 55-190 ms in the cell at a table's edge);
 4. a new human sample, at most every ``horizon_period``: the horizon check (Alg. 1) and a merge when the
    path ahead is blocked and the way round is predicted faster; after a refused one, the horizon is left
    alone for half a beta cooldown (a blocked horizon is not hammered every sample);
