@@ -82,12 +82,12 @@ class RecordingWindow:
         return f"{self.name} at {self.start + t:.1f} s: {self.motion.phase(self.start + t)}"
 
 
-def recorded_scenario(kind: str, seed: int, duration: float, folder: Path | None = None) -> RecordingWindow:
+def recorded_scenario(kind: str, seed: int, duration: float) -> RecordingWindow:
     """The people of one real-people scenario: recording seed mod n at the kind's placement, from a start the
     seed draws within the recording's length (0 where it is shorter than `duration`)."""
     if kind not in RECORDED_KINDS:
         raise ValueError(f"unknown recorded scenario kind {kind!r}; known: {sorted(RECORDED_KINDS)}")
-    files = recordings(recordings_folder() if folder is None else folder)
+    files = recordings(recordings_folder())
     recording = files[seed % len(files)]
     motion = placed_motion(recording, RECORDED_KINDS[kind])
     start = float(np.random.default_rng(seed).uniform(0.0, max(0.0, motion.duration - duration)))

@@ -109,9 +109,9 @@ class Candidates:
 
     def merge(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                reason: str, s_branch: float | None = None, waited: float = 0.0,
-               route: Callable[[], np.ndarray] | None = None) -> ReplanResult:
-        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path, or on the
-        waypoints route() gives (searched elsewhere: ``branch``)."""
+               route: np.ndarray | None = None) -> ReplanResult:
+        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path, or on `route`
+        (waypoints searched elsewhere: ``branch``)."""
         started = time.perf_counter()
         s_branch = min(old.duration, s_now + self.options.lead) if s_branch is None else s_branch
         try:
@@ -119,8 +119,7 @@ class Candidates:
                 fresh = self.from_rest(self.path(old.positions[-1], q_goal, humans, waited), humans, 0)
                 merged, s_j = merge(old, old.duration, fresh, old.version + 1), old.duration
             else:
-                merged, s_j = self.branch(old, s_now, s_branch, q_goal, humans, old.version + 1, waited,
-                                          None if route is None else route())
+                merged, s_j = self.branch(old, s_now, s_branch, q_goal, humans, old.version + 1, waited, route)
         except (PlanningError, TimingError) as exc:
             raise ReplanFailed(f"{type(exc).__name__}: {exc}") from None
         return ReplanResult(merged, s_j, reason, time.perf_counter() - started,

@@ -277,15 +277,15 @@ class Replanner:
 
     def replan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                reason: str, s_branch: float | None = None, waited: float = 0.0,
-               route: Callable[[], np.ndarray] | None = None) -> ReplanResult:
-        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path, or on the
-        waypoints route() gives (``Candidates.merge``)."""
+               route: np.ndarray | None = None) -> ReplanResult:
+        """Alg. 2 from s_branch (default: the current s plus the lead), on the searched path, or on `route`
+        (waypoints searched elsewhere; ``Candidates.merge``)."""
         return self.candidates.merge(old, s_now, q_goal, humans, reason, s_branch, waited, route)
 
     def _decide(self, started: float, old: Trajectory, s_now: float, q_goal: np.ndarray,
                 humans: HumanCapsules | None, speed_now: float | None, waited: float, held: bool, reason: str,
                 branch_at: Callable[[], float], gain: Callable[[float], float], why: str,
-                stop_at: float | None = None, route: Callable[[], np.ndarray] | None = None) -> ReplanResult:
+                stop_at: float | None = None, route: np.ndarray | None = None) -> ReplanResult:
         """The one pattern of every trigger: the candidate the robot's state calls for (``Candidates.start``: from
         rest where it stands, waits or is stopped), else a merge branching at branch_at(); kept only when predicted
         faster than the old trajectory from the same state by gain(baseline) seconds (``keep_or_replace``; else
@@ -395,7 +395,7 @@ class Replanner:
                                f"than the old {leg_time:.2f} s from there")
         return self._decide(started, old, s_now, q_goal, humans, speed_now, waited, held, "search",
                             lambda: self._branch_ahead(old, s_now), lambda baseline: 0.0,
-                            "the new goal's search, on the way", route=lambda: waypoints)
+                            "the new goal's search, on the way", route=waypoints)
 
     def _branch_ahead(self, old: Trajectory, s_now: float) -> float:
         """Where a merge into a moving robot's trajectory branches: one nominal stopping time past the planning
