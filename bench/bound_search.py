@@ -30,9 +30,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from evidence.scenarios import KNOWN_KINDS, check_recordings  # noqa: E402
+from evidence.scenarios import kinds_problem  # noqa: E402
 from shared.config import CellConfig  # noqa: E402
-from shared.core.errors import ConfigError  # noqa: E402
 
 SEARCHES = (1, 2, 4, 8)
 
@@ -112,12 +111,10 @@ def main() -> int:
                              "leg shapes (evidence.clairvoyant)")
     args = parser.parse_args()
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    if any(k not in KNOWN_KINDS for k in kinds) or args.seeds < 1 or not args.duration > 0 or args.workers < 1:
-        parser.error(f"--kinds from {list(KNOWN_KINDS)}; --seeds, --workers >= 1; --duration > 0")
-    try:
-        check_recordings(kinds)
-    except ConfigError as exc:
-        parser.error(f"--kinds: {exc}")
+    if args.seeds < 1 or not args.duration > 0 or args.workers < 1:
+        parser.error("--seeds, --workers >= 1; --duration > 0")
+    if problem := kinds_problem(kinds):
+        parser.error(f"--kinds: {problem}")
     if args.bound == "clairvoyant":
         cjobs = [(args.paper, k, s, args.duration) for k in kinds for s in range(args.seed, args.seed + args.seeds)]
         with ProcessPoolExecutor(args.workers) as pool:

@@ -33,9 +33,8 @@ sys.path.insert(0, str(ROOT))
 
 from evidence.fixed_path import FixedPath  # noqa: E402
 from evidence.foresight import Foresight, foresight_options  # noqa: E402
-from evidence.scenarios import KNOWN_KINDS, Q_GOAL, Q_START, check_recordings, make_scenario  # noqa: E402
+from evidence.scenarios import Q_GOAL, Q_START, kinds_problem, make_scenario  # noqa: E402
 from shared.config import CellConfig  # noqa: E402
-from shared.core.errors import ConfigError  # noqa: E402
 from shared.core.trajectory import Trajectory, straight_line_trajectory  # noqa: E402
 from shared.planning.collision import CollisionModel  # noqa: E402
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions  # noqa: E402
@@ -74,14 +73,10 @@ def main() -> int:
                         help="also print the N legs predicted worst of each kind (where to look in the cost)")
     args = parser.parse_args()
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    unknown = [k for k in kinds if k not in KNOWN_KINDS]
-    if unknown or not kinds or args.seeds < 1 or args.moments < 1 or args.worst < 0:
-        parser.error(f"--kinds: unknown {unknown}; known: {', '.join(KNOWN_KINDS)}; "
-                     "--seeds and --moments >= 1, --worst >= 0")
-    try:
-        check_recordings(kinds)
-    except ConfigError as exc:
-        parser.error(f"--kinds: {exc}")
+    if args.seeds < 1 or args.moments < 1 or args.worst < 0:
+        parser.error("--seeds and --moments >= 1, --worst >= 0")
+    if problem := kinds_problem(kinds):
+        parser.error(f"--kinds: {problem}")
     if args.truth and args.stay is not None:
         parser.error("--truth knows when the people go: it takes no --stay")
     robot, config = default_robot(), CellConfig()

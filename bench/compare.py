@@ -65,11 +65,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from evidence.scenarios import KNOWN_KINDS, SCENARIO_KINDS, check_recordings  # noqa: E402
+from evidence.scenarios import SCENARIO_KINDS, kinds_problem  # noqa: E402
 from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES  # noqa: E402
 from evidence.summary import aggregate, columns, ratios, wide_rows, won_back  # noqa: E402
 from evidence.sweep import ScenarioSpec, strategies_for  # noqa: E402
-from shared.core.errors import ConfigError  # noqa: E402
 from tools.sweep import SweepMismatch, code_version, plan_id, read_records, run_sweep  # noqa: E402
 
 
@@ -161,13 +160,8 @@ def main() -> int:
     if args.scenarios < 1 or args.duration <= 0 or args.workers < 1:
         parser.error("--scenarios and --workers must be >= 1, --duration > 0")
     kinds = sorted({k.strip() for k in args.kinds.split(",") if k.strip()})
-    unknown = [k for k in kinds if k not in KNOWN_KINDS]
-    if unknown or not kinds:
-        parser.error(f"--kinds: unknown or none {unknown or args.kinds!r}; known: {', '.join(KNOWN_KINDS)}")
-    try:
-        check_recordings(kinds)
-    except ConfigError as exc:
-        parser.error(f"--kinds: {exc}")
+    if problem := kinds_problem(kinds):
+        parser.error(f"--kinds: {problem}")
     if args.forecaster is not None:
         from shared.planning.forecast import load_forecaster
         try:

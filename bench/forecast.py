@@ -35,7 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from evidence.scenarios import KNOWN_KINDS, SCENARIO_KINDS, check_recordings, make_scenario  # noqa: E402
+from evidence.scenarios import SCENARIO_KINDS, kinds_problem, make_scenario  # noqa: E402
 from shared.core.errors import ConfigError  # noqa: E402
 from shared.planning.forecast import ConstantVelocity, PeopleForecast, load_forecaster  # noqa: E402
 from shared.tracking.motion import RecordedMotion  # noqa: E402
@@ -97,13 +97,8 @@ def main() -> int:
     if not horizons or min(horizons) <= 0 or args.seeds < 0 or args.duration <= 0:
         parser.error("--horizons must be > 0 s, --seeds >= 0, --duration > 0")
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    unknown = [k for k in kinds if k not in KNOWN_KINDS]
-    if unknown:
-        parser.error(f"--kinds: unknown {unknown}; known: {', '.join(KNOWN_KINDS)}")
-    try:
-        check_recordings(kinds)
-    except ConfigError as exc:
-        parser.error(f"--kinds: {exc}")
+    if problem := kinds_problem(kinds, allow_none=True):
+        parser.error(f"--kinds: {problem}")
     sources: dict[str, list[tuple[object, float]]] = {
         k: [(make_scenario(k, seed, args.duration), args.duration) for seed in range(args.seeds)] for k in kinds}
     for path in args.motion:

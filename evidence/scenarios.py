@@ -234,13 +234,22 @@ RECORDED_KINDS = {"real_step_back": "step_back", "real_table_edge": "table_edge"
 KNOWN_KINDS = tuple(sorted(SCENARIO_KINDS)) + tuple(sorted(RECORDED_KINDS))
 
 
-def check_recordings(kinds) -> None:
-    """Raise ConfigError (saying where it looked) where a real-people kind is among `kinds` and there are no
-    recordings to read: a benchmark says so before it starts, not in every worker."""
+def kinds_problem(kinds, allow_none: bool = False) -> str | None:
+    """What is wrong with the scenario kinds a benchmark was asked for, in words, or None: a kind not known, none
+    at all (unless `allow_none`), or a real-people kind without recordings to read (saying where it looked). An
+    entry point says so before it starts, not in every worker."""
+    unknown = sorted(set(kinds) - set(KNOWN_KINDS))
+    if unknown or not (kinds or allow_none):
+        return f"unknown or none {unknown or list(kinds)}; known: {', '.join(KNOWN_KINDS)}"
     if any(k in RECORDED_KINDS for k in kinds):
         from evidence.recorded import recordings, recordings_folder
+        from shared.core.errors import ConfigError
 
-        recordings(recordings_folder())
+        try:
+            recordings(recordings_folder())
+        except ConfigError as exc:
+            return str(exc)
+    return None
 
 
 def make_scenario(kind: str, seed: int, duration: float):

@@ -85,7 +85,7 @@ def check_grid(grid: Grid) -> None:
     """Every point a valid configuration, every strategy and kind known (GridError naming what is not)."""
     import math
 
-    from evidence.scenarios import KNOWN_KINDS, check_recordings
+    from evidence.scenarios import kinds_problem
     from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES
     from evidence.sweep import config_of
     from shared.core.errors import ConfigError
@@ -94,13 +94,8 @@ def check_grid(grid: Grid) -> None:
     if not grid.strategies or set(grid.strategies) - set(known):
         raise GridError(f"strategies: unknown or none {sorted(set(grid.strategies) - set(known))}; known: "
                         f"{', '.join(known)}")
-    if not grid.kinds or set(grid.kinds) - set(KNOWN_KINDS):
-        raise GridError(f"kinds: unknown or none {sorted(set(grid.kinds) - set(KNOWN_KINDS))}; known: "
-                        f"{', '.join(KNOWN_KINDS)}")
-    try:
-        check_recordings(grid.kinds)
-    except ConfigError as exc:
-        raise GridError(f"kinds: {exc}") from None
+    if problem := kinds_problem(grid.kinds):
+        raise GridError(f"kinds: {problem}")
     if grid.scenarios < 1 or not (grid.duration > 0 and math.isfinite(grid.duration)):
         raise GridError("scenarios must be >= 1 and duration a positive number of seconds")
     for key, values in grid.values.items():

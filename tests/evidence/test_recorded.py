@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from evidence.recorded import PLACEMENTS, placed_motion, recorded_scenario
-from evidence.scenarios import KNOWN_KINDS, RECORDED_KINDS, SCENARIO_KINDS, make_scenario
+from evidence.scenarios import KNOWN_KINDS, RECORDED_KINDS, SCENARIO_KINDS, kinds_problem, make_scenario
 from shared.core.errors import ConfigError
 from shared.tracking.motion import RecordedMotion
 from tests.util import load_bench, run_hrc
@@ -71,6 +71,10 @@ def test_without_recordings_the_kinds_say_where_they_looked(tmp_path, monkeypatc
         placed_motion(SUBSET, "on_the_table")
     with pytest.raises(ValueError, match="unknown recorded scenario kind"):
         recorded_scenario("real_on_the_table", 0, 1.0)
+    assert "no recordings" in kinds_problem(["paper", "real_step_back"])
+    assert kinds_problem(["paper"]) is None                            # scripted kinds need no recordings
+    assert "unknown or none ['nope']" in kinds_problem(["paper", "nope"])
+    assert "unknown or none []" in kinds_problem([]) and kinds_problem([], allow_none=True) is None
     monkeypatch.setattr(sys, "argv", ["compare.py", "--kinds", "real_table_edge", "--scenarios", "2"])
     with pytest.raises(SystemExit) as exit_:
         load_bench("compare").main()
