@@ -5,12 +5,14 @@ assembling LEGO at a table) are converted with the product's own reader (``hrc h
 --format assembly --translate X 0 1.1``) at each placement, and run through ``hrc demo --human`` on the real
 processes (every service over Zenoh, the emulated PRBT on CAN; the recording sent at its own 30 Hz), or in the
 simulation with ``--sim``. One row per run, from the run's own summary.json (docs/report-format.md): shuttles per
-minute, the stopped share, the violations counted by the monitor, by the report's recount and by the
-independent judge (tools/judge.py), the states left unchecked, the tracker's dropouts and unknown velocities,
-the independent judge's speed-ups within T_r, the worst joint's drive lag p99, the machine's own stalls (the
-demo's FIFO 99 witness, ``tools.stalls``) and the events that were not info, each marked "(machine)" where it came
-during or just after such a stall. Then the mean shuttles per minute and the sums of violations per placement.
-The last line is one JSON object: {"rows": [...], "means": {placement: {"shuttles_per_min": m, "violations":
+minute (whole shuttles, and with the last leg's part counted), the stopped share, the violations counted by the
+monitor, by the report's recount and by the independent judge (tools/judge.py), the states left unchecked, the
+tracker's dropouts and unknown velocities, the independent judge's speed-ups within T_r, the worst joint's drive
+lag p99, the machine's own stalls (the demo's FIFO 99 witness, ``tools.stalls``) and the events that were not info,
+each marked "(machine)" where it came during or just after such a stall. Then the mean shuttles per minute and the
+sums of violations per placement.
+The last line is one JSON object: {"rows": [...], "means": {placement: {"shuttles_per_min": m, "progress_per_min":
+p (the last leg's part counted: the processes and the simulation compare by it), "violations":
 [monitor, recount, independent], "unchecked": n, "held": [recordings whose robot completed no shuttle]}}} (a count
 is null where no run of the placement measured it: the simulation has no recount).
 
@@ -65,6 +67,14 @@ def run(motion: Path, report: Path, sim: bool, paper: bool, config: Path | None 
     return json.loads(summary.read_text())
 
 
+def progress_per_min(summary: dict) -> float | None:
+    """Shuttles per minute with the last leg's part counted (``shuttle_progress``, docs/report-format.md): whole
+    shuttles over a half-minute run differ by a whole shuttle between a run that ends just short of a goal and one
+    that ends just past it, so the processes and the simulation compare by this; None where a run has no progress."""
+    progress, duration = summary.get("shuttle_progress"), summary.get("duration_s")
+    return round(60.0 * progress / duration, 2) if progress is not None and duration else None
+
+
 def row(recording: str, placement: str, summary: dict) -> dict:
     """The table's figures of one run (None where the run's mode does not measure them: the simulation has no
     recount, no tracker and no drives)."""
@@ -76,6 +86,7 @@ def row(recording: str, placement: str, summary: dict) -> dict:
     silences = summary.get("scaler_silences") or {}
     return {"recording": recording, "placement": placement, "error": summary.get("error"),
             "shuttles_per_min": summary.get("shuttles_per_min"),
+            "progress_per_min": progress_per_min(summary),
             "stopped": summary.get("stopped_fraction"),
             "violations": [summary.get("violations"), check.get("violations_recounted"), independent.get("violations")],
             "unchecked": check.get("unchecked"),
@@ -132,9 +143,11 @@ def means(rows: list[dict]) -> dict:
     for placement in dict.fromkeys(r["placement"] for r in rows):
         mine = [r for r in rows if r["placement"] == placement and r["error"] is None]
         rates = [r["shuttles_per_min"] for r in mine]
+        parts = [r["progress_per_min"] for r in mine if r["progress_per_min"] is not None]
         out[placement] = {
             "runs": len(mine), "failed": sum(r["placement"] == placement and r["error"] is not None for r in rows),
             "shuttles_per_min": round(sum(rates) / len(rates), 2) if rates else None,
+            "progress_per_min": round(sum(parts) / len(parts), 2) if parts else None,
             "violations": [_total(r["violations"][k] for r in mine) for k in range(3)],
             "unchecked": _total(r["unchecked"] for r in mine),
             "held": [r["recording"] for r in mine if not r["shuttles_per_min"]]}
@@ -165,7 +178,8 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out or Path(tempfile.mkdtemp(prefix="real-people-"))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
-    header = ["recording", "placement", "shuttles/min", "stopped", "violations (monitor / recount / independent)",
+    header = ["recording", "placement", "shuttles/min", "with the last leg's part", "stopped",
+              "violations (monitor / recount / independent)",
               "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups", "drive lag p99 ms",
               "machine stalls > 10 ms (count, longest ms)", "scaler silences (count, longest ms, joint states in it)",
               "events (machine: during or just after a stall)"]
@@ -182,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
                                                        args.paper_formula, args.config))
             rows.append(r)
             cells = [r["recording"], r["placement"]] + ([f"error: {r['error']}"] if r["error"] else
-                     [_cell(r["shuttles_per_min"]), _cell(r["stopped"], share=True)]
+                     [_cell(r["shuttles_per_min"]), _cell(r["progress_per_min"]), _cell(r["stopped"], share=True)]
                      + [_cell(r[k]) for k in ("violations", "unchecked", "dropouts")]
                      + [f"{_cell(r['velocity_unknown'][0], share=True)}, {_cell(r['velocity_unknown'][1])}"]
                      + [_cell(r[k]) for k in ("speedups", "drive_lag_p99_ms")]
@@ -192,7 +206,8 @@ def main(argv: list[str] | None = None) -> int:
             print("| " + " | ".join(cells) + " |", flush=True)
     summary = means(rows)
     for placement, m in summary.items():
-        print(f"{placement}: {m['shuttles_per_min']} shuttles/min over {m['runs']} runs ({m['failed']} failed), "
+        print(f"{placement}: {m['shuttles_per_min']} shuttles/min ({_cell(m['progress_per_min'])} with the last "
+              f"leg's part) over {m['runs']} runs ({m['failed']} failed), "
               f"violations {_cell(m['violations'])}, unchecked {_cell(m['unchecked'])}, "
               f"no shuttle done: {', '.join(m['held']) or 'none'}")
     print(f"reports in {out}")

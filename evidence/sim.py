@@ -36,6 +36,7 @@ from shared.planning.inputs import planning_inputs
 from shared.planning.loop import PlanningLoop, PlanningOutcome
 from shared.planning.replanner import Replanner
 from shared.robot.model import RobotModel
+from shared.robot.poses import leg_fraction
 from shared.safety.monitor import MonitorResult, ReactionWindow, SafetyMonitor
 from shared.safety.ssm import pair_ssm
 from shared.scaling.layer import ScalingInputs, ScalingLayer, ScalingStep, StepStatus
@@ -106,14 +107,6 @@ class SimResult:
             "compute_us": {"p50": round(float(np.percentile(compute, 50)), 1),
                            "p99": round(float(np.percentile(compute, 99)), 1)},
         }
-
-
-def leg_fraction(q: np.ndarray, start: np.ndarray, goal: np.ndarray) -> float:
-    """How much of a leg the robot has covered, by where it is: 1 - |q - goal| / |start - goal| (joint
-    space, Euclidean), in [0, 1]. Geometric, so a replanned trajectory that starts anew from where the
-    robot stands is credited with the way already made (a path parameter would restart at 0)."""
-    span = float(np.linalg.norm(goal - start))
-    return 0.0 if span <= 0.0 else float(np.clip(1.0 - np.linalg.norm(q - goal) / span, 0.0, 1.0))
 
 
 class CommandJudge:

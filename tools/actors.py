@@ -21,6 +21,7 @@ import numpy as np
 from evidence.scenarios import Q_GOAL, Q_START
 from shared.core.errors import MessageError
 from shared.core.humans import HumanCapsules
+from shared.robot.poses import leg_fraction
 from shared.safety.latency import DelayHistogram
 from shared.wire.convert import humans_to_msg
 from shared.wire.keys import KeySpace
@@ -307,6 +308,8 @@ class Shuttle:
             self.leg += 1
             self.goal_id += 1
             self.send_goal(now)
+        if js is not None:      # a shuttle's part done counts, as the simulation counts it (evidence.sim)
+            self.rec.progress = self.rec.shuttles + leg_fraction(js.q, self.ends[self.leg % 2], self.target)
         elif not following and now - self.goal_sent > GOAL_RETRY:
             self.send_goal(now)
         if self.recovering and js is not None and js.drive_state.startswith("stopped") \

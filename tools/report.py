@@ -52,6 +52,7 @@ class Recording:
     drive_lag: list[DriveLagReport] = field(default_factory=list)
     monitor: list[MonitorReport] = field(default_factory=list)
     shuttles: int = 0
+    progress: float = 0.0        # shuttles plus the fraction of the current leg covered (the operator's, tools.actors)
     phase: Callable[[float], str] | None = None
 
 
@@ -242,6 +243,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "mean_cycle_s": round(float(np.diff(stamps).mean()), 6) if len(st) > 1 else None,
         "shuttles_completed": rec.shuttles,
         "shuttles_per_min": round(60.0 * rec.shuttles / duration, 2) if duration else 0.0,
+        "shuttle_progress": round(max(rec.progress, rec.shuttles), 4),
         "mean_alpha": round(float(alpha.mean()), 4) if alpha.size else None,
         "stopped_fraction": round(float(np.mean(alpha < 1e-6)), 4) if alpha.size else None,
         "beta_requests": len(stalls),

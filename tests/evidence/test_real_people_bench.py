@@ -33,6 +33,11 @@ def test_a_recording_goes_through_the_simulation_and_its_row_comes_from_the_runs
     assert row["shuttles_per_min"] == summary["shuttles_per_min"] > 0.0
     assert row["violations"] == [summary["violations"], None, None] and row["error"] is None
     assert result["means"]["step_back"]["shuttles_per_min"] == summary["shuttles_per_min"]
+    # the last leg's part counted, from the same summary: at least the whole shuttles' rate, less than one more
+    whole = summary["shuttles_completed"]
+    assert row["progress_per_min"] == result["means"]["step_back"]["progress_per_min"] \
+        == round(60.0 * summary["shuttle_progress"] / summary["duration_s"], 2)
+    assert whole <= summary["shuttle_progress"] < whole + 1
     assert result["means"]["step_back"]["violations"] == [summary["violations"], None, None]
     motion = json.loads((tmp_path / "task1_human1_trial1_first300-step_back.json").read_text())
     assert motion                                   # the product's own reader wrote the placed motion
@@ -45,6 +50,7 @@ def test_a_run_without_a_summary_is_a_row_with_its_error_and_the_table_goes_on()
     means = bench.means([row, bench.row("s", "step_back", {"shuttles_per_min": 10.0, "violations": 0})])
     assert means["step_back"]["runs"] == 1 and means["step_back"]["failed"] == 1
     assert means["step_back"]["shuttles_per_min"] == 10.0 and means["step_back"]["violations"] == [0, None, None]
+    assert row["progress_per_min"] is None and means["step_back"]["progress_per_min"] is None    # none measured
 
 
 def test_a_row_says_the_machines_stalls_and_the_events_after_them():

@@ -121,7 +121,7 @@ def test_a_human_acceleration_allowance_covers_a_person_who_starts_walking_in_on
 
 
 def test_leg_progress_is_geometric_so_a_new_plan_keeps_the_way_made():
-    from evidence.sim import leg_fraction
+    from shared.robot.poses import leg_fraction
     a, b = np.zeros(6), np.ones(6)
     assert leg_fraction(a, a, b) == 0.0 and leg_fraction(b, a, b) == 1.0
     assert leg_fraction(0.25 * b, a, b) == pytest.approx(0.25)
