@@ -108,7 +108,13 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
 
     config = load_config(args.config)
     robot = default_robot()
-    human = human if human is not None else paper_phases(args.phase_length)
+    motion = human
+    if motion is not None:          # a motion file reaches the layers through the cell's tracker, as on the processes
+        from shared.tracking.tracked import TrackedMotion
+
+        human = TrackedMotion(motion)
+    else:
+        human = paper_phases(args.phase_length)
     replanner = None
     if not args.no_planner:
         from shared.planning.collision import CollisionModel
@@ -153,7 +159,8 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
         from tools.report import write_bag
 
         args.out.mkdir(parents=True, exist_ok=True)
-        summary["ros2_bag"] = write_bag(args.out, robot, config, recording_from_sim(result, human))
+        people = human if motion is None else TrackedMotion(motion)     # the run's people again, from its start
+        summary["ros2_bag"] = write_bag(args.out, robot, config, recording_from_sim(result, people))
         (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(json.dumps(summary))
     return 0 if summary["violations"] == 0 else 1

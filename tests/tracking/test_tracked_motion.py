@@ -1,0 +1,58 @@
+"""A recorded motion through the product's tracker (shared.tracking.tracked), as `hrc demo --sim --human` runs it:
+what tracker_ingest passes on to the layers on the processes, frame by frame at the motion's own times."""
+
+import numpy as np
+import pytest
+
+from shared.tracking.motion import RecordedMotion, ReplayFrame
+from shared.tracking.tracked import TrackedMotion
+from shared.tracking.tracker import TrackerParameters
+
+RATE = 30.0           # Hz, a camera's skeleton tracker
+SPEED = 0.6           # m/s along x
+
+
+def walker(frames: int, gap: tuple[int, int] | None = None) -> RecordedMotion:
+    """One capsule walking along x at SPEED, a frame every 1 / RATE s; frames in [gap) are dropouts."""
+    out = []
+    for k in range(frames):
+        t = k / RATE
+        seg = np.array([[[SPEED * t, 0.0, 1.0], [SPEED * t, 0.0, 1.5]]])
+        dropped = gap is not None and gap[0] <= k < gap[1]
+        out.append(ReplayFrame(t, seg, np.array([0.1]), ("a",), ("torso",), dropout=dropped))
+    return RecordedMotion(out)
+
+
+def test_velocities_are_the_trackers_fit_known_once_its_window_holds_enough_frames():
+    motion = walker(30)
+    tracked = TrackedMotion(motion)
+    first = tracked.at(0.0)
+    assert first is not None and not first.velocity_known.any()        # one frame: no velocity yet
+    assert motion.at(1.5 / RATE).velocity_known.all()                  # the file's own: known from the 2nd frame
+    assert not tracked.at(1.5 / RATE).velocity_known.any()             # the tracker's: not with two frames
+    later = tracked.at(10.2 / RATE)
+    assert later.velocity_known.all()
+    assert np.allclose(later.velocities[..., 0], SPEED, atol=1e-6) and np.allclose(later.velocities[..., 1:], 0.0)
+    assert np.allclose(later.segments[0, :, 0], SPEED * 10 / RATE, atol=1e-6)     # the newest frame's place
+
+
+def test_a_dropout_longer_than_the_trackers_bound_is_nobody_then_the_track_starts_again():
+    params = TrackerParameters()
+    tracked = TrackedMotion(walker(40, gap=(10, 20)), params)
+    assert tracked.at(9.5 / RATE) is not None
+    assert tracked.at(11.0 / RATE) is not None            # one missing frame is within the bound (3 intervals)
+    assert tracked.at(19.5 / RATE) is None                # ten frames without a sample: the dropout
+    back = tracked.at(20.2 / RATE)
+    assert back is not None and not back.velocity_known.any()          # a new track: no velocity yet
+    assert tracked.at(30.2 / RATE).velocity_known.all()
+
+
+def test_times_that_go_back_give_the_latest_estimate_and_a_fresh_one_replays_the_same():
+    motion = walker(20)
+    a, b = TrackedMotion(motion), TrackedMotion(motion)
+    times = np.arange(0.0, 19.0 / RATE, 0.01)
+    for t in times:
+        x, y = a.at(t), b.at(t)
+        assert np.array_equal(x.segments, y.segments) and np.array_equal(x.velocity_known, y.velocity_known)
+    assert np.array_equal(a.at(0.0).segments, a.at(times[-1]).segments)     # no going back
+    assert a.phase(0.2) == motion.phase(0.2) and a.duration == pytest.approx(19.0 / RATE)
