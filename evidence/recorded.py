@@ -13,9 +13,10 @@ assembly --translate X 0 1.1`` places it (shoulders 1.35 m high, facing the robo
 Scenario kinds ``real_table_edge`` and ``real_step_back`` (``evidence.scenarios.make_scenario``): seed k is
 recording k mod n (the folder's ``*.txt`` in name order) from a start drawn from the seed within its length, so
 the seeds cycle through every recording and a run of many seeds covers each at many moments. The people are
-the recording's, frame by frame (its velocities the change since the frame before, as a tracker measures them;
-a frame OpenPose lost a keypoint in is a dropout). The same seed gives the same motion where the recordings are
-the same: the folder is ``HRC_RECORDINGS`` where set, else ``RECORDINGS``.
+the recording's, frame by frame, as the cell's tracker passes them on (``shared.tracking.tracked``: velocities
+fitted over its window, unknown at a track's start and after a change in the capsules seen, nobody once no frame
+came for its dropout bound; a frame OpenPose lost a keypoint in is a dropout), as on the processes. The same seed
+gives the same motion where the recordings are the same: the folder is ``HRC_RECORDINGS`` where set, else ``RECORDINGS``.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from shared.core.errors import ConfigError
 from shared.core.humans import HumanCapsules
 from shared.tracking.keypoints import FrameTransform, read_assembly, to_motion
 from shared.tracking.motion import RecordedMotion, parse_json
+from shared.tracking.tracked import TrackedMotion
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "human-assembly"
 PLACEMENTS = {"table_edge": -0.05, "step_back": -0.75}     # m: --translate X of hrc human from-keypoints
@@ -68,11 +70,19 @@ def placed_motion(recording: Path, placement: str) -> RecordedMotion:
     return RecordedMotion(parse_json(json.dumps(doc), str(recording)))
 
 
+@lru_cache(maxsize=64)
+def tracked_motion(recording: Path, placement: str) -> TrackedMotion:
+    """``placed_motion`` through the cell's tracker, the whole recording once (a window's tracker has been running
+    before the window starts, as in a cell). Kept per process."""
+    return TrackedMotion(placed_motion(recording, placement))
+
+
 class RecordingWindow:
     """A recorded motion from `start` s on, as a scenario's people (``at(t)``, ``phase(t)``: t from the window's
-    start; past the recording's end its last frame holds, as ``RecordedMotion.at`` holds it)."""
+    start; past the recording's end its last frame holds, as ``RecordedMotion.at`` holds it). motion: anything
+    with the motion's ``at`` and ``phase`` (a ``TrackedMotion`` for the scenario kinds)."""
 
-    def __init__(self, motion: RecordedMotion, start: float, name: str) -> None:
+    def __init__(self, motion: RecordedMotion | TrackedMotion, start: float, name: str) -> None:
         self.motion, self.start, self.name = motion, float(start), name
 
     def at(self, t: float) -> HumanCapsules | None:
@@ -89,6 +99,6 @@ def recorded_scenario(kind: str, seed: int, duration: float) -> RecordingWindow:
         raise ValueError(f"unknown recorded scenario kind {kind!r}; known: {sorted(RECORDED_KINDS)}")
     files = recordings(recordings_folder())
     recording = files[seed % len(files)]
-    motion = placed_motion(recording, RECORDED_KINDS[kind])
+    motion = tracked_motion(recording, RECORDED_KINDS[kind])
     start = float(np.random.default_rng(seed).uniform(0.0, max(0.0, motion.duration - duration)))
     return RecordingWindow(motion, round(start, 3), recording.stem)

@@ -159,8 +159,7 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
         from tools.report import write_bag
 
         args.out.mkdir(parents=True, exist_ok=True)
-        people = human if motion is None else TrackedMotion(motion)     # the run's people again, from its start
-        summary["ros2_bag"] = write_bag(args.out, robot, config, recording_from_sim(result, people))
+        summary["ros2_bag"] = write_bag(args.out, robot, config, recording_from_sim(result, human))
         (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(json.dumps(summary))
     return 0 if summary["violations"] == 0 else 1

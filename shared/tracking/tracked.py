@@ -5,9 +5,10 @@ On the processes a motion file goes out frame by frame at its own rate (``tools.
 layer through ``tracker_ingest``: velocities fitted over the tracker's window, unknown after a glitch, a change in
 the capsules seen or the track's start (the ISO 13855 speeds then apply), and no person at all once no frame came
 for the dropout bound. The motion's own ``at(t)`` gives each frame's velocities from the frame before, known
-wherever the capsule was there before. So ``hrc demo --sim --human`` runs the motion through this, as the cell
-does: at the table's edge the tracker cost a real recording 11.36 -> 10.72 shuttles a minute in the simulation,
-against 10.60 on the processes (docs/real-people.md, session 64).
+wherever the capsule was there before. So ``hrc demo --sim --human`` and the real-people scenario kinds
+(``evidence.recorded``) run a motion through this, as the cell does. On the human-assembly recordings at the
+table's edge the simulation went from 9.19 to 9.34 shuttles a minute with it (the fit smooths OpenPose's jitter
+in some, a track's start costs in others), against 8.53 on the processes (docs/real-people.md, session 64).
 """
 
 from __future__ import annotations
@@ -19,35 +20,41 @@ from shared.tracking.tracker import HumanTracker, TrackerParameters
 
 
 class TrackedMotion:
-    """``at(t)``: what the tracker holds at t seconds from the motion's first frame, each frame taken once when
-    its time comes (None before the first frame is taken, in a dropout and once no frame came for the tracker's
-    dropout bound); ``phase(t)`` and ``duration`` the motion's. Times must not go back (a simulation's clock):
-    an earlier t gives the estimate of the latest frame taken."""
+    """``at(t)``: what the tracker holds at t seconds from the motion's first frame, each frame given to it once
+    at its own time (None before the first frame seen, in a dropout once no frame came for the tracker's dropout
+    bound; past the motion's end, what it held at the last frame, as ``RecordedMotion.at`` holds that frame);
+    ``phase(t)``, ``duration`` and ``times`` the motion's. The whole motion is tracked once, up front, so any t may
+    be asked in any order (a forecast told the future reads ahead) and gives the same answer."""
 
     def __init__(self, motion, params: TrackerParameters | None = None) -> None:
         self.motion = motion
-        self.tracker = HumanTracker(params)
-        self.taken = -1                                   # index of the last frame given to the tracker
-        self.estimate: HumanCapsules | None = None
+        self.times = motion.times
+        tracker = HumanTracker(params)
+        self.estimates: list[HumanCapsules | None] = []     # per frame: the tracker's output after it (None: none)
+        self.seen = np.full(len(self.times), -1)           # per frame: the last frame given to the tracker by then
+        self.bound = np.zeros(len(self.times))             # per frame: the dropout bound (s) the tracker had then
+        last, estimate = -1, None
+        for k, frame in enumerate(motion.frames):
+            when = float(self.times[k])
+            capsules = frame.capsules()
+            if not (frame.dropout or capsules is None or capsules.count == 0):   # nobody seen: no sample sent
+                update = tracker.update(capsules.segments, capsules.radii, when, when)
+                last, estimate = k, update if update is not None else estimate
+            self.estimates.append(estimate)
+            self.seen[k], self.bound[k] = last, tracker.dropout
 
     @property
     def duration(self) -> float:
         return self.motion.duration
 
     def at(self, t: float) -> HumanCapsules | None:
-        due = int(np.searchsorted(self.motion.times, t, side="right")) - 1
-        while self.taken < due:
-            self.taken += 1
-            frame, when = self.motion.frames[self.taken], float(self.motion.times[self.taken])
-            capsules = frame.capsules()
-            if frame.dropout or capsules is None or capsules.count == 0:
-                continue                                  # nobody seen: no sample, as the feed sends none
-            estimate = self.tracker.update(capsules.segments, capsules.radii, when, when)
-            if estimate is not None:
-                self.estimate = estimate
-        if self.estimate is None or not self.tracker.valid(t):
+        k = int(np.searchsorted(self.times, t, side="right")) - 1
+        if k < 0 or self.seen[k] < 0:
             return None
-        return self.estimate
+        t = min(t, float(self.times[-1]))       # past the motion's end its last frame holds, as the motion's own at
+        if t - self.times[self.seen[k]] > self.bound[k]:          # tracker_ingest's check: no sample for too long
+            return None
+        return self.estimates[k]
 
     def phase(self, t: float) -> str:
         return self.motion.phase(t)

@@ -12,6 +12,7 @@ from evidence.recorded import PLACEMENTS, placed_motion, recorded_scenario
 from evidence.scenarios import KNOWN_KINDS, RECORDED_KINDS, SCENARIO_KINDS, kinds_problem, make_scenario
 from shared.core.errors import ConfigError
 from shared.tracking.motion import RecordedMotion
+from shared.tracking.tracked import TrackedMotion
 from tests.util import load_bench, run_hrc
 
 FIXTURE = Path(__file__).resolve().parents[1] / "data" / "human-assembly"
@@ -51,6 +52,17 @@ def test_the_placements_are_the_same_person_moved_along_x(two_recordings):
     assert np.allclose(shift[..., 0], PLACEMENTS["table_edge"] - PLACEMENTS["step_back"], atol=2e-5)
     assert np.allclose(shift[..., 1:], 0.0, atol=2e-5)
     assert edge.phase(1.0).startswith("b_second at ")
+
+
+def test_the_people_are_what_the_cells_tracker_passes_on_as_on_the_processes(two_recordings):
+    window = make_scenario("real_table_edge", 2, 3.0)
+    tracked = TrackedMotion(placed_motion(two_recordings / "a_first.txt", "table_edge"))
+    for t in (0.0, 0.4, 1.7, 2.9):
+        a, b = window.at(t), tracked.at(window.start + t)
+        assert np.array_equal(a.segments, b.segments) and np.array_equal(a.velocities, b.velocities)
+    fitted = window.at(1.0)             # the tracker's fit, not the file's difference from the frame before
+    own = placed_motion(two_recordings / "a_first.txt", "table_edge").at(window.start + 1.0)
+    assert fitted.velocity_known.all() and not np.allclose(fitted.velocities, own.velocities)
 
 
 def test_the_motion_is_what_hrc_human_from_keypoints_writes_and_hrc_demo_reads(tmp_path):
