@@ -308,10 +308,10 @@ class Shuttle:
             self.leg += 1
             self.goal_id += 1
             self.send_goal(now)
-        if js is not None:      # a shuttle's part done counts, as the simulation counts it (evidence.sim)
-            self.rec.progress = self.rec.shuttles + leg_fraction(js.q, self.ends[self.leg % 2], self.target)
         elif not following and now - self.goal_sent > GOAL_RETRY:
             self.send_goal(now)
+        if js is not None:      # a shuttle's part done counts, as the simulation counts it (evidence.sim)
+            self.rec.progress = self.rec.shuttles + leg_fraction(js.q, self.ends[self.leg % 2], self.target)
         if self.recovering and js is not None and js.drive_state.startswith("stopped") \
                 and now - self.last_recover > RECOVER_EVERY:
             self.last_recover = now

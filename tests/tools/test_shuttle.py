@@ -1,0 +1,82 @@
+"""The operator's shuttle (tools.actors.Shuttle) on fakes, no Zenoh: goals sent, sent again while the robot follows
+none, the next one on arrival, and the shuttles counted with the last leg's part, as the simulation counts them."""
+
+import threading
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from evidence.scenarios import Q_GOAL, Q_START
+from shared.wire.keys import KeySpace
+from shared.wire.messages import Goal, JointState, ScalerStatus, decode
+from tools.actors import GOAL_RETRY, Shuttle
+from tools.report import Recording
+
+
+class Publisher:
+    def __init__(self) -> None:
+        self.sent: list[bytes] = []
+
+    def put(self, payload: bytes) -> None:
+        self.sent.append(payload)
+
+
+class Session:
+    def __init__(self) -> None:
+        self.publishers: dict[str, Publisher] = {}
+
+    def declare_publisher(self, key: str) -> Publisher:
+        return self.publishers.setdefault(key, Publisher())
+
+
+class Recorder:
+    """The latest message of each kind, as tools.actors.Recorder keeps them."""
+
+    def __init__(self) -> None:
+        self.lock, self.latest = threading.Lock(), {}
+
+    def get(self, kind):
+        return self.latest.get(kind)
+
+
+def joint_state(q) -> SimpleNamespace:
+    return SimpleNamespace(q=np.asarray(q, dtype=float), drive_state="running:operation_enabled")
+
+
+@pytest.fixture
+def cell():
+    session, recorder, rec, keys = Session(), Recorder(), Recording(t0=0.0), KeySpace("test/shuttle")
+    shuttle = Shuttle(session, keys, recorder, rec)
+    goals = session.publishers[keys.goal].sent
+    return shuttle, recorder, rec, goals
+
+
+def test_a_goal_nobody_follows_is_sent_again_while_the_robot_reports_its_state(cell):
+    shuttle, recorder, rec, goals = cell
+    shuttle.start(0.0)
+    recorder.latest[JointState] = joint_state(Q_START)
+    shuttle.step(0.5 * GOAL_RETRY)
+    assert len(goals) == 1                                   # not yet
+    shuttle.step(1.5 * GOAL_RETRY)
+    assert len(goals) == 2 and decode(goals[-1]).goal_id == decode(goals[0]).goal_id == 1    # the same goal again
+    assert rec.shuttles == 0 and rec.progress == 0.0
+
+
+def test_on_arrival_the_next_goal_and_the_shuttles_count_with_the_last_legs_part(cell):
+    shuttle, recorder, rec, goals = cell
+    shuttle.start(0.0)
+    rec.trajectories.append(SimpleNamespace(version=3, goal_id=1))          # the planner's answer to goal 1
+    recorder.latest[ScalerStatus] = SimpleNamespace(status="running", trajectory_version=3)
+    recorder.latest[JointState] = joint_state(0.5 * (Q_START + Q_GOAL))
+    shuttle.step(0.2)
+    assert rec.shuttles == 0 and rec.progress == pytest.approx(0.5) and len(goals) == 1
+    recorder.latest[ScalerStatus] = SimpleNamespace(status="finished", trajectory_version=3)
+    recorder.latest[JointState] = joint_state(Q_GOAL)
+    shuttle.step(2.5)
+    goal = decode(goals[-1])
+    assert isinstance(goal, Goal) and goal.goal_id == 2 and np.allclose(goal.q, Q_START)   # back again
+    assert rec.shuttles == 1 and rec.progress == pytest.approx(1.0)
+    recorder.latest[JointState] = joint_state(0.75 * Q_START + 0.25 * Q_GOAL)                # most of the way back
+    shuttle.step(2.6)
+    assert rec.shuttles == 1 and rec.progress == pytest.approx(1.75)
