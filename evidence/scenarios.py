@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from shared.core.errors import ConfigError
 from shared.core.humans import HumanCapsules
 from shared.robot.poses import PAPER_GOAL, PAPER_START
 
@@ -243,7 +244,6 @@ def kinds_problem(kinds, allow_none: bool = False) -> str | None:
         return f"unknown or none {unknown or list(kinds)}; known: {', '.join(KNOWN_KINDS)}"
     if any(k in RECORDED_KINDS for k in kinds):
         from evidence.recorded import recordings, recordings_folder
-        from shared.core.errors import ConfigError
 
         try:
             recordings(recordings_folder())

@@ -108,11 +108,10 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
 
     config = load_config(args.config)
     robot = default_robot()
-    motion = human
-    if motion is not None:          # a motion file reaches the layers through the cell's tracker, as on the processes
+    if human is not None:           # a motion file reaches the layers through the cell's tracker, as on the processes
         from shared.tracking.tracked import TrackedMotion
 
-        human = TrackedMotion(motion)
+        human = TrackedMotion(human)
     else:
         human = paper_phases(args.phase_length)
     replanner = None
