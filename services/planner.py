@@ -129,9 +129,8 @@ class PlannerService:
         self.poll(now)
         with self.lock:
             goal, new_goal, humans, q, status = self.goal, self.new_goal, self.humans, self.q, self.status
-            if goal is None or q is None:        # keep a goal until the robot's position is known
+            if goal is None:
                 return
-            self.new_goal = False
             report = None if status is None else report_from_status(status)
             # above every version the scaler has reported: a restarted planner must not publish an old number
             newest = max(self.trajectory.version if self.trajectory is not None else 0, self.highest_seen)
@@ -139,6 +138,9 @@ class PlannerService:
                                      report=report, followed=None if report is None else self.published.get(report.version),
                                      in_flight=self._in_flight(now), waited=self.held.waited(now),
                                      newest_version=newest, then=goal.then[0] if len(goal.then) else None)
+            if not self.loop.ready(inputs):      # a goal is kept until the robot's position and the people are known
+                return
+            self.new_goal = False
         if new_goal:
             self.goal_id = goal.goal_id
         started = time.perf_counter()
@@ -168,10 +170,11 @@ class PlannerService:
     def pause(self) -> float:
         """How long the worker may wait for its next turn (``idle_time``): a turn every POLL while someone is
         within reach of any path, a replan is asked, a goal's search is left for the way, or a goal waits for the
-        robot's position; up to IDLE_LONGEST while the nearest person could not come within reach before then."""
+        robot's position or the people; up to IDLE_LONGEST while the nearest person could not come within reach
+        before then."""
         with self.lock:
             humans, status, new_goal = self.humans, self.status, self.new_goal
-            waiting = self.goal is not None and self.q is None
+            waiting = self.goal is not None and (self.q is None or humans is None)
         if waiting or new_goal or (status is not None and status.beta) or self.loop.search_due is not None:
             return POLL
         return idle_time(reach_gap(self.loop.replanner.collision, humans), POLL)

@@ -7,7 +7,8 @@ how long it has been held) and takes at most one action, in this order:
 1. a new goal: from rest, ``Replanner.plan_goal`` as the robot leaves: the direct line (or the folded leg), or the
    plan prepared for it, published at once (a search first only where the direct line is predicted slower than
    nominal by more than ``worth_waiting``; shipped: never); while a trajectory is being followed, a merge into it
-   (Alg. 2, reason 'goal');
+   (Alg. 2, reason 'goal'). A new goal waits for a valid human state (``PlanningLoop.ready``): planned blind it
+   would be the empty cell's plan, and the scaling layer does not move the robot without one anyway;
 2. a replan request (beta raised), at most every ``beta_cooldown`` (a robot brought to rest to await its plan,
    ``stop_at``, is answered at once, once for each wait): ``Replanner.on_beta``, unless the goal
    itself is out of reach while the people stay (``shared.planning.blocked``): every path then ends in the
@@ -142,7 +143,7 @@ class PlanningLoop:
                 self.still.update(now, inputs.humans)
             if self.trust is not None:
                 self.trust.update(now, inputs.humans)
-        if inputs.goal is None or inputs.q is None:
+        if not self.ready(inputs):
             return None
         if self.still is not None:
             inputs = replace(inputs, waited=max(inputs.waited, self.still.waited(now)))
@@ -153,6 +154,15 @@ class PlanningLoop:
         finally:
             self.replanner.end()
         return None if outcome is None else replace(outcome, searches=self.replanner.searches - before)
+
+    @staticmethod
+    def ready(inputs: PlanningInputs) -> bool:
+        """Whether the loop can act on these inputs: a goal and where the robot is are known, and a new goal also
+        waits for the people (``humans`` None: no valid human state yet, or the track lost). The scaling layer moves
+        nobody without human data (``StepStatus.NO_HUMAN_DATA``), so a goal planned blind buys no time; it only
+        takes the empty cell's shape, the direct line, into a person the first human state would have shown (the
+        cell plans its first goal a few ms after start, before tracker_ingest's first state)."""
+        return inputs.goal is not None and inputs.q is not None and not (inputs.new_goal and inputs.humans is None)
 
     def _act(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
         if inputs.new_goal:

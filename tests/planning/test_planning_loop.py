@@ -78,6 +78,7 @@ class RecordingReplanner:
 
     def plan_goal(self, q, goal, humans, version, waited, prepared=None, leaving=False, trusted=False):
         self.calls.append(f"plan_goal v{version}")
+        self.humans = humans
         self.leaving.append(leaving)
         self.trusted = trusted
         self.took_prepared = prepared is not None
@@ -118,7 +119,7 @@ class RecordingReplanner:
 
 
 def inputs(**changes) -> PlanningInputs:
-    base = dict(goal=Q_GOAL, new_goal=False, q=Q_START, humans=None, human_sample=0, following=(OLD, 0.2),
+    base = dict(goal=Q_GOAL, new_goal=False, q=Q_START, humans=HumanCapsules.empty(), human_sample=0, following=(OLD, 0.2),
                 speed=1.0, beta=False, waited=0.0, version=4)
     base.update(changes)
     return PlanningInputs(**base)
@@ -129,6 +130,20 @@ def test_nothing_is_planned_without_a_goal_or_a_known_position():
     assert loop.step(0.0, inputs(goal=None, new_goal=True)) is None
     assert loop.step(0.0, inputs(q=None, new_goal=True)) is None
     assert loop.replanner.calls == []
+
+
+def test_a_new_goal_waits_for_the_people_and_is_planned_for_them_once_they_are_known():
+    """No valid human state yet (the cell's first ms, or a track lost): the scaling layer moves nobody, so a goal
+    planned now would be the empty cell's shape for nothing. It waits, and the first state is planned for."""
+    loop = PlanningLoop(RecordingReplanner(horizon=True))
+    assert not PlanningLoop.ready(inputs(new_goal=True, following=None, humans=None))
+    assert loop.step(0.0, inputs(new_goal=True, following=None, humans=None)) is None
+    assert loop.replanner.calls == []
+    seen = reaching_over_the_shuttle()
+    goal = loop.step(0.02, inputs(new_goal=True, following=None, humans=seen, human_sample=1))
+    assert goal.action == "goal" and loop.replanner.calls == ["plan_goal v4"] and loop.replanner.humans is seen
+    # a trajectory already followed goes on being checked while the track is lost (nothing new is planned blind)
+    assert PlanningLoop.ready(inputs(humans=None))
 
 
 def test_a_new_goal_comes_first_from_rest_or_merged_into_the_followed_trajectory():
@@ -470,12 +485,17 @@ def replanner() -> Replanner:
 
 
 def planner_given_a_goal(replanner, goal_id: int) -> tuple[FakeShell, PlannerService]:
-    """A planner service in-process that knows where the robot is and has taken its turn on a goal (t = 1 s)."""
+    """A planner service in-process that knows where the robot is and has taken its turn on a goal (t = 1 s) once
+    the tracker's first state came (nobody in view); until then the goal waits, kept, with nothing published."""
     shell = FakeShell("planner")
     service = PlannerService(shell, PlanningLoop(replanner))
     shell.deliver(shell.keys.joint_state, JointState(q=Q_START, qd=np.zeros(6), drive_state="running", enabled=True,
                                                      fault=False))
     shell.deliver(shell.keys.goal, Goal(goal_id=goal_id, name="q_g", q=Q_GOAL))
+    service.work_once(0.9)
+    assert shell.published(shell.keys.trajectory, TrajectoryMsg) == [] and service.new_goal
+    assert service.pause() == POLL                 # the goal waits for the people: turns at the loop's cadence
+    shell.deliver(shell.keys.human_state, humans_to_msg(HumanCapsules.empty(), True, 0.95))
     service.work_once(1.0)
     return shell, service
 
