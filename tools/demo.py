@@ -176,3 +176,4 @@ def _direct(session, keys: KeySpace, recorder: Recorder, rec: Recording, duratio
                 f"sep={sep} m  v{st.trajectory_version if st else '-'}  shuttles={rec.shuttles}  "
                 f"robot={js.drive_state.split(':')[0] if js else '-'}")
         time.sleep(0.02)
+    rec.directed_s = duration          # the run's length: what the shuttles were counted over

@@ -53,6 +53,7 @@ class Recording:
     monitor: list[MonitorReport] = field(default_factory=list)
     shuttles: int = 0
     progress: float = 0.0        # shuttles plus the fraction of the current leg covered (the operator's, tools.actors)
+    directed_s: float | None = None   # how long the shuttle was directed (hrc demo's --duration): what it counted over
     phase: Callable[[float], str] | None = None
 
 
@@ -205,7 +206,10 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
     st = rec.statuses
     stamps = np.array([s.stamp for s in st])
     alpha = np.array([s.alpha for s in st])
-    duration = float(stamps[-1] - stamps[0]) if len(st) > 1 else 0.0
+    trace = float(stamps[-1] - stamps[0]) if len(st) > 1 else 0.0
+    # the shuttles were counted while the shuttle was directed; the trace goes on a moment after it (the monitor's
+    # last summary), and a rate over the trace's length would understate the run's by that moment
+    duration = rec.directed_s if rec.directed_s is not None else trace
     series = monitor_series(robot, config, rec)
     finite = np.isfinite(series["margin"])
     horizon = config.ssm.horizon
@@ -239,6 +243,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
     interval = (tracker["sample_interval_ms"] or 0.0) / 1e3
     summary = {
         "duration_s": round(duration, 3),
+        "trace_s": round(trace, 3),
         "cycles_completed": len(st),
         "mean_cycle_s": round(float(np.diff(stamps).mean()), 6) if len(st) > 1 else None,
         "shuttles_completed": rec.shuttles,

@@ -80,3 +80,24 @@ def test_on_arrival_the_next_goal_and_the_shuttles_count_with_the_last_legs_part
     recorder.latest[JointState] = joint_state(0.75 * Q_START + 0.25 * Q_GOAL)                # most of the way back
     shuttle.step(2.6)
     assert rec.shuttles == 1 and rec.progress == pytest.approx(1.75)
+
+
+def test_the_reports_rates_are_over_the_time_the_shuttle_was_directed_not_the_traces_tail():
+    """hrc demo directs the shuttle for --duration, then records a moment longer (the monitor's last summary): the
+    shuttles were counted over the first, and a rate over the trace's length understated the processes' runs against
+    the simulation's by that tail (1.2 s of a 15 s recording: 8 %)."""
+    from shared.config import CellConfig
+    from shared.robot.model import default_robot
+    from tools.report import analyse
+
+    rec = Recording(t0=100.0, shuttles=3, progress=3.5)
+    for k in range(1321):                      # the trace: 13.2 s
+        rec.statuses.append(ScalerStatus(s=0.0, alpha=1.0, safe_alpha=1.0, beta=False, q_command=Q_START,
+                                         trajectory_version=1, status="running", method="piqp", min_separation=None,
+                                         min_margin=None, compute_us=80.0, stamp=100.0 + 0.01 * k))
+    undirected, _ = analyse(default_robot(), CellConfig(), rec)
+    assert undirected["duration_s"] == undirected["trace_s"] == pytest.approx(13.2)     # no directed time: the trace
+    rec.directed_s = 12.0
+    summary, _ = analyse(default_robot(), CellConfig(), rec)
+    assert summary["duration_s"] == 12.0 and summary["trace_s"] == pytest.approx(13.2)
+    assert summary["shuttles_per_min"] == 15.0 and summary["shuttle_progress"] == 3.5
