@@ -7,8 +7,7 @@ how long it has been held) and takes at most one action, in this order:
 1. a new goal: from rest, ``Replanner.plan_goal`` as the robot leaves: the direct line (or the folded leg), or the
    plan prepared for it, published at once (a search first only where the direct line is predicted slower than
    nominal by more than ``worth_waiting``; shipped: never); while a trajectory is being followed, a merge into it
-   (Alg. 2, reason 'goal'). A new goal waits for a valid human state (``PlanningLoop.ready``): planned blind it
-   would be the empty cell's plan, and the scaling layer does not move the robot without one anyway;
+   (Alg. 2, reason 'goal');
 2. a replan request (beta raised), at most every ``beta_cooldown`` (a robot brought to rest to await its plan,
    ``stop_at``, is answered at once, once for each wait): ``Replanner.on_beta``, unless the goal
    itself is out of reach while the people stay (``shared.planning.blocked``): every path then ends in the
@@ -33,6 +32,10 @@ how long it has been held) and takes at most one action, in this order:
 Every prediction assumes the people stay at least as long as they have stood still (``StillClock``) or
 the robot has been held, whichever is longer, on top of the replanner's patience: someone who has stood
 in the way for three seconds is gone round sooner than someone who has just stopped.
+
+Nothing is planned while the people are not known (no valid human state yet, or the track lost:
+``PlanningLoop.ready``): a plan made then would be the empty cell's, and the scaling layer does not move the
+robot without a human state anyway; a new goal waits for one.
 
 The outcome (``PlanningOutcome``) says what was done and what came of it: a trajectory to publish, or why
 none; a refused replan also says when the goal itself is out of reach while the people stay
@@ -157,12 +160,13 @@ class PlanningLoop:
 
     @staticmethod
     def ready(inputs: PlanningInputs) -> bool:
-        """Whether the loop can act on these inputs: a goal and where the robot is are known, and a new goal also
-        waits for the people (``humans`` None: no valid human state yet, or the track lost). The scaling layer moves
-        nobody without human data (``StepStatus.NO_HUMAN_DATA``), so a goal planned blind buys no time; it only
-        takes the empty cell's shape, the direct line, into a person the first human state would have shown (the
-        cell plans its first goal a few ms after start, before tracker_ingest's first state)."""
-        return inputs.goal is not None and inputs.q is not None and not (inputs.new_goal and inputs.humans is None)
+        """Whether the loop can act on these inputs: the goal, where the robot is and the people are known
+        (``humans`` None: no valid human state yet, or the track lost; nobody in view is an empty HumanCapsules).
+        The scaling layer moves nobody without human data (``StepStatus.NO_HUMAN_DATA``), so a plan made blind buys
+        no time; it only takes the empty cell's shape, the direct line, into a person the next human state would
+        have shown. The cell planned its first goal a few ms after start, before tracker_ingest's first state; a
+        replan request answered in a dropout would have swapped a fold round someone for the line through them."""
+        return inputs.goal is not None and inputs.q is not None and inputs.humans is not None
 
     def _act(self, now: float, inputs: PlanningInputs) -> PlanningOutcome | None:
         if inputs.new_goal:

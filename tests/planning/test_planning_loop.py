@@ -132,18 +132,20 @@ def test_nothing_is_planned_without_a_goal_or_a_known_position():
     assert loop.replanner.calls == []
 
 
-def test_a_new_goal_waits_for_the_people_and_is_planned_for_them_once_they_are_known():
-    """No valid human state yet (the cell's first ms, or a track lost): the scaling layer moves nobody, so a goal
-    planned now would be the empty cell's shape for nothing. It waits, and the first state is planned for."""
-    loop = PlanningLoop(RecordingReplanner(horizon=True))
+def test_nothing_is_planned_for_people_not_known_and_a_new_goal_waits_for_them():
+    """No valid human state yet (the cell's first ms), or the track lost: the scaling layer moves nobody, so a plan
+    made now would be the empty cell's shape for nothing. A goal waits, and the first state is planned for; a
+    replan request in a dropout is not answered with a path for nobody."""
+    loop = PlanningLoop(RecordingReplanner(horizon=True, slow=True))
     assert not PlanningLoop.ready(inputs(new_goal=True, following=None, humans=None))
     assert loop.step(0.0, inputs(new_goal=True, following=None, humans=None)) is None
     assert loop.replanner.calls == []
     seen = reaching_over_the_shuttle()
     goal = loop.step(0.02, inputs(new_goal=True, following=None, humans=seen, human_sample=1))
     assert goal.action == "goal" and loop.replanner.calls == ["plan_goal v4"] and loop.replanner.humans is seen
-    # a trajectory already followed goes on being checked while the track is lost (nothing new is planned blind)
-    assert PlanningLoop.ready(inputs(humans=None))
+    assert loop.step(1.0, inputs(beta=True, humans=None, human_sample=2)) is None     # the track lost
+    assert loop.replanner.calls == ["plan_goal v4"]
+    assert loop.step(1.1, inputs(beta=True, humans=seen, human_sample=3)).action == "beta"       # back: answered
 
 
 def test_a_new_goal_comes_first_from_rest_or_merged_into_the_followed_trajectory():
