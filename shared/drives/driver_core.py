@@ -79,6 +79,10 @@ MISSED_LIMIT, MISSED_WINDOW = 10, 100
 
 
 EXACT = 1e-9                  # rad: a setpoint this close to the command is the command
+# rad/s: a recovery starts only once every joint is slower than this. A quick stop or a fault reaction brakes the
+# robot on the drives' own ramp; enabled again before it ends, a drive follows a setpoint where it was, overruns it
+# by its braking distance (0.1 rad from 1.2 rad/s) and faults (EMCY 0x8611, seen in a loaded run on 2026-12-05)
+RECOVER_BELOW = 0.02
 # rad: a setpoint further than this from the command is a clamp worth a warning. Below it the limiter
 # absorbs timing (the scaler's ticks and the SYNC on two clocks: a late command costs one period's
 # extrapolation, an early one a catch-up a few mrad long), which is not a command beyond the drives.
@@ -263,8 +267,10 @@ class DriverCore:
         if self.mode is Mode.STOPPED:
             if self._recover:
                 if fault is None or fault[0] in ("drive_fault", "emcy"):
-                    self.mode, self._recover = Mode.ENABLING, False
-                    events.append(Event("recovering", "info", "recovery requested: resetting and enabling"))
+                    # still braking: the recovery stays asked for, and starts once the robot is at rest
+                    if max(abs(fb.velocity) for fb in feedback) < RECOVER_BELOW:
+                        self.mode, self._recover = Mode.ENABLING, False
+                        events.append(Event("recovering", "info", "recovery requested: resetting and enabling"))
                 else:
                     events.append(Event("recover_refused", "warning", f"recovery refused: {fault[1]}"))
                     self._recover = False

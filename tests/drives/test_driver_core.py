@@ -352,3 +352,33 @@ def test_the_compiled_follow_step_is_its_numpy_definition_to_the_bit():
         assert np.array_equal(got[0], want[0], equal_nan=True), (k, got[0], want[0])
         assert np.array_equal(got[1], want[1], equal_nan=True), (k, got[1], want[1])
         assert got[2] == want[2], k
+
+
+def test_a_recovery_asked_while_a_quick_stop_still_brakes_waits_for_rest_and_faults_no_drive():
+    """A stale_command stop at full speed, and the operator's recovery request 40 ms later, the robot still braking
+    at 1.3 rad/s, with the scaler holding its command where the robot was when asked (a loaded run, 2026-12-05:
+    enabled at once, the drives overran the setpoint by 0.1 rad and raised EMCY 0x8611). The quick stop ends at rest
+    first; then the drives run again, with no fault."""
+    cell = Cell()
+    enable(cell)
+    q = cell.q.copy()
+    for k in range(60):                                    # joint 1 up to 1.5 rad/s
+        q[0] -= min(1.5, 6.0 * T * (k + 1)) * T
+        cell.step(q)
+    assert abs(cell.drives[0].velocity) > 1.4
+    while cell.core.mode is not Mode.STOPPED:               # no command: the stale-command stop
+        cell.step()
+    for _ in range(4):
+        cell.step()
+    assert abs(cell.drives[0].velocity) > 1.0               # still braking
+    cell.core.request("recover")
+    events, held = [], cell.q.copy()
+    for _ in range(60):
+        if cell.core.mode is not Mode.RUNNING:     # the scaler holds where the robot is until the driver follows
+            held = cell.q.copy()
+        out = cell.step(held)
+        events += [e.event for e in out.events]
+        if out.mode is not Mode.STOPPED:
+            assert max(abs(d.velocity) for d in cell.drives) < 0.05          # enabled only once at rest
+    assert out.mode is Mode.RUNNING and "emcy" not in events and "drive_fault" not in events
+    assert all(d.state.value == "operation_enabled" for d in cell.drives)
