@@ -356,9 +356,9 @@ def test_the_compiled_follow_step_is_its_numpy_definition_to_the_bit():
 
 def test_a_recovery_asked_while_a_quick_stop_still_brakes_waits_for_rest_and_faults_no_drive():
     """A stale_command stop at full speed, and the operator's recovery request 40 ms later, the robot still braking
-    at 1.3 rad/s, with the scaler holding its command where the robot was when asked (a loaded run, 2026-12-05:
-    enabled at once, the drives overran the setpoint by 0.1 rad and raised EMCY 0x8611). The quick stop ends at rest
-    first; then the drives run again, with no fault."""
+    at 1.3 rad/s, the scaler holding where the robot is until the driver follows again, then that place (a loaded
+    run, 2026-12-05: enabled at once, the drives overran that setpoint by 0.1 rad and raised EMCY 0x8611; this test
+    raises it on the code before). The quick stop ends at rest first; then the drives run again, with no fault."""
     cell = Cell()
     enable(cell)
     q = cell.q.copy()
