@@ -6,9 +6,7 @@ layer through ``tracker_ingest``: velocities fitted over the tracker's window, u
 the capsules seen or the track's start (the ISO 13855 speeds then apply), and no person at all once no frame came
 for the dropout bound. The motion's own ``at(t)`` gives each frame's velocities from the frame before, known
 wherever the capsule was there before. So ``hrc demo --sim --human`` and the real-people scenario kinds
-(``evidence.recorded``) run a motion through this, as the cell does. On the human-assembly recordings at the
-table's edge the simulation went from 9.19 to 9.34 shuttles a minute with it (the fit smooths OpenPose's jitter
-in some, a track's start costs in others), against 8.53 on the processes (docs/real-people.md, session 64).
+(``evidence.recorded``) run a motion through this, as the cell does (what it changed, measured: docs/real-people.md).
 """
 
 from __future__ import annotations
