@@ -99,7 +99,7 @@ def measure(seconds: float, warmup: float, seed: int, people_kind: str = "two", 
                 if before is None and now >= t_start:
                     before, t_before, threads_before = cell.cpu_seconds(), now, cell.thread_cpu_seconds()
                 shuttle.step(now)
-                time.sleep(0.02)
+                recorder.wait_finished(0.02)
             after, t_after, threads_after = cell.cpu_seconds(), time.monotonic(), cell.thread_cpu_seconds()
             shuttles, statuses = rec.shuttles, len(rec.statuses)
             faults = [e.text for e in rec.events if e.source == "robot_driver" and e.event in ("emcy", "drive_fault")]

@@ -56,6 +56,7 @@ class Recorder:
     def __init__(self, session, keys: KeySpace, rec: Recording) -> None:
         self.rec, self.lock, self.bad = rec, threading.Lock(), 0
         self.latest: dict[type, object] = {}
+        self.finished = threading.Event()    # set by a scaler status that says its trajectory is finished
         self.on_message = None           # called with every message kept (the demo's live 3D view)
         table = [(keys.scaler_status, ScalerStatus, rec.statuses), (keys.command, JointCommand, rec.commands),
                  (keys.joint_state, JointState, rec.joint_states), (keys.human_state, HumanState, rec.human_states),
@@ -75,6 +76,8 @@ class Recorder:
             with self.lock:
                 store.append(msg)
                 self.latest[kind] = msg
+            if kind is ScalerStatus and msg.status == "finished":
+                self.finished.set()
             if self.on_message is not None:
                 self.on_message(msg)
         return on_sample
@@ -82,6 +85,13 @@ class Recorder:
     def get(self, kind):
         with self.lock:
             return self.latest.get(kind)
+
+    def wait_finished(self, timeout: float) -> None:
+        """Wait up to `timeout` (s), less where a scaler status comes saying that its trajectory is finished: an
+        operator that polls only every `timeout` leaves the robot standing at its goal for half of it on average
+        before the next goal goes out (one step back, 2.6 s a leg, 20 ms polls cost 0.4 %)."""
+        self.finished.wait(timeout)
+        self.finished.clear()
 
     def close(self) -> None:
         for sub in self.subs:

@@ -175,5 +175,5 @@ def _direct(session, keys: KeySpace, recorder: Recorder, rec: Recording, duratio
             say(f"t={t:6.2f}s  {rec.phase(t):<18} alpha={st.alpha if st else 0:4.2f} beta={int(st.beta) if st else 0} "
                 f"sep={sep} m  v{st.trajectory_version if st else '-'}  shuttles={rec.shuttles}  "
                 f"robot={js.drive_state.split(':')[0] if js else '-'}")
-        time.sleep(0.02)
+        recorder.wait_finished(0.02)      # the next goal as soon as the robot has arrived
     rec.directed_s = duration          # the run's length: what the shuttles were counted over

@@ -243,7 +243,7 @@ class Campaign:
     def _operate(self) -> None:
         while self.running:
             self.shuttle.step(time.monotonic())
-            time.sleep(0.02)
+            self.recorder.wait_finished(0.02)
 
     def close(self) -> None:
         self.running = False

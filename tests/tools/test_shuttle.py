@@ -9,7 +9,7 @@ import pytest
 
 from evidence.scenarios import Q_GOAL, Q_START
 from shared.wire.keys import KeySpace
-from shared.wire.messages import Goal, JointState, ScalerStatus, decode
+from shared.wire.messages import Goal, JointState, ScalerStatus, decode, encode
 from tools.actors import GOAL_RETRY, Shuttle
 from tools.report import Recording
 
@@ -101,3 +101,46 @@ def test_the_reports_rates_are_over_the_time_the_shuttle_was_directed_not_the_tr
     summary, _ = analyse(default_robot(), CellConfig(), rec)
     assert summary["duration_s"] == 12.0 and summary["trace_s"] == pytest.approx(13.2)
     assert summary["shuttles_per_min"] == 15.0 and summary["shuttle_progress"] == 3.5
+
+
+class Sample:
+    def __init__(self, payload: bytes) -> None:
+        self.payload = SimpleNamespace(to_bytes=lambda: payload)
+
+
+class SubscribingSession:
+    """declare_subscriber keeps each key's callback, so a test can deliver samples to tools.actors.Recorder."""
+
+    def __init__(self) -> None:
+        self.callbacks: dict[str, object] = {}
+
+    def declare_subscriber(self, key: str, callback):
+        self.callbacks[key] = callback
+        return SimpleNamespace(undeclare=lambda: None)
+
+
+def test_the_operator_wakes_when_the_scaler_says_its_trajectory_is_finished():
+    """The demo's operator waits for its next turn on the recorder (``wait_finished``): a scaler status saying
+    the trajectory is finished ends the wait, so the next goal goes out at once instead of up to a poll later;
+    a running status does not, and each wait takes the finish it was woken by (the next one waits again)."""
+    from tools.actors import Recorder as KeepingRecorder
+
+    session, keys = SubscribingSession(), KeySpace("test/shuttle")
+    recorder = KeepingRecorder(session, keys, Recording(t0=0.0))
+
+    def status(what: str) -> Sample:
+        return Sample(encode(ScalerStatus(s=1.0, alpha=1.0, safe_alpha=1.0, beta=False, q_command=Q_GOAL,
+                                          trajectory_version=3, status=what, method="piqp", min_separation=None,
+                                          min_margin=None, compute_us=50.0, received=3, seq=1, stamp=0.0)))
+
+    session.callbacks[keys.scaler_status](status("running"))
+    assert not recorder.finished.is_set() and recorder.get(ScalerStatus).status == "running"
+    session.callbacks[keys.scaler_status](status("finished"))
+    assert recorder.finished.is_set()
+    woke = threading.Event()
+    waiter = threading.Thread(target=lambda: (recorder.wait_finished(60.0), woke.set()))
+    waiter.start()
+    waiter.join(30.0)
+    assert woke.is_set() and not recorder.finished.is_set()       # woken by the finish, and it is taken
+    session.callbacks[keys.scaler_status](Sample(b"\x00not a message"))
+    assert recorder.bad == 1 and not recorder.finished.is_set()
