@@ -88,8 +88,10 @@ class Recorder:
 
     def wait_finished(self, timeout: float) -> None:
         """Wait up to `timeout` (s), less where a scaler status comes saying that its trajectory is finished: an
-        operator that polls only every `timeout` leaves the robot standing at its goal for half of it on average
-        before the next goal goes out (one step back, 2.6 s a leg, 20 ms polls cost 0.4 %)."""
+        operator that only polls every `timeout` leaves the robot standing at its goal for half of it on average
+        before the next goal goes out (measured in docs/measurements.md, session 66). A finish that comes while the
+        operator is busy is taken by its next wait; the scaler says "finished" every period until a new trajectory
+        comes, so none is missed for long."""
         self.finished.wait(timeout)
         self.finished.clear()
 
