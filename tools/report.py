@@ -89,6 +89,25 @@ def replan_stalls(statuses: list[ScalerStatus], t0: float = 0.0) -> list[dict]:
     return stalls
 
 
+def goal_changeovers(statuses: list[ScalerStatus]) -> np.ndarray:
+    """For every trajectory the scaler finished (its first 'finished' status): how long (s) until a newer trajectory
+    version runs at alpha > MOVING_ALPHA; the robot stands at its goal meanwhile, while the operator sees the arrival,
+    sends the next goal, the planner plans it and the scaler takes it. A finish the run ends on is not counted."""
+    gaps = []
+    k, n = 0, len(statuses)
+    while k < n:
+        if statuses[k].status != "finished":
+            k += 1
+            continue
+        start, version = statuses[k], statuses[k].trajectory_version
+        k += 1
+        while k < n and not (statuses[k].trajectory_version > version and statuses[k].alpha > MOVING_ALPHA):
+            k += 1
+        if k < n:
+            gaps.append(statuses[k].stamp - start.stamp)
+    return np.array(gaps)
+
+
 def mark_blocked_goals(stalls: list[dict], events: list[SafetyEvent], t0: float = 0.0) -> None:
     """Flag each stall in which the planner refused a replan because the goal itself was out of reach
     while the people stayed (shared.planning.blocked): a wait that no path could have shortened."""
@@ -217,6 +236,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
     violation_events = [e for e in rec.events if e.source == "safety_monitor" and e.event == "ssm_violation"]
     violations = int(summaries[-1].value) if summaries else None
     stalls = replan_stalls(st, rec.t0)
+    changeovers = goal_changeovers(st)
     mark_blocked_goals(stalls, rec.events, rec.t0)
     replans, goals = [], []
     for e in rec.events:
@@ -258,6 +278,8 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "goal_plans": {"count": len(goals), "prepared": sum("prepared on the way here" in e.text for e in goals),
                        "compute_ms": _percentiles(np.array([e.value for e in goals if e.value is not None]), 50, 95,
                                                   scale=1.0)},
+        "goal_changeover_ms": {"legs": int(changeovers.size)} | _percentiles(changeovers, 50, 95)
+        | {"max": round(float(changeovers.max()) * 1e3, 1) if changeovers.size else None},
         "replan_stall_ms": {"median": round(float(np.median(stall_values)), 1) if stall_values.size else None,
                             "max": round(float(stall_values.max()), 1) if stall_values.size else None,
                             "goal_blocked": sum(s["goal_blocked"] for s in stalls),

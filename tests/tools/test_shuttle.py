@@ -144,3 +144,28 @@ def test_the_operator_wakes_when_the_scaler_says_its_trajectory_is_finished():
     assert woke.is_set() and not recorder.finished.is_set()       # woken by the finish, and it is taken
     session.callbacks[keys.scaler_status](Sample(b"\x00not a message"))
     assert recorder.bad == 1 and not recorder.finished.is_set()
+
+
+def test_the_report_says_how_long_the_robot_stood_at_each_goal_before_the_next_leg_moved():
+    """``goal_changeovers``: from a trajectory's first 'finished' status to the first status moving (alpha above
+    0.01) on a newer one; the finish the run ends on counts for nothing. The summary gives the legs, p50, p95, max."""
+    from shared.config import CellConfig
+    from shared.robot.model import default_robot
+    from tools.report import analyse, goal_changeovers
+
+    def status(t: float, version: int, what: str, alpha: float) -> ScalerStatus:
+        return ScalerStatus(s=0.0, alpha=alpha, safe_alpha=1.0, beta=False, q_command=Q_START,
+                            trajectory_version=version, status=what, method="piqp", min_separation=None,
+                            min_margin=None, compute_us=80.0, stamp=t)
+
+    timeline = [(0.00, 1, "running", 1.0), (0.01, 1, "finished", 0.0), (0.02, 1, "finished", 0.0),
+                (0.03, 2, "running", 0.0),                       # the next leg taken, not yet moving
+                (0.04, 2, "running", 0.5), (0.05, 2, "finished", 0.0), (0.06, 2, "finished", 0.0),
+                (0.07, 2, "finished", 0.0), (0.08, 3, "running", 0.2), (0.09, 3, "finished", 0.0)]
+    statuses = [status(*row) for row in timeline]
+    assert goal_changeovers(statuses) == pytest.approx([0.03, 0.03])
+    assert goal_changeovers(statuses[:3]).size == 0              # a run that ends at its goal
+    rec = Recording(t0=0.0, statuses=statuses)
+    summary, _ = analyse(default_robot(), CellConfig(), rec)
+    assert summary["goal_changeover_ms"] == {"legs": 2, "p50": pytest.approx(30.0), "p95": pytest.approx(30.0),
+                                             "max": pytest.approx(30.0)}
