@@ -90,15 +90,22 @@ def test_runs_to_the_end_with_zero_violations(report):
     phase3 = [e["t"] for e in taken if 13.8 <= e["t"] < 18.0]
     if phase3:      # held beside the arm: a replan takes the robot round it, and it arrives while the arm stays
         assert any(phase3[0] < t < 18.0 for t in arrivals), (summary["replans"], arrivals)
-    else:           # or the goal planned as the arm came in already goes round it: it arrives while the arm
-        # stays, on a trajectory that leaves the straight shuttle, and is never held there for longer than a
-        # replan request's cooldown (with no request answered, that would be a stall the paper does not have)
+    else:           # or the leg the robot follows as the arm comes in already goes round it (the goal's own plan,
+        # or its search merged on the way): it arrives while the arm stays, on a trajectory that leaves the straight
+        # shuttle, and is never held there for longer than a replan request's cooldown with no request answered
+        # (that would be a stall the paper does not have). A request answered by a refusal says the way found
+        # is not faster than the one followed by what a replan must save (both predicted times, asserted above):
+        # in 5 of 12 runs on 2026-12-05 the robot crawled past the arm at alpha 0.16-0.2 for 0.56 s after one,
+        # and arrived as early as in the runs that took the replan (16.10 s against 16.11 s)
         assert any(13.8 <= t < 18.0 for t in arrivals), (summary["replans"], arrivals)
-        detours = [tr["t"] for tr in json.loads((out / "trajectories.json").read_text())
-                   if tr["reason"] == "goal" and 12.0 <= tr["t"] < 18.0 and off_the_line(tr["positions"]) > 0.1]
+        followed = next(int(r["trajectory_version"]) for r in rows if float(r["t"]) >= 13.8)
+        leg = [tr for tr in json.loads((out / "trajectories.json").read_text()) if tr["version"] == followed]
+        assert leg and leg[-1]["reason"] in ("goal", "search") and off_the_line(leg[-1]["positions"]) > 0.1, \
+            (followed, [(tr["t"], tr["reason"]) for tr in leg])
         alpha_min = CellConfig().scaling.alpha_min
         held = sum(1 for r in rows if 13.8 <= float(r["t"]) < 18.0 and float(r["alpha"]) < alpha_min)
-        assert detours and held <= 50, (summary["replans"], arrivals, detours, held)      # 0.5 s at 100 Hz
+        answered = [e for e in summary["replans"] if e["reason"] == "beta" and 13.8 <= e["t"] < 18.0]
+        assert held <= 50 or answered, (summary["replans"], arrivals, held)      # 0.5 s at 100 Hz
     phase4 = [e for e in taken if 18.0 <= e["t"] < 22.8 and e["reason"] in ("beta", "slow")]   # (or the planner's
     # own request, for the path ahead predicted slow: before the scaling layer had to ask)
     moved_on = False
