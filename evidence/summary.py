@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from evidence.stats import paired_ratio
+from evidence.stats import PairedRatio, paired_ratio
 from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES
 
 
@@ -93,17 +93,78 @@ def ratios(rows: list[dict]) -> dict:
     return out
 
 
-def per_point(records: list[dict], horizon: float) -> list[dict]:
-    """A sweep's records grouped by configuration (their ``overrides``), in the order the points first appear:
-    for each, the point's values, every strategy's aggregate and the pairs' ratios with their intervals, over
-    the scenarios every strategy of the point has run."""
+def by_point(records: list[dict]) -> dict[str, list[dict]]:
+    """Records grouped by configuration (their ``overrides``, a JSON text), in the order the points first appear."""
     points: dict[str, list[dict]] = {}
     for r in records:
         points.setdefault(r["overrides"], []).append(r)
+    return points
+
+
+def per_point(records: list[dict], horizon: float) -> list[dict]:
+    """A sweep's records grouped by configuration (``by_point``): for each, the point's values, every strategy's
+    aggregate and the pairs' ratios with their intervals, over the scenarios every strategy of the point has run;
+    and the same for each scenario kind alone (``kinds``: the goals of a comparison are per kind, and a kind
+    where the planning layer gains hides one where it loses in the overall figure)."""
     out = []
-    for key, of_point in points.items():
+    for key, of_point in by_point(records).items():
         strategies = sorted({r["strategy"] for r in of_point})
         rows = [row for row in wide_rows(of_point) if all(s in row for s in strategies)]
+        kinds = {}
+        for kind in sorted({row["kind"] for row in rows}):
+            of_kind = [row for row in rows if row["kind"] == kind]
+            kinds[kind] = {"scenarios": len(of_kind), "strategies": aggregate(of_kind, horizon),
+                           "ratios": ratios(of_kind)}
         out.append({"point": json.loads(key), "scenarios": len(rows), "strategies": aggregate(rows, horizon),
-                    "ratios": ratios(rows)})
+                    "ratios": ratios(rows), "kinds": kinds})
     return out
+
+
+def compared(numerator: list[dict], denominator: list[dict]) -> list[dict]:
+    """Each strategy's shuttles in `numerator`'s records over its shuttles in `denominator`'s, scenario by
+    scenario (the same kind, seed and duration in both; the others are left out), per kind and over all of
+    them: ``{"strategy", "kind" ("overall" for all), "scenarios", "ratio"}`` with the paired bootstrap
+    interval and the scenarios better, worse and the same (``PairedRatio``), or, where there is none, the
+    reason. Two configurations of one sweep, or one configuration run by two versions of the code: the
+    same seeded scenarios, so each scenario is its own control."""
+    index = {(r["strategy"], r["kind"], r["seed"], r["duration"]): r["shuttles"] for r in denominator}
+    pairs: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    for r in numerator:
+        other = index.get((r["strategy"], r["kind"], r["seed"], r["duration"]))
+        if other is not None:
+            pairs.setdefault((r["strategy"], r["kind"]), []).append((r["shuttles"], other))
+    out = []
+    for strategy in sorted({s for s, _ in pairs}):
+        kinds = sorted(k for s, k in pairs if s == strategy)
+        groups = [(kind, pairs[(strategy, kind)]) for kind in kinds]
+        if len(kinds) > 1:
+            groups.append(("overall", [p for _, of_kind in groups for p in of_kind]))
+        for kind, of_kind in groups:
+            try:
+                ratio: PairedRatio | str = paired_ratio([a for a, _ in of_kind], [b for _, b in of_kind],
+                                                        np.random.default_rng(0))
+            except ValueError as exc:
+                ratio = f"no ratio: {exc}"
+            out.append({"strategy": strategy, "kind": kind, "scenarios": len(of_kind), "ratio": ratio})
+    return out
+
+
+def against_first(records: list[dict]) -> list[dict]:
+    """Every point of a sweep after the first against the first (``compared``): ``{"point", "of", "compared"}``,
+    the two points' values and the ratios. The first point is the reference a grid is read against: the
+    values as shipped, where a grid lists them first."""
+    points = list(by_point(records).items())
+    if len(points) < 2:
+        return []
+    first_key, first = points[0]
+    return [{"point": json.loads(key), "of": json.loads(first_key), "compared": compared(of_point, first)}
+            for key, of_point in points[1:]]
+
+
+def against_other(records: list[dict], other: list[dict]) -> list[dict]:
+    """Every point of a sweep against the same point (the same configuration values) of another sweep's
+    records (``compared``): ``{"point", "compared"}``, for the points both have. The other sweep is typically
+    the same grid run by other code (another commit, a worktree), so the ratio is what the code changed."""
+    others = by_point(other)
+    return [{"point": json.loads(key), "compared": compared(of_point, others[key])}
+            for key, of_point in by_point(records).items() if key in others]

@@ -241,8 +241,11 @@ def _add_sweep(sub) -> None:
                                        "process pool or dask.distributed (--dask). Each chunk of scenarios is a "
                                        "Parquet file under --out/records as it finishes; running the same sweep "
                                        "again skips the chunks already there (resume after a crash or a lost "
-                                       "worker). Prints progress, one line per grid point, and writes "
-                                       "summary.json, sweep.csv and one plot per key (docs/sweeps.md).")
+                                       "worker). Without --set, one point: the configuration as shipped. Prints "
+                                       "progress, one line per grid point and per kind, every point against the "
+                                       "first (and, with --against, against another sweep), scenario by scenario; "
+                                       "writes summary.json, sweep.csv, sweep-kinds.csv and one plot per key "
+                                       "(docs/sweeps.md).")
     sweep.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...", dest="values",
                        help="a configuration key and its values, e.g. ssm.reaction_time=0.1,0.15,0.2 (repeat for "
                             "a grid of several keys)")
@@ -257,6 +260,9 @@ def _add_sweep(sub) -> None:
     sweep.add_argument("--seed", type=int, default=None, help="first scenario seed (default 0)")
     sweep.add_argument("--out", type=Path, default=Path("hrc-sweep"), metavar="DIR",
                        help="output folder (default ./hrc-sweep); the same folder resumes the same sweep")
+    sweep.add_argument("--against", type=Path, default=None, metavar="DIR",
+                       help="another sweep's folder (the same grid run by other code: a commit, a worktree): every "
+                            "point's ratios against the same point there, scenario by scenario, per kind")
     sweep.add_argument("--workers", type=int, default=2, help="local processes (default 2)")
     sweep.add_argument("--chunk", type=int, default=8, help="runs per chunk, a Parquet file each (default 8)")
     sweep.add_argument("--dask", nargs="?", const="local", default=None, metavar="tcp://SCHEDULER:8786",

@@ -521,7 +521,7 @@ def cmd_certs(args: argparse.Namespace) -> int:
 def cmd_sweep(args: argparse.Namespace) -> int:
     """A grid of configuration values (tools.grid) run by tools.sweep, each point's figures from the Parquet records."""
     from evidence.scenarios import SCENARIO_KINDS
-    from evidence.summary import per_point
+    from evidence.summary import against_first, against_other, per_point
     from shared.safety.parameters import SsmParameters
     from tools import grid as grids
     from tools import sweep
@@ -531,8 +531,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     for text in args.values:
         key, numbers = grids.parse_values(text)
         values[key] = numbers
-    if not values:
-        raise UsageError("nothing to sweep: give --set KEY=V1,V2,... or --grid FILE")
     split = lambda text: [x.strip() for x in str(text).split(",") if x.strip()]
     listed = lambda given, key, default: split(given) if given is not None else list(doc.get(key) or default)
     def number(given, key: str, default, kind):
@@ -549,23 +547,20 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     grids.check_grid(grid)
     if args.workers < 1 or args.chunk < 1:
         raise UsageError("--workers and --chunk must be >= 1")
+    other = None if args.against is None else sweep.read_sweep(args.against)     # a bad folder: before any run
     specs = grid.specs()
     print(f"hrc sweep: {len(grid.points())} points x {grid.scenarios} scenarios x {len(grid.strategies)} strategies "
           f"= {len(specs)} runs into {args.out}", flush=True)
     done = sweep.run_sweep(specs, args.out, executor="dask" if args.dask else "local", workers=args.workers,
                            address=None if args.dask in (None, "local") else args.dask, chunk=args.chunk,
                            meta={"bench": "sweep", "code": sweep.code_version(Path(__file__).resolve().parents[1])})
-    points = per_point(sweep.read_records(args.out), SsmParameters().horizon)
-    for p in points:
-        where = grids.point_label(sorted(p["point"].items()))
-        figures = "  ".join(f"{s} {p['strategies'][s]['shuttles_per_min']:.2f}/min (viol {p['strategies'][s]['violations']})"
-                            for s in grid.strategies if s in p["strategies"])
-        pairs = "  ".join(f"{pair} {r.describe().split(' (')[0]}" for pair, r in p["ratios"].items()
-                          if not isinstance(r, str))
-        print(f"{where}: {figures}  {pairs}")
-    grids.write_summary(points, grid, args.out)
+    records = sweep.read_records(args.out)
+    points, first = per_point(records, SsmParameters().horizon), against_first(records)
+    against = None if other is None else {"folder": str(args.against), "points": against_other(records, other)}
+    print("\n".join(grids.figure_lines(points, grid.strategies, first, against)))
+    grids.write_summary(points, grid, args.out, first, against)
     print(f"{done.ran} chunks run, {done.skipped} already there, {len(done.failed)} failed, in {done.wall_s:.0f} s; "
-          f"summary.json, sweep.csv and plots in {args.out}")
+          f"summary.json, sweep.csv, sweep-kinds.csv and plots in {args.out}")
     if done.failed:
         print(f"hrc sweep: chunks {done.failed} failed: rerun the same command to fill them in", file=sys.stderr)
         return 1

@@ -1,6 +1,7 @@
 """hrc sweep's grid: every combination of configuration values, with every strategy on the same seeded
 scenarios; the grid read from the command line or a YAML file and checked before anything runs; the figures
-of each point written as summary.json, sweep.csv and a plot per key (the runs themselves: tools.sweep)."""
+of each point, overall and per kind, and its ratios against the first point and against another sweep, as lines,
+summary.json, sweep.csv, sweep-kinds.csv and a plot per key (the runs themselves: tools.sweep)."""
 
 from __future__ import annotations
 
@@ -50,7 +51,11 @@ def _value(text: str) -> float | str:
 
 
 def point_label(items) -> str:
-    """``key=value, ...`` of a grid point's (key, value) pairs: numbers as %g, words as they are."""
+    """``key=value, ...`` of a grid point's (key, value) pairs: numbers as %g, words as they are; a sweep of
+    no keys has one point, the configuration as shipped."""
+    items = list(items)
+    if not items:
+        return "as shipped"
     return ", ".join(f"{k}={v:g}" if not isinstance(v, str) else f"{k}={v}" for k, v in items)
 
 
@@ -140,23 +145,105 @@ def plot_sweep(points: list[dict], grid: Grid, out: Path) -> list[Path]:
     return written
 
 
-def write_summary(points: list[dict], grid: Grid, out: Path) -> None:
-    """summary.json (every point's figures and ratios with their intervals), sweep.csv (a row per point and
-    strategy) and the plots."""
+def ratio_text(ratio) -> str:
+    """A ratio as a line says it: ``1.006 [0.999, 1.015] (13 better, 22 worse of 96)``, or why there is none."""
+    if isinstance(ratio, str):
+        return ratio
+    return (f"{ratio.ratio:.3f} [{ratio.low:.3f}, {ratio.high:.3f}] ({ratio.better} better, {ratio.worse} worse of "
+            f"{ratio.better + ratio.worse + ratio.same})")
+
+
+def kind_lines(point: dict, strategies: list[str]) -> list[str]:
+    """A point's figures kind by kind (``evidence.summary.per_point``): where the planning layer gains and where it
+    loses, which the overall figure sums away. Nothing for a sweep of one kind."""
+    if len(point["kinds"]) < 2:
+        return []
+    lines = []
+    for kind, of_kind in point["kinds"].items():
+        figures = "  ".join(f"{s} {of_kind['strategies'][s]['shuttles_per_min']:.2f}/min" for s in strategies
+                            if s in of_kind["strategies"])
+        pairs = "  ".join(f"{pair} {ratio_text(r)}" for pair, r in of_kind["ratios"].items())
+        lines.append(f"  {kind} ({of_kind['scenarios']}): {figures}  {pairs}".rstrip())
+    return lines
+
+
+def compared_lines(comparisons: list[dict]) -> list[str]:
+    """``evidence.summary.compared``'s ratios, a line each: strategy, kind, ratio, interval and counts."""
+    return [f"  {c['strategy']} {c['kind']} ({c['scenarios']}): {ratio_text(c['ratio'])}" for c in comparisons]
+
+
+def figure_lines(points: list[dict], strategies: list[str], first: list[dict], against: dict | None) -> list[str]:
+    """What hrc sweep prints when it is done: a line per point (each strategy's shuttles per minute and
+    violations, the pairs' ratios), then its kinds (``kind_lines``); every point against the first
+    (``evidence.summary.against_first``); every point against the same point of another sweep (`against`:
+    ``{"folder", "points"}``, ``evidence.summary.against_other``)."""
+    lines = []
+    for p in points:
+        figures = "  ".join(f"{s} {p['strategies'][s]['shuttles_per_min']:.2f}/min (viol {p['strategies'][s]['violations']})"
+                            for s in strategies if s in p["strategies"])
+        pairs = "  ".join(f"{pair} {r.describe().split(' (')[0]}" for pair, r in p["ratios"].items()
+                          if not isinstance(r, str))
+        lines.append(f"{point_label(sorted(p['point'].items()))}: {figures}  {pairs}")
+        lines += kind_lines(p, strategies)
+    for f in first:
+        lines.append(f"{point_label(sorted(f['point'].items()))} against {point_label(sorted(f['of'].items()))}:")
+        lines += compared_lines(f["compared"])
+    if against is not None:
+        for a in against["points"]:
+            lines.append(f"{point_label(sorted(a['point'].items()))} against the same point in {against['folder']}:")
+            lines += compared_lines(a["compared"]) or ["  no scenario in common (kinds, seeds, duration)"]
+        if not against["points"]:
+            lines.append(f"hrc sweep: {against['folder']} has none of these points (configuration values) to compare "
+                         f"with")
+    return lines
+
+
+def _ratio_json(ratio) -> dict | str:
+    return ratio if isinstance(ratio, str) else {"ratio": round(ratio.ratio, 4), "interval": [round(ratio.low, 4),
+                                                 round(ratio.high, 4)], "better": ratio.better, "worse": ratio.worse,
+                                                 "same": ratio.same}
+
+
+def _comparisons_json(comparisons: list[dict]) -> list[dict]:
+    return [{**c, "ratio": _ratio_json(c["ratio"])} for c in comparisons]
+
+
+def write_summary(points: list[dict], grid: Grid, out: Path, first: list[dict] | None = None,
+                  against: dict | None = None) -> None:
+    """summary.json (every point's figures and ratios with their intervals, overall and per kind; each point
+    against the first, `first` (``evidence.summary.against_first``); and against another sweep's records,
+    `against`: ``{"folder", "points": [{"point", "compared"}]}``), sweep.csv (a row per point and strategy),
+    sweep-kinds.csv (a row per point, kind and strategy) and the plots."""
     import csv
 
     out.mkdir(parents=True, exist_ok=True)
+    lists = lambda ratios: {k: (r if isinstance(r, str) else r.as_list()) for k, r in ratios.items()}
     doc = {"grid": {"set": grid.values, "strategies": grid.strategies, "kinds": grid.kinds,
                     "scenarios": grid.scenarios, "duration": grid.duration, "seed": grid.seed},
-           "points": [{**p, "ratios": {k: (r if isinstance(r, str) else r.as_list()) for k, r in p["ratios"].items()}}
-                      for p in points]}
+           "points": [{**p, "ratios": lists(p["ratios"]),
+                       "kinds": {k: {**v, "ratios": lists(v["ratios"])} for k, v in p["kinds"].items()}}
+                      for p in points],
+           "against_first": [{**f, "compared": _comparisons_json(f["compared"])} for f in first or []]}
+    if against is not None:
+        doc["against"] = {"folder": against["folder"],
+                          "points": [{**a, "compared": _comparisons_json(a["compared"])} for a in against["points"]]}
     (out / "summary.json").write_text(json.dumps(doc, indent=1))
     keys = sorted(grid.values)
+    columns = ["strategy", "scenarios", "shuttles_per_min", "stopped_s", "slowed_s", "violations"]
     with open(out / "sweep.csv", "w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(keys + ["strategy", "scenarios", "shuttles_per_min", "stopped_s", "slowed_s", "violations"])
+        writer.writerow(keys + columns)
         for p in points:
             for strategy, a in p["strategies"].items():
                 writer.writerow([p["point"].get(k) for k in keys] + [strategy, p["scenarios"], a["shuttles_per_min"],
                                                                       a["stopped_s"], a["slowed_s"], a["violations"]])
+    with open(out / "sweep-kinds.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(keys + ["kind"] + columns)
+        for p in points:
+            for kind, of_kind in p["kinds"].items():
+                for strategy, a in of_kind["strategies"].items():
+                    writer.writerow([p["point"].get(k) for k in keys] + [kind, strategy, of_kind["scenarios"],
+                                                                          a["shuttles_per_min"], a["stopped_s"],
+                                                                          a["slowed_s"], a["violations"]])
     plot_sweep(points, grid, out)

@@ -90,6 +90,35 @@ def read_records(out: Path) -> list[dict]:
     return records
 
 
+class SweepFolderError(HrcError, ValueError):
+    """Another sweep's folder (``hrc sweep --against``) that holds no readable records, with what is wrong."""
+
+
+def read_sweep(folder: Path) -> list[dict]:
+    """The records of another sweep's folder, to compare with: SweepFolderError where it is not a folder, holds
+    no records, or a chunk cannot be read or lacks a field (a file from elsewhere), naming it."""
+    import pyarrow as pa
+
+    if not folder.is_dir():
+        raise SweepFolderError(f"{folder}: no such folder (a folder that hrc sweep --out wrote)")
+    paths = sorted((folder / "records").glob("chunk-*.parquet"))
+    if not paths:
+        raise SweepFolderError(f"{folder}: no sweep records (records/chunk-*.parquet) in it")
+    import pyarrow.parquet as pq
+
+    records: list[dict] = []
+    for path in paths:
+        try:
+            rows = pq.read_table(path).to_pylist()
+        except (OSError, pa.ArrowException) as exc:
+            raise SweepFolderError(f"{path}: cannot read these records: {exc}") from None
+        missing = set(RECORD_FIELDS) - set(rows[0]) if rows else set()
+        if missing:
+            raise SweepFolderError(f"{path}: not a sweep's records (no {', '.join(sorted(missing))})")
+        records.extend(rows)
+    return records
+
+
 def plan_of(specs: Sequence[ScenarioSpec], chunk: int, meta: dict) -> dict:
     return {"chunk": chunk, "specs": [[s.kind, s.seed, s.duration, s.strategy, list(map(list, s.overrides)),
                                        s.forecaster] for s in specs], **meta}

@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from evidence.summary import per_point, wide_rows
+from evidence.summary import against_first, against_other, compared, per_point, wide_rows
 from evidence.sweep import RECORD_FIELDS, ScenarioSpec, config_of, run_scenario
 from shared.core.errors import ConfigError
 from tools import grid as grids
@@ -127,11 +127,13 @@ def test_hrc_sweep_refuses_bad_grids_with_a_message_and_exit_2(tmp_path):
     from tests.util import run_hrc
 
     grid = tmp_path / "g.yaml"
-    cases = [((), "nothing to sweep"), (("--set", "ssm.nope=1"), "nope"), (("--set", "ssm.reaction_time"), "KEY=V1"),
+    cases = [(("--set", "ssm.nope=1"), "nope"), (("--set", "ssm.reaction_time"), "KEY=V1"),
              (("--set", "ssm.reaction_time=0.1", "--strategies", "fastest"), "strategies"),
              (("--set", "ssm.reaction_time=0.1", "--kinds", "moon"), "kinds"),
              (("--set", "ssm.reaction_time=0.1", "--workers", "0"), "--workers"),
-             (("--grid", str(grid)), "scenarios: expected a number")]
+             (("--grid", str(grid)), "scenarios: expected a number"),
+             (("--against", str(tmp_path / "nowhere")), "no such folder"),
+             (("--against", str(tmp_path)), "no sweep records")]
     grid.write_text("set:\n  ssm.reaction_time: [0.1]\nscenarios: many\n")
     for args, says in cases:
         done = run_hrc("sweep", "--out", str(tmp_path / "out"), *args)
@@ -154,3 +156,90 @@ def test_hrc_sweep_sweeps_a_choice_by_its_words(tmp_path):
         rows = list(csv.DictReader(f))
     assert [r["planning.judge"] for r in rows] == ["cost", "scaling"]
     assert (out / "sweep-planning.judge.png").stat().st_size > 0
+
+
+def kind_records(point: str, shift: float = 0.0) -> list[dict]:
+    """Two kinds, three seeds each, scale_only and full: full gains 1 shuttle a scenario standing, loses 0.5 crossing;
+    `shift` added to full's standing shuttles in seeds 0 and 2 (another point, or another version of the code)."""
+    base = {f: 0 for f in RECORD_FIELDS}
+    out = []
+    for k in range(6):
+        kind = ("standing", "crossing")[k % 2]
+        for strategy in ("scale_only", "full"):
+            shuttles = 2.0 + (strategy == "full") * (1.0 if kind == "standing" else -0.5)
+            if strategy == "full" and kind == "standing" and k < 3:
+                shuttles += shift
+            out.append(base | {"kind": kind, "seed": k, "duration": 12.0, "strategy": strategy, "overrides": point,
+                               "shuttles": shuttles, "sim_s": 12.0, "stopped_fraction": 0.0, "slowed_fraction": 0.0,
+                               "min_margin_m_s": float("nan"), "wall_s": 0.1})
+    return out
+
+
+def test_a_point_is_read_kind_by_kind_and_against_the_first_point_scenario_by_scenario():
+    """Overall, full gains on these records; per kind it gains standing and loses crossing, which the overall
+    figure sums away. The second point against the first: only full's standing scenarios changed, seeds 0 and 2
+    better, seed 4 the same."""
+    first, second = '{"planning.patience": 1.5}', '{"planning.patience": 0.5}'
+    records = kind_records(first) + kind_records(second, shift=0.5)
+    (one, two) = per_point(records, 0.4)
+    assert one["ratios"]["full/scale_only"].ratio == pytest.approx(13.5 / 12)
+    assert set(one["kinds"]) == {"standing", "crossing"} and one["kinds"]["crossing"]["scenarios"] == 3
+    assert one["kinds"]["standing"]["ratios"]["full/scale_only"].ratio == pytest.approx(9 / 6)
+    crossing = one["kinds"]["crossing"]["ratios"]["full/scale_only"]
+    assert crossing.ratio == pytest.approx(4.5 / 6) and (crossing.better, crossing.worse) == (0, 3)
+    assert two["kinds"]["standing"]["strategies"]["full"]["shuttles_per_min"] == pytest.approx(60 * 10 / 36, abs=1e-3)
+    (against,) = against_first(records)
+    assert against["point"] == {"planning.patience": 0.5} and against["of"] == {"planning.patience": 1.5}
+    ratios = {(c["strategy"], c["kind"]): c for c in against["compared"]}
+    standing = ratios[("full", "standing")]["ratio"]              # seeds 0, 2, 4: 0 and 2 gained 0.5 each, of 9
+    assert standing.ratio == pytest.approx(10 / 9) and (standing.better, standing.worse, standing.same) == (2, 0, 1)
+    assert ratios[("full", "crossing")]["ratio"].ratio == pytest.approx(1.0)
+    assert ratios[("full", "overall")]["scenarios"] == 6 and ratios[("scale_only", "overall")]["ratio"].ratio == 1.0
+    assert against_first(kind_records(first)) == []                # one point: nothing to compare
+
+
+def test_scenarios_are_compared_only_with_themselves():
+    """Another sweep's records pair by kind, seed and duration: a seed the other did not run, or ran for
+    another duration, is left out, never paired with a different scenario; the points pair by their values."""
+    point = '{"planning.patience": 1.5}'
+    mine, theirs = kind_records(point, shift=1.0), kind_records(point)
+    theirs = [r for r in theirs if r["seed"] != 0] + [r | {"duration": 6.0} for r in theirs if r["seed"] == 0]
+    full = {c["kind"]: c for c in compared(mine, theirs) if c["strategy"] == "full"}
+    assert full["standing"]["scenarios"] == 2 and full["standing"]["ratio"].ratio == pytest.approx(7 / 6)
+    assert full["overall"]["scenarios"] == 5
+    (other,) = against_other(mine, theirs)
+    assert other["point"] == {"planning.patience": 1.5} and len(other["compared"]) == 6
+    assert against_other(mine, kind_records('{"planning.patience": 3.0}')) == []
+    assert compared(mine, []) == []
+
+
+def test_hrc_sweep_against_another_sweep_and_kind_by_kind(tmp_path):
+    """The same sweep twice (the same code): every ratio against the first is 1 with every scenario the same,
+    printed kind by kind and written to summary.json and sweep-kinds.csv; without --set, one point as shipped.
+    A folder of records that cannot be read is refused before anything runs."""
+    import json
+
+    from tests.util import run_hrc
+
+    common = ("--strategies", "scale_only", "--kinds", "standing,crossing", "--scenarios", "2", "--duration", "0.5",
+              "--workers", "1")
+    assert run_hrc("sweep", *common, "--out", str(tmp_path / "a")).returncode == 0
+    done = run_hrc("sweep", *common, "--out", str(tmp_path / "b"), "--against", str(tmp_path / "a"))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "as shipped: scale_only" in done.stdout and "  standing (1): scale_only" in done.stdout, done.stdout
+    assert f"as shipped against the same point in {tmp_path / 'a'}:" in done.stdout
+    assert "  scale_only overall (2): 1.000 [1.000, 1.000] (0 better, 0 worse of 2)" in done.stdout, done.stdout
+    summary = json.loads((tmp_path / "b" / "summary.json").read_text())
+    (point,) = summary["against"]["points"]
+    assert [(c["kind"], c["ratio"]["same"]) for c in point["compared"]] == [("crossing", 1), ("standing", 1),
+                                                                           ("overall", 2)]
+    assert set(summary["points"][0]["kinds"]) == {"standing", "crossing"} and summary["against_first"] == []
+    with open(tmp_path / "b" / "sweep-kinds.csv") as f:
+        assert [(r["kind"], r["strategy"]) for r in csv.DictReader(f)] == [("crossing", "scale_only"),
+                                                                           ("standing", "scale_only")]
+    broken = tmp_path / "broken"
+    (broken / "records").mkdir(parents=True)
+    (broken / "records" / "chunk-00000.parquet").write_bytes(b"PAR1 not really")
+    done = run_hrc("sweep", *common, "--out", str(tmp_path / "c"), "--against", str(broken))
+    assert done.returncode == 2 and "chunk-00000.parquet: cannot read these records" in done.stderr, done.stderr
+    assert not (tmp_path / "c" / "records").exists()
