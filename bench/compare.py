@@ -67,7 +67,7 @@ sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import SCENARIO_KINDS, kinds_problem  # noqa: E402
 from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES  # noqa: E402
-from evidence.summary import aggregate, columns, ratios, wide_rows, won_back  # noqa: E402
+from evidence.summary import aggregate, columns, per_kind, ratios, wide_rows, won_back  # noqa: E402
 from evidence.sweep import ScenarioSpec, strategies_for  # noqa: E402
 from tools.sweep import SweepMismatch, code_version, plan_id, read_records, run_sweep  # noqa: E402
 
@@ -78,16 +78,16 @@ def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
     import matplotlib.pyplot as plt
 
     kinds = sorted({r["kind"] for r in rows})
-    per_kind = {k: aggregate([r for r in rows if r["kind"] == k], horizon) for k in kinds}
+    by_kind = {k: aggregate([r for r in rows if r["kind"] == k], horizon) for k in kinds}
     fig, axes = plt.subplots(1, 3, figsize=(18, 4.5), gridspec_kw={"width_ratios": [1, 1, 0.8]})
     shown_strategies = columns(rows)
     width = 0.8 / len(shown_strategies)
     x = np.arange(len(kinds))
     for i, strategy in enumerate(shown_strategies):
         offset = (i - (len(shown_strategies) - 1) / 2) * width
-        axes[0].bar(x + offset, [per_kind[k][strategy]["shuttles_per_min"] for k in kinds], width,
+        axes[0].bar(x + offset, [by_kind[k][strategy]["shuttles_per_min"] for k in kinds], width,
                     label=strategy)
-        axes[1].bar(x + offset, [per_kind[k][strategy]["stopped_fraction"] for k in kinds], width,
+        axes[1].bar(x + offset, [by_kind[k][strategy]["stopped_fraction"] for k in kinds], width,
                     label=strategy)
     for ax, title in zip(axes, ("shuttles per minute (higher is better)", "fraction of time stopped")):
         ax.set_xticks(x, kinds)
@@ -192,20 +192,18 @@ def main() -> int:
     empty = round(nobody["shuttle_progress"] * 60.0 / nobody["duration_s"], 3)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "scenarios.json").write_text(json.dumps(rows))
-    per_kind, intervals = {}, {}
+    figures = per_kind(rows, horizon)
+    per_kinds = {k: f["strategies"] for k, f in figures.items()}
+    intervals = {k: f["ratios"] for k, f in figures.items()} | {"overall": ratios(rows)}
     print(f"empty cell: {empty:.2f}/min (nobody in it: the most any strategy can do); won back: the share of "
           f"what the people cost scale_only that full gets back")
-    for kind in kinds:
-        of_kind = [r for r in rows if r["kind"] == kind]
-        per = per_kind[kind] = aggregate(of_kind, horizon)
+    for kind, per in per_kinds.items():
         shares = {s: won_back(per, empty, s) for s in run if s == "full" or s in BOUNDS + BASELINES}
         print(f"{kind:<12} " + "  ".join(f"{s}: {per[s]['shuttles_per_min']:6.2f}/min stopped "
                                           f"{per[s]['stopped_fraction']:.2f} ({per[s]['stopped_s']:.1f} s, slowed "
                                           f"{per[s]['slowed_s']:.1f} s) viol {per[s]['violations']}"
                                           for s in run)
               + "".join(f"  {s} won back {100 * share:.0f} %" for s, share in shares.items() if share is not None))
-        intervals[kind] = ratios(of_kind)
-    intervals["overall"] = ratios(rows)
     plot(rows, args.out, horizon, intervals)
     print("ratios of shuttles per minute with their paired bootstrap 95 % intervals:")
     for name, pairs in intervals.items():
@@ -218,11 +216,11 @@ def main() -> int:
                "strategies": strategies,
                "speedup_vs_zones": round(full / zones, 3) if zones else None,
                "speedup_vs_scale_only": round(full / scale, 3) if scale else None,
-               "kinds": {k: {s: per_kind[k][s]["shuttles_per_min"] for s in run} for k in kinds},
+               "kinds": {k: {s: per_kinds[k][s]["shuttles_per_min"] for s in run} for k in kinds},
                "empty_cell": empty,
-               "won_back": {k: won_back(per_kind[k], empty) for k in kinds} | {"overall": won_back(strategies, empty)}}
+               "won_back": {k: won_back(per_kinds[k], empty) for k in kinds} | {"overall": won_back(strategies, empty)}}
     for bound in (b for b in run[len(STRATEGIES):] if b in BOUNDS + BASELINES):
-        summary[f"won_back_{bound}"] = ({k: won_back(per_kind[k], empty, bound) for k in kinds}
+        summary[f"won_back_{bound}"] = ({k: won_back(per_kinds[k], empty, bound) for k in kinds}
                                         | {"overall": won_back(strategies, empty, bound)})
     summary["ratios"] = {name: {pair: None if isinstance(r, str) else r.as_list() for pair, r in pairs.items()}
                          for name, pairs in intervals.items()}

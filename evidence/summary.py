@@ -110,13 +110,18 @@ def per_point(records: list[dict], horizon: float) -> list[dict]:
     for key, of_point in by_point(records).items():
         strategies = sorted({r["strategy"] for r in of_point})
         rows = [row for row in wide_rows(of_point) if all(s in row for s in strategies)]
-        kinds = {}
-        for kind in sorted({row["kind"] for row in rows}):
-            of_kind = [row for row in rows if row["kind"] == kind]
-            kinds[kind] = {"scenarios": len(of_kind), "strategies": aggregate(of_kind, horizon),
-                           "ratios": ratios(of_kind)}
         out.append({"point": json.loads(key), "scenarios": len(rows), "strategies": aggregate(rows, horizon),
-                    "ratios": ratios(rows), "kinds": kinds})
+                    "ratios": ratios(rows), "kinds": per_kind(rows, horizon)})
+    return out
+
+
+def per_kind(rows: list[dict], horizon: float) -> dict[str, dict]:
+    """The rows of each scenario kind alone, kinds in alphabetical order: ``{kind: {"scenarios", "strategies"
+    (``aggregate``), "ratios" (``ratios``)}}``."""
+    out = {}
+    for kind in sorted({row["kind"] for row in rows}):
+        of_kind = [row for row in rows if row["kind"] == kind]
+        out[kind] = {"scenarios": len(of_kind), "strategies": aggregate(of_kind, horizon), "ratios": ratios(of_kind)}
     return out
 
 
