@@ -185,8 +185,10 @@ def figure_lines(points: list[dict], strategies: list[str], first: list[dict], a
                           if not isinstance(r, str))
         lines.append(f"{point_label(sorted(p['point'].items()))}: {figures}  {pairs}")
         lines += kind_lines(p, strategies)
-    for f in first:
-        lines.append(f"{point_label(sorted(f['point'].items()))} against {point_label(sorted(f['of'].items()))}:")
+    for f in first:          # named by the values that differ (the others are the same in both)
+        differ = sorted(k for k in set(f["point"]) | set(f["of"]) if f["point"].get(k) != f["of"].get(k))
+        name = lambda values: point_label([(k, values[k]) for k in differ if k in values])
+        lines.append(f"{name(f['point'])} against {name(f['of'])}:")
         lines += compared_lines(f["compared"])
     if against is not None:
         for a in against["points"]:

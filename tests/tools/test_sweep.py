@@ -196,6 +196,13 @@ def test_a_point_is_read_kind_by_kind_and_against_the_first_point_scenario_by_sc
     assert ratios[("full", "crossing")]["ratio"].ratio == pytest.approx(1.0)
     assert ratios[("full", "overall")]["scenarios"] == 6 and ratios[("scale_only", "overall")]["ratio"].ratio == 1.0
     assert against_first(kind_records(first)) == []                # one point: nothing to compare
+    # printed kind by kind, and each point against the first by the values that differ
+    two_keys = lambda patience: kind_records(f'{{"planning.patience": {patience}, "ssm.reaction_time": 0.1}}')
+    both = two_keys(1.5) + two_keys(0.5)
+    lines = grids.figure_lines(per_point(both, 0.4), ["scale_only", "full"], against_first(both), None)
+    assert "  crossing (3): scale_only 10.00/min  full 7.50/min  full/scale_only 0.750 [0.750, 0.750] " \
+           "(0 better, 3 worse of 3)" in lines, lines
+    assert "planning.patience=0.5 against planning.patience=1.5:" in lines, lines
 
 
 def test_scenarios_are_compared_only_with_themselves():
