@@ -146,11 +146,9 @@ def plot_sweep(points: list[dict], grid: Grid, out: Path) -> list[Path]:
 
 
 def ratio_text(ratio) -> str:
-    """A ratio as a line says it: ``1.006 [0.999, 1.015] (13 better, 22 worse of 96)``, or why there is none."""
-    if isinstance(ratio, str):
-        return ratio
-    return (f"{ratio.ratio:.3f} [{ratio.low:.3f}, {ratio.high:.3f}] ({ratio.better} better, {ratio.worse} worse of "
-            f"{ratio.better + ratio.worse + ratio.same})")
+    """A ratio as a line says it (``PairedRatio.describe``: the ratio, its interval, the scenarios better, worse and
+    the same), or why there is none."""
+    return ratio if isinstance(ratio, str) else ratio.describe()
 
 
 def kind_lines(point: dict, strategies: list[str]) -> list[str]:

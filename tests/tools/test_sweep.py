@@ -201,7 +201,7 @@ def test_a_point_is_read_kind_by_kind_and_against_the_first_point_scenario_by_sc
     both = two_keys(1.5) + two_keys(0.5)
     lines = grids.figure_lines(per_point(both, 0.4), ["scale_only", "full"], against_first(both), None)
     assert "  crossing (3): scale_only 10.00/min  full 7.50/min  full/scale_only 0.750 [0.750, 0.750] " \
-           "(0 better, 3 worse of 3)" in lines, lines
+           "(better in 0, worse in 3, same in 0)" in lines, lines
     assert "planning.patience=0.5 against planning.patience=1.5:" in lines, lines
 
 
@@ -235,7 +235,8 @@ def test_hrc_sweep_against_another_sweep_and_kind_by_kind(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     assert "as shipped: scale_only" in done.stdout and "  standing (1): scale_only" in done.stdout, done.stdout
     assert f"as shipped against the same point in {tmp_path / 'a'}:" in done.stdout
-    assert "  scale_only overall (2): 1.000 [1.000, 1.000] (0 better, 0 worse of 2)" in done.stdout, done.stdout
+    assert "  scale_only overall (2): 1.000 [1.000, 1.000] (better in 0, worse in 0, same in 2)" in done.stdout, \
+        done.stdout
     summary = json.loads((tmp_path / "b" / "summary.json").read_text())
     (point,) = summary["against"]["points"]
     assert [(c["kind"], c["ratio"]["same"]) for c in point["compared"]] == [("crossing", 1), ("standing", 1),
