@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from evidence.stats import PairedRatio, paired_ratio
+from evidence.stats import SAME, PairedRatio, paired_ratio
 from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES
 
 
@@ -117,12 +117,19 @@ def per_point(records: list[dict], horizon: float) -> list[dict]:
 
 def per_kind(rows: list[dict], horizon: float) -> dict[str, dict]:
     """The rows of each scenario kind alone, kinds in alphabetical order: ``{kind: {"scenarios", "strategies"
-    (``aggregate``), "ratios" (``ratios``)}}``."""
+    (``aggregate``), "ratios" (``ratios``), "most_lost" (each pair's scenarios that lost most, ``extremes``)}}``."""
     out = {}
     for kind in sorted({row["kind"] for row in rows}):
         of_kind = [row for row in rows if row["kind"] == kind]
-        out[kind] = {"scenarios": len(of_kind), "strategies": aggregate(of_kind, horizon), "ratios": ratios(of_kind)}
+        lost = {f"{a}/{b}": extremes([(r[a]["shuttles"], r[b]["shuttles"], r["kind"], r["seed"]) for r in of_kind],
+                                     lost=True)
+                for a, b in PAIRS if a in columns(of_kind) and b in columns(of_kind)}
+        out[kind] = {"scenarios": len(of_kind), "strategies": aggregate(of_kind, horizon), "ratios": ratios(of_kind),
+                     "most_lost": lost}
     return out
+
+
+MOST = 3        # the scenarios named for the largest losses and gains of a comparison
 
 
 def compared(numerator: list[dict], denominator: list[dict]) -> list[dict]:
@@ -133,11 +140,11 @@ def compared(numerator: list[dict], denominator: list[dict]) -> list[dict]:
     reason. Two configurations of one sweep, or one configuration run by two versions of the code: the
     same seeded scenarios, so each scenario is its own control."""
     index = {(r["strategy"], r["kind"], r["seed"], r["duration"]): r["shuttles"] for r in denominator}
-    pairs: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    pairs: dict[tuple[str, str], list[tuple[float, float, str, int]]] = {}
     for r in numerator:
         other = index.get((r["strategy"], r["kind"], r["seed"], r["duration"]))
         if other is not None:
-            pairs.setdefault((r["strategy"], r["kind"]), []).append((r["shuttles"], other))
+            pairs.setdefault((r["strategy"], r["kind"]), []).append((r["shuttles"], other, r["kind"], r["seed"]))
     out = []
     for strategy in sorted({s for s, _ in pairs}):
         kinds = sorted(k for s, k in pairs if s == strategy)
@@ -146,12 +153,23 @@ def compared(numerator: list[dict], denominator: list[dict]) -> list[dict]:
             groups.append(("overall", [p for _, of_kind in groups for p in of_kind]))
         for kind, of_kind in groups:
             try:
-                ratio: PairedRatio | str = paired_ratio([a for a, _ in of_kind], [b for _, b in of_kind],
+                ratio: PairedRatio | str = paired_ratio([p[0] for p in of_kind], [p[1] for p in of_kind],
                                                         np.random.default_rng(0))
             except ValueError as exc:
                 ratio = f"no ratio: {exc}"
-            out.append({"strategy": strategy, "kind": kind, "scenarios": len(of_kind), "ratio": ratio})
+            out.append({"strategy": strategy, "kind": kind, "scenarios": len(of_kind), "ratio": ratio,
+                        "most_lost": extremes(of_kind, lost=True), "most_gained": extremes(of_kind, lost=False)})
     return out
+
+
+def extremes(pairs: list[tuple[float, float, str, int]], lost: bool, most: int = MOST) -> list[list]:
+    """The `most` scenarios whose numerator fell furthest below (lost) or rose furthest above its denominator,
+    ``[kind, seed, numerator, denominator]`` each, largest difference first; only those that differ by more than
+    SAME shuttles. The scenarios to take apart first."""
+    sign = -1.0 if lost else 1.0
+    differing = [p for p in pairs if sign * (p[0] - p[1]) > SAME]
+    differing.sort(key=lambda p: -sign * (p[0] - p[1]))
+    return [[kind, int(seed), round(a, 3), round(b, 3)] for a, b, kind, seed in differing[:most]]
 
 
 def against_first(records: list[dict]) -> list[dict]:

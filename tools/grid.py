@@ -153,7 +153,8 @@ def ratio_text(ratio) -> str:
 
 def kind_lines(point: dict, strategies: list[str]) -> list[str]:
     """A point's figures kind by kind (``evidence.summary.per_point``): where the planning layer gains and where it
-    loses, which the overall figure sums away. Nothing for a sweep of one kind."""
+    loses, which the overall figure sums away, and each pair's scenarios that lost most (the seeds to take apart
+    first). Nothing for a sweep of one kind."""
     if len(point["kinds"]) < 2:
         return []
     lines = []
@@ -162,12 +163,26 @@ def kind_lines(point: dict, strategies: list[str]) -> list[str]:
                             if s in of_kind["strategies"])
         pairs = "  ".join(f"{pair} {ratio_text(r)}" for pair, r in of_kind["ratios"].items())
         lines.append(f"  {kind} ({of_kind['scenarios']}): {figures}  {pairs}".rstrip())
+        for pair, lost in of_kind["most_lost"].items():
+            if lost:
+                lines.append(f"    {pair} most lost: " + ", ".join(f"seed {seed} {a:.2f} against {b:.2f}"
+                                                                   for _, seed, a, b in lost))
     return lines
 
 
 def compared_lines(comparisons: list[dict]) -> list[str]:
-    """``evidence.summary.compared``'s ratios, a line each: strategy, kind, ratio, interval and counts."""
-    return [f"  {c['strategy']} {c['kind']} ({c['scenarios']}): {ratio_text(c['ratio'])}" for c in comparisons]
+    """``evidence.summary.compared``'s ratios, a line each: strategy, kind, ratio, interval and counts; under each
+    kind's line the scenarios that lost and gained most (seed: numerator against denominator)."""
+    lines = []
+    for c in comparisons:
+        lines.append(f"  {c['strategy']} {c['kind']} ({c['scenarios']}): {ratio_text(c['ratio'])}")
+        if c["kind"] == "overall":
+            continue
+        for label in ("most_lost", "most_gained"):
+            if c[label]:
+                lines.append(f"    {label.replace('_', ' ')}: " + ", ".join(f"seed {seed} {a:.2f} against {b:.2f}"
+                                                                          for _, seed, a, b in c[label]))
+    return lines
 
 
 def figure_lines(points: list[dict], strategies: list[str], first: list[dict], against: dict | None) -> list[str]:

@@ -194,15 +194,23 @@ def test_a_point_is_read_kind_by_kind_and_against_the_first_point_scenario_by_sc
     standing = ratios[("full", "standing")]["ratio"]              # seeds 0, 2, 4: 0 and 2 gained 0.5 each, of 9
     assert standing.ratio == pytest.approx(10 / 9) and (standing.better, standing.worse, standing.same) == (2, 0, 1)
     assert ratios[("full", "crossing")]["ratio"].ratio == pytest.approx(1.0)
+    # the scenarios to take apart first: where a pair lost most, where a point gained and lost most
+    assert one["kinds"]["crossing"]["most_lost"]["full/scale_only"] == [["crossing", k, 1.5, 2.0] for k in (1, 3, 5)]
+    assert one["kinds"]["standing"]["most_lost"]["full/scale_only"] == []
+    assert ratios[("full", "standing")]["most_gained"] == [["standing", 0, 3.5, 3.0], ["standing", 2, 3.5, 3.0]]
+    assert ratios[("full", "standing")]["most_lost"] == [] and ratios[("full", "crossing")]["most_gained"] == []
     assert ratios[("full", "overall")]["scenarios"] == 6 and ratios[("scale_only", "overall")]["ratio"].ratio == 1.0
     assert against_first(kind_records(first)) == []                # one point: nothing to compare
     # printed kind by kind, and each point against the first by the values that differ
-    two_keys = lambda patience: kind_records(f'{{"planning.patience": {patience}, "ssm.reaction_time": 0.1}}')
-    both = two_keys(1.5) + two_keys(0.5)
+    two_keys = lambda patience, shift: kind_records(f'{{"planning.patience": {patience}, "ssm.reaction_time": 0.1}}',
+                                                    shift)
+    both = two_keys(1.5, 0.0) + two_keys(0.5, 0.5)
     lines = grids.figure_lines(per_point(both, 0.4), ["scale_only", "full"], against_first(both), None)
     assert "  crossing (3): scale_only 10.00/min  full 7.50/min  full/scale_only 0.750 [0.750, 0.750] " \
            "(better in 0, worse in 3, same in 0)" in lines, lines
     assert "planning.patience=0.5 against planning.patience=1.5:" in lines, lines
+    assert "    full/scale_only most lost: seed 1 1.50 against 2.00, seed 3 1.50 against 2.00, seed 5 1.50 against " \
+           "2.00" in lines and "    most gained: seed 0 3.50 against 3.00, seed 2 3.50 against 3.00" in lines, lines
 
 
 def test_scenarios_are_compared_only_with_themselves():
