@@ -32,6 +32,10 @@ monitoring). Subcommands:
                                  router's access control (several hosts; deploy/zenoh/secure-*.json5)
   hrc faults [--only F ..]       the fault campaign against a cell that is up: kill -9, SIGSTOP, CAN
                                  faults, tracker faults; stop times, violations, recovery (a table)
+  hrc sweep --set KEY=V1,V2 ..   the strategies over many seeded scenarios in the simulation, per
+                                 configuration value and kind, against the first value or another sweep
+  hrc scenario KIND SEED         one of those scenarios taken apart: each strategy's arrivals, holds
+                                 and planning decisions
 The cell's commands reach it over Zenoh (--connect, default tcp/127.0.0.1:7447).
 Run 'hrc <command> --help' for the options of one command."""
 
@@ -270,6 +274,26 @@ def _add_sweep(sub) -> None:
                             "--workers processes")
 
 
+def _add_scenario(sub) -> None:
+    """hrc scenario: one seeded scenario of a sweep, each strategy's run taken apart."""
+    scenario = sub.add_parser("scenario", help="one seeded scenario of a sweep taken apart, strategy by strategy",
+                              description="Simulate one seeded scenario as hrc sweep does (the same figures to the "
+                                          "digit) with each strategy, and print what each did: shuttles, time "
+                                          "stopped and slowed, the arrivals at the goals, the spans held below "
+                                          "alpha_min, and every planning decision with its reason (a replan taken "
+                                          "or refused with both predicted times). For the seeds a sweep names as "
+                                          "most lost (docs/sweeps.md).")
+    scenario.add_argument("kind", help="the scenario kind (paper, crossing, standing, two_humans, random_walk, "
+                                       "real_table_edge, real_step_back)")
+    scenario.add_argument("seed", type=int, help="its seed, as the sweep names it")
+    scenario.add_argument("--strategies", default="full,fixed_path", help="comma-separated (default full,fixed_path)")
+    scenario.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="values",
+                          help="a configuration value, as the sweep's point had it (repeat for several), e.g. "
+                               "ssm.human_acceleration=0")
+    scenario.add_argument("--duration", type=_positive_float, default=12.0, metavar="SECONDS",
+                          help="simulated seconds (default 12, as hrc sweep)")
+
+
 def _add_report(sub) -> None:
     """hrc report: more out of a report folder."""
     report = sub.add_parser("report", help="write more into an hrc demo report folder (a ROS 2 bag of an older run)",
@@ -305,6 +329,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_certs(sub)
     _add_faults(sub)
     _add_sweep(sub)
+    _add_scenario(sub)
     _add_report(sub)
     _add_status(sub)
     return parser

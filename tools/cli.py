@@ -567,6 +567,31 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_scenario(args: argparse.Namespace) -> int:
+    """One seeded scenario, each strategy's run taken apart (tools.scenario); the configuration checked as a
+    sweep's point is, before anything runs."""
+    from evidence.sweep import config_of, strategies_for
+    from tools import grid as grids
+    from tools.scenario import story_lines
+
+    overrides = []
+    for text in args.values:
+        key, values = grids.parse_values(text)
+        if len(values) != 1:
+            raise UsageError(f"--set {text!r}: one value a key (a sweep's point), got {len(values)}")
+        overrides.append((key, values[0]))
+    point = tuple(sorted(overrides))
+    strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
+    grids.check_grid(grids.Grid(values={k: [v] for k, v in point}, strategies=strategies, kinds=[args.kind],
+                                scenarios=1, duration=args.duration, seed=args.seed))
+    runs = strategies_for(point, None)
+    alpha_min = config_of(point).scaling.alpha_min
+    print(f"hrc scenario: {args.kind} seed {args.seed}, {args.duration:g} s, {grids.point_label(point)}")
+    for strategy in strategies:
+        print("\n".join(story_lines(strategy, runs.run(strategy, args.kind, args.seed, args.duration), alpha_min)))
+    return 0
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     """hrc report FOLDER --mcap: the ROS 2 bag of an older report, from its trace files."""
     import json
@@ -660,7 +685,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return {"demo": cmd_demo, "goal": cmd_goal, "human": cmd_human, "status": cmd_status, "up": cmd_up,
                 "down": cmd_down, "recover": cmd_recover, "faults": cmd_faults,
-                "certs": cmd_certs, "view": cmd_view, "sweep": cmd_sweep,
+                "certs": cmd_certs, "view": cmd_view, "sweep": cmd_sweep, "scenario": cmd_scenario,
                 "report": cmd_report}[args.command](args)
     except Unreachable as exc:
         print(f"hrc {args.command}: error: {exc}", file=sys.stderr)

@@ -280,7 +280,8 @@ class PlanningLoop:
                     self.search_due = trajectory.version
                 detail = "prepared on the way here" if self.replanner.took_prepared else \
                     "left at once, searched on the way" if self.replanner.search_deferred else \
-                    "searched from rest" if self.replanner.goal_searched else ""
+                    "searched from rest" if self.replanner.goal_searched else \
+                    "the folded leg" if self.replanner.took_fold else "the straight line"
                 return PlanningOutcome("goal", ReplanResult(trajectory, 0.0, "goal", 0.0, from_rest=True, detail=detail))
             old, s = inputs.following
             return PlanningOutcome("goal", self.replanner.replan(old, s, inputs.goal, inputs.humans, "goal",

@@ -103,6 +103,7 @@ class Replanner:
         self.took_prepared = False     # the last plan_goal took the prepared trajectory it was given
         self.search_deferred = False   # the last plan_goal left a search to be run on the way (leaving)
         self.goal_searched = False     # the last plan_goal took the leg its search found
+        self.took_fold = False         # the last plan_goal's leg, where not searched, is the folded one
         self.postures = FoldedLegs(collision)     # the folded legs a new goal may take (``_posture``)
 
     def begin(self) -> None:
@@ -187,7 +188,7 @@ class Replanner:
         ``search_deferred`` says so: the robot leaves on it and the search runs on the way (``PlanningLoop``,
         action 'search', ``on_search``), so nobody waits at the goal for a search that seldom pays."""
         q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
-        self.took_prepared = self.search_deferred = self.goal_searched = False
+        self.took_prepared = self.search_deferred = self.goal_searched = self.took_fold = False
         if not self.collision.motion_free(q_start, q_goal)[0]:
             ready = self._still_good(prepared, q_start, q_goal, humans, waited, np.inf, version)
             if ready is not None:
@@ -206,6 +207,7 @@ class Replanner:
             posture_time = self.predicted_time(posture, 0.0, humans, waited)
             if posture_time <= direct_time:
                 direct, direct_time = posture, posture_time
+        self.took_fold = direct is posture           # (what the goal's detail says where it is not searched)
         if direct_time <= direct.duration + self.options.worth_searching:
             return direct                   # the people hardly slow it: a search would cost more than it saves
         # a searched leg must beat it as a replan must beat the trajectory it would replace (min_gain, or

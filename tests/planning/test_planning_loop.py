@@ -45,11 +45,11 @@ class RecordingReplanner:
     """Answers every call at once and records it: the loop's cadence is what is under test here."""
 
     def __init__(self, horizon=None, beta_fails: bool = False, horizon_fails: bool = False, slow=None,
-                 slow_fails: bool = False, defers: bool = False) -> None:
+                 slow_fails: bool = False, defers: bool = False, folds: bool = False) -> None:
         """defers: a goal's search is left for the way (``Replanner.search_deferred``) where plan_goal is told the
-        robot is leaving."""
+        robot is leaving. folds: a goal's leg is the folded one (``Replanner.took_fold``)."""
         self.calls: list[str] = []
-        self.defers, self.search_deferred = defers, False
+        self.defers, self.search_deferred, self.folds = defers, False, folds
         self.leaving: list[bool] = []        # plan_goal's leaving argument, call by call
         self.options = ReplanOptions()
         self.cost = SimpleNamespace(forecaster=ConstantVelocity())     # whose record the loop keeps (ForecastTrust)
@@ -84,7 +84,7 @@ class RecordingReplanner:
         self.took_prepared = prepared is not None
         if np.allclose(goal, 99.0):
             raise PlanningError("the goal is out of reach")
-        self.search_deferred, self.goal_searched = self.defers and leaving, False
+        self.search_deferred, self.goal_searched, self.took_fold = self.defers and leaving, False, self.folds
         self.searches += not self.search_deferred
         return dataclasses.replace(OLD, version=version)
 
@@ -152,6 +152,9 @@ def test_a_new_goal_comes_first_from_rest_or_merged_into_the_followed_trajectory
     loop = PlanningLoop(RecordingReplanner(horizon=True))
     rest = loop.step(0.0, inputs(new_goal=True, following=None, beta=True))
     assert rest.action == "goal" and rest.result.from_rest and rest.result.junction == 0.0 and rest.searches == 1
+    assert rest.result.detail == "the straight line"        # which leg, where it was not searched
+    folded = PlanningLoop(RecordingReplanner(folds=True)).step(0.0, inputs(new_goal=True, following=None))
+    assert folded.result.detail == "the folded leg"
     merged = loop.step(0.0, inputs(new_goal=True, beta=True))
     assert merged.action == "goal" and not merged.result.from_rest
     assert loop.replanner.calls == ["plan_goal v4", "replan"]

@@ -5,6 +5,7 @@ in-process stand-in for the pool is in tests/cell/test_sweep.py, with the real p
 import csv
 import io
 import math
+import re
 
 import pytest
 
@@ -259,3 +260,43 @@ def test_hrc_sweep_against_another_sweep_and_kind_by_kind(tmp_path):
     done = run_hrc("sweep", *common, "--out", str(tmp_path / "c"), "--against", str(broken))
     assert done.returncode == 2 and "chunk-00000.parquet: cannot read these records" in done.stderr, done.stderr
     assert not (tmp_path / "c" / "records").exists()
+
+
+def test_a_scenario_taken_apart_holds_and_arrivals():
+    """held_spans joins the cycles below alpha_min into spans (a gap under GAP is one span); arrivals are the
+    moments the shuttle count rose."""
+    from types import SimpleNamespace
+
+    from tools.scenario import arrivals, held_spans
+
+    alphas = [1.0, 0.1, 0.1, 1.0, 0.1, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0]
+    records = [SimpleNamespace(t=0.01 * k, step=SimpleNamespace(alpha=a), shuttles=int(k >= 6) + int(k >= 10))
+               for k, a in enumerate(alphas)]
+    result = SimpleNamespace(records=records)
+    assert held_spans(result, 0.2) == [(0.01, pytest.approx(0.05)), (0.11, pytest.approx(0.12))]
+    assert arrivals(result) == [0.06, 0.1]
+
+
+def test_hrc_scenario_tells_what_each_strategy_did_with_the_sweeps_figures(tmp_path):
+    """The seed a sweep names, taken apart: each strategy's shuttles as the sweep's record has them, its arrivals
+    and holds, every goal's leg named; a bad kind, key or a grid of values is refused (exit 2)."""
+    from tests.util import run_hrc
+
+    done = run_hrc("scenario", "standing", "3", "--strategies", "scale_only,full", "--duration", "4")
+    assert done.returncode == 0, done.stderr[-2000:]
+    record = run_scenario(ScenarioSpec("standing", 3, 4.0, "full"))
+    assert f"full: {record['shuttles']:.2f} shuttles ({record['completed']} completed)" in done.stdout, done.stdout
+    assert "hrc scenario: standing seed 3, 4 s, as shipped" in done.stdout and "scale_only: " in done.stdout
+    # scale_only held beside the person to the end; full gone round them, arrived
+    scale_only, full = done.stdout.split("\nfull: ")
+    assert "  no arrival" in scale_only and re.search(r"held below alpha_min 0.2: \d+\.\d\d-4\.00 s", scale_only)
+    assert re.search(r"  arrivals at \d+\.\d\d s", full) and "  held below alpha_min 0.2: " in full, full
+    goals = [line for line in done.stdout.splitlines() if " goal " in line]
+    assert goals and all(line.split("taken", 1)[1].strip() in ("the straight line", "the folded leg",
+                                                               "left at once, searched on the way",
+                                                               "searched from rest", "prepared on the way here")
+                         for line in goals), goals
+    for args, says in ((("moon", "1"), "kinds"), (("standing", "1", "--set", "ssm.nope=1"), "nope"),
+                       (("standing", "1", "--set", "ssm.reaction_time=0.1,0.2"), "one value a key")):
+        refused = run_hrc("scenario", *args)
+        assert refused.returncode == 2 and says in refused.stderr, (args, refused.stderr)
