@@ -264,6 +264,9 @@ def _add_sweep(sub) -> None:
     sweep.add_argument("--seed", type=int, default=None, help="first scenario seed (default 0)")
     sweep.add_argument("--out", type=Path, default=Path("hrc-sweep"), metavar="DIR",
                        help="output folder (default ./hrc-sweep); the same folder resumes the same sweep")
+    sweep.add_argument("--forecaster", default=None, metavar="MODULE:ATTRIBUTE",
+                       help="the full strategy's forecast of the people: a researcher's forecaster object, class or "
+                            "factory (shared.planning.forecast.load_forecaster; default: constant velocity)")
     sweep.add_argument("--against", type=Path, default=None, metavar="DIR",
                        help="another sweep's folder (the same grid run by other code: a commit, a worktree): every "
                             "point's ratios against the same point there, scenario by scenario, per kind")
@@ -292,6 +295,8 @@ def _add_scenario(sub) -> None:
                                "ssm.human_acceleration=0")
     scenario.add_argument("--duration", type=_positive_float, default=12.0, metavar="SECONDS",
                           help="simulated seconds (default 12, as hrc sweep)")
+    scenario.add_argument("--forecaster", default=None, metavar="MODULE:ATTRIBUTE",
+                          help="the full strategy's forecast of the people, as the sweep had it")
 
 
 def _add_report(sub) -> None:

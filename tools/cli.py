@@ -548,9 +548,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.workers < 1 or args.chunk < 1:
         raise UsageError("--workers and --chunk must be >= 1")
     other = None if args.against is None else sweep.read_sweep(args.against)     # a bad folder: before any run
-    specs = grid.specs()
+    forecaster = _forecaster(args.forecaster if args.forecaster is not None else doc.get("forecaster"))
+    specs = grid.specs(forecaster)
     print(f"hrc sweep: {len(grid.points())} points x {grid.scenarios} scenarios x {len(grid.strategies)} strategies "
-          f"= {len(specs)} runs into {args.out}", flush=True)
+          f"= {len(specs)} runs into {args.out}" + (f" (full's forecaster {forecaster})" if forecaster else ""),
+          flush=True)
     done = sweep.run_sweep(specs, args.out, executor="dask" if args.dask else "local", workers=args.workers,
                            address=None if args.dask in (None, "local") else args.dask, chunk=args.chunk,
                            meta={"bench": "sweep", "code": sweep.code_version(Path(__file__).resolve().parents[1])})
@@ -565,6 +567,20 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"hrc sweep: chunks {done.failed} failed: rerun the same command to fill them in", file=sys.stderr)
         return 1
     return 0
+
+
+def _forecaster(spec: str | None) -> str | None:
+    """A researcher's forecaster named ``module:attribute``, loaded once to refuse a bad name before anything runs
+    (UsageError saying what is wrong); None: the planning layer's own."""
+    if spec is None:
+        return None
+    from shared.planning.forecast import load_forecaster
+
+    try:
+        load_forecaster(str(spec))
+    except ValueError as exc:
+        raise UsageError(f"--forecaster: {exc}") from None
+    return str(spec)
 
 
 def cmd_scenario(args: argparse.Namespace) -> int:
@@ -584,9 +600,10 @@ def cmd_scenario(args: argparse.Namespace) -> int:
     strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
     grids.check_grid(grids.Grid(values={k: [v] for k, v in point}, strategies=strategies, kinds=[args.kind],
                                 scenarios=1, duration=args.duration, seed=args.seed))
-    runs = strategies_for(point, None)
+    runs = strategies_for(point, _forecaster(args.forecaster))
     alpha_min = config_of(point).scaling.alpha_min
-    print(f"hrc scenario: {args.kind} seed {args.seed}, {args.duration:g} s, {grids.point_label(point)}")
+    print(f"hrc scenario: {args.kind} seed {args.seed}, {args.duration:g} s, {grids.point_label(point)}"
+          + (f", full's forecaster {args.forecaster}" if args.forecaster else ""))
     for strategy in strategies:
         print("\n".join(story_lines(strategy, runs.run(strategy, args.kind, args.seed, args.duration), alpha_min)))
     return 0

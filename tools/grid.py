@@ -70,14 +70,15 @@ def parse_values(text: str) -> tuple[str, list[float | str]]:
 
 
 def load_grid(path: Path) -> dict:
-    """A grid file (YAML): ``set: {KEY: [values]}`` and optionally strategies, kinds, scenarios, duration, seed."""
+    """A grid file (YAML): ``set: {KEY: [values]}`` and optionally strategies, kinds, scenarios, duration, seed,
+    forecaster."""
     import yaml
 
     try:
         doc = yaml.safe_load(path.read_text())
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise GridError(f"{path}: cannot read the grid: {exc}") from None
-    known = {"set", "strategies", "kinds", "scenarios", "duration", "seed"}
+    known = {"set", "strategies", "kinds", "scenarios", "duration", "seed", "forecaster"}
     if not isinstance(doc, dict) or set(map(str, doc)) - known:
         raise GridError(f"{path}: expected a mapping with some of {sorted(known)}")
     values = doc.get("set") or {}

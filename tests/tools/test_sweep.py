@@ -134,6 +134,7 @@ def test_hrc_sweep_refuses_bad_grids_with_a_message_and_exit_2(tmp_path):
              (("--set", "ssm.reaction_time=0.1", "--workers", "0"), "--workers"),
              (("--grid", str(grid)), "scenarios: expected a number"),
              (("--against", str(tmp_path / "nowhere")), "no such folder"),
+             (("--forecaster", "nope:Nope"), "cannot import 'nope'"),
              (("--against", str(tmp_path)), "no sweep records")]
     grid.write_text("set:\n  ssm.reaction_time: [0.1]\nscenarios: many\n")
     for args, says in cases:
@@ -254,6 +255,12 @@ def test_hrc_sweep_against_another_sweep_and_kind_by_kind(tmp_path):
     with open(tmp_path / "b" / "sweep-kinds.csv") as f:
         assert [(r["kind"], r["strategy"]) for r in csv.DictReader(f)] == [("crossing", "scale_only"),
                                                                            ("standing", "scale_only")]
+    # a researcher's forecaster for full, named in the records (a folder of one forecaster: the plan holds it)
+    named = run_hrc("sweep", "--strategies", "full", "--kinds", "standing", "--scenarios", "1", "--duration", "0.5",
+                    "--workers", "1", "--forecaster", "shared.planning.forecast:DampedVelocity", "--out",
+                    str(tmp_path / "f"))
+    assert named.returncode == 0 and "(full's forecaster shared.planning.forecast:DampedVelocity)" in named.stdout
+    assert {r["forecaster"] for r in sweep.read_records(tmp_path / "f")} == {"shared.planning.forecast:DampedVelocity"}
     broken = tmp_path / "broken"
     (broken / "records").mkdir(parents=True)
     (broken / "records" / "chunk-00000.parquet").write_bytes(b"PAR1 not really")
@@ -297,6 +304,7 @@ def test_hrc_scenario_tells_what_each_strategy_did_with_the_sweeps_figures(tmp_p
                                                                "searched from rest", "prepared on the way here")
                          for line in goals), goals
     for args, says in ((("moon", "1"), "kinds"), (("standing", "1", "--set", "ssm.nope=1"), "nope"),
-                       (("standing", "1", "--set", "ssm.reaction_time=0.1,0.2"), "one value a key")):
+                       (("standing", "1", "--set", "ssm.reaction_time=0.1,0.2"), "one value a key"),
+                       (("standing", "1", "--forecaster", "shared.planning.forecast:Nope"), "has no 'Nope'")):
         refused = run_hrc("scenario", *args)
         assert refused.returncode == 2 and says in refused.stderr, (args, refused.stderr)
