@@ -72,13 +72,12 @@ from evidence.sweep import ScenarioSpec, strategies_for  # noqa: E402
 from tools.sweep import SweepMismatch, code_version, plan_id, read_records, run_sweep  # noqa: E402
 
 
-def plot(rows: list[dict], out: Path, horizon: float, intervals: dict) -> None:
+def plot(rows: list[dict], out: Path, by_kind: dict, intervals: dict) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    kinds = sorted({r["kind"] for r in rows})
-    by_kind = {k: aggregate([r for r in rows if r["kind"] == k], horizon) for k in kinds}
+    kinds = sorted(by_kind)
     fig, axes = plt.subplots(1, 3, figsize=(18, 4.5), gridspec_kw={"width_ratios": [1, 1, 0.8]})
     shown_strategies = columns(rows)
     width = 0.8 / len(shown_strategies)
@@ -204,7 +203,7 @@ def main() -> int:
                                           f"{per[s]['slowed_s']:.1f} s) viol {per[s]['violations']}"
                                           for s in run)
               + "".join(f"  {s} won back {100 * share:.0f} %" for s, share in shares.items() if share is not None))
-    plot(rows, args.out, horizon, intervals)
+    plot(rows, args.out, per_kinds, intervals)
     print("ratios of shuttles per minute with their paired bootstrap 95 % intervals:")
     for name, pairs in intervals.items():
         for pair, r in pairs.items():

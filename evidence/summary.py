@@ -81,16 +81,17 @@ def ratios(rows: list[dict]) -> dict:
     """Each pair of PAIRS: the ratio of shuttles and its paired bootstrap interval (evidence.stats) over
     these scenarios (every strategy runs each scenario equally long, so it is the shuttles-per-minute ratio),
     or, where there is none (the second strategy did nothing at all), the reason."""
-    out = {}
-    for a, b in PAIRS:
-        if a not in columns(rows) or b not in columns(rows):
-            continue
-        try:
-            out[f"{a}/{b}"] = paired_ratio([r[a]["shuttles"] for r in rows], [r[b]["shuttles"] for r in rows],
-                                           np.random.default_rng(0))
-        except ValueError as exc:
-            out[f"{a}/{b}"] = f"no ratio: {exc}"
-    return out
+    return {f"{a}/{b}": ratio_or_why([r[a]["shuttles"] for r in rows], [r[b]["shuttles"] for r in rows])
+            for a, b in PAIRS if a in columns(rows) and b in columns(rows)}
+
+
+def ratio_or_why(numerator: list[float], denominator: list[float]) -> PairedRatio | str:
+    """The paired ratio of two lists of per-scenario shuttles with its bootstrap interval (``paired_ratio``, seeded:
+    the same figures every time), or, where there is none (the denominator did nothing at all), the reason."""
+    try:
+        return paired_ratio(numerator, denominator, np.random.default_rng(0))
+    except ValueError as exc:
+        return f"no ratio: {exc}"
 
 
 def by_point(records: list[dict]) -> dict[str, list[dict]]:
@@ -152,11 +153,7 @@ def compared(numerator: list[dict], denominator: list[dict]) -> list[dict]:
         if len(kinds) > 1:
             groups.append(("overall", [p for _, of_kind in groups for p in of_kind]))
         for kind, of_kind in groups:
-            try:
-                ratio: PairedRatio | str = paired_ratio([p[0] for p in of_kind], [p[1] for p in of_kind],
-                                                        np.random.default_rng(0))
-            except ValueError as exc:
-                ratio = f"no ratio: {exc}"
+            ratio = ratio_or_why([p[0] for p in of_kind], [p[1] for p in of_kind])
             out.append({"strategy": strategy, "kind": kind, "scenarios": len(of_kind), "ratio": ratio,
                         "most_lost": extremes(of_kind, lost=True), "most_gained": extremes(of_kind, lost=False)})
     return out
