@@ -19,6 +19,7 @@ simply in the way, under the SSM.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import replace
 
 import numpy as np
@@ -59,24 +60,46 @@ def oracle_options(options: ReplanOptions = ReplanOptions(), times: int = ORACLE
 class Foresight:
     """The people of a script, and a forecaster that knows their future. The simulation reads the people
     through ``at(t)`` (which keeps the clock), the time cost asks ``forecast``: frames of the script from
-    that moment on."""
+    the moment of the people it is given. That is the latest ``at`` for the time cost's people, and an
+    earlier one for a snapshot the planning layer kept (``shared.planning.trust`` moves each snapshot of the
+    last second on to now, to see whether the forecast has held): the people states handed out over the last
+    ``REMEMBERED`` seconds are kept with their moments, so such a snapshot's forecast is the script from then,
+    and it holds, as a perfect forecast does. (Forecast from now instead, every snapshot would be off and the
+    foreseeing planner would never trust its forecast: always the fold, never the line, where a person walks
+    steadily; 1 % behind the full strategy in the crossing kind.)"""
+
+    REMEMBERED = 3.0   # s: longer than the trust gate's span (``PlanningParameters.trust_span``)
 
     def __init__(self, script, step: float = FRAME_STEP) -> None:
         self.script = script
         self.step = step
         self.now = 0.0
+        self._handed: deque[tuple[float, HumanCapsules]] = deque()
 
     def at(self, t: float) -> HumanCapsules:
         self.now = t
-        return self.script.at(t)
+        people = self.script.at(t)
+        self._handed.append((t, people))
+        while self._handed and self._handed[0][0] < t - self.REMEMBERED:
+            self._handed.popleft()
+        return people
 
     def phase(self, t: float) -> str:
         return self.script.phase(t)
 
+    def moment(self, humans: HumanCapsules) -> float:
+        """When (s) the script's people were `humans`: the moment ``at`` handed out that very object within the
+        last REMEMBERED seconds; else the latest (people the script did not give, e.g. a tracker's)."""
+        for t, people in reversed(self._handed):
+            if people is humans:
+                return t
+        return self.now
+
     def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
         if horizon <= 0.0 or humans.count == 0:
             return PeopleForecast.still(humans)
+        start = self.moment(humans)
         frames = int(np.ceil(horizon / self.step))        # (the time cost keeps one forecast per snapshot)
-        future = [self.script.at(self.now + horizon * k / frames) for k in range(frames + 1)]
+        future = [self.script.at(start + horizon * k / frames) for k in range(frames + 1)]
         return PeopleForecast(np.stack([f.segments for f in future]), np.stack([f.velocities for f in future]),
                               horizon / frames)

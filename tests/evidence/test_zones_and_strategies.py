@@ -139,6 +139,23 @@ def test_foresight_forecasts_the_scripts_own_future():
     assert foreseen.forecast(now, 0.0).horizon == 0.0 and foreseen.phase(2.0) == script.phase(2.0)
 
 
+def test_foresight_forecasts_a_kept_snapshot_from_its_own_moment_so_the_trust_gate_trusts_it():
+    """The planning layer's trust gate moves each snapshot of the last second on to now: the script's future from
+    the snapshot's moment lands on the people of now, where a forecast from now would not."""
+    from shared.planning.trust import ForecastTrust
+    script = make_scenario("crossing", 3, 8.0)
+    foreseen = bounds.Foresight(script)
+    trust = ForecastTrust(foreseen, span=1.0, tolerance=1e-6)
+    for k in range(151):
+        t = 0.01 * k
+        trust.update(t, foreseen.at(t))
+    then = foreseen.at(0.5)              # handed out again: its own moment now, not 0.5 s ago's object
+    assert foreseen.moment(then) == 0.5
+    assert trust.error(1.5) <= 1e-9 and trust.trusted(1.5)
+    stranger = script.at(0.7)            # people the script did not hand out: forecast from the latest moment
+    assert foreseen.moment(stranger) == 0.5
+
+
 def test_the_foresight_bound_runs_safe_and_repeatably(strategies):
     first = strategies.run("foresight", "paper", 0, 6.0).summary()
     second = strategies.run("foresight", "paper", 0, 6.0).summary()
