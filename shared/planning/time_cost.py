@@ -260,6 +260,11 @@ class SsmTimeCost:
         self._hypotheses = (humans, made)
         return made
 
+    def forget_forecast(self) -> None:
+        """Drop the kept forecast and hypotheses: for a forecaster whose answer for the same people changes (the
+        evidence's forecast told per decision, ``bench/forecast_value.py``)."""
+        self._forecasts = self._hypotheses = None
+
     def forecast(self, humans: HumanCapsules, moving: bool = True) -> PeopleForecast:
         """The forecaster's frames of these people over the options' extrapolation (moving=False: held where
         they are). A search costs hundreds of candidates against the same tracked people: the latest forecast

@@ -244,3 +244,4 @@ def test_the_planning_layers_first_leg_leaves_at_t0_as_the_fixed_path_does(strat
     assert full.goals and full.goals[0].t == 0.0
     for mine, theirs in zip(full.records[:90], alone.records[:90]):
         assert np.allclose(mine.step.q_command, theirs.step.q_command, atol=1e-9), mine.t
+
