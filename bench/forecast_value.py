@@ -47,9 +47,19 @@ class TruthFor:
         self.truth, self.estimate, self.told = truth, estimate, frozenset(told)
         self.asking: str | None = None
 
-    def forecast(self, humans, horizon: float):
+    def _answering(self, humans):
         decision = self.asking or ("trust" if self.truth.moment(humans) < self.truth.now else OTHER)
-        return (self.truth if decision in self.told else self.estimate).forecast(humans, horizon)
+        return self.truth if decision in self.told else self.estimate
+
+    def forecast(self, humans, horizon: float):
+        return self._answering(humans).forecast(humans, horizon)
+
+    def hypotheses(self, humans, horizon: float):
+        """The answering forecaster's hypotheses (a researcher's may have several), else its one forecast."""
+        answering = self._answering(humans)
+        if callable(getattr(answering, "hypotheses", None)):
+            return answering.hypotheses(humans, horizon)
+        return [(1.0, answering.forecast(humans, horizon))]
 
 
 def _asking(name: str, label: str):
