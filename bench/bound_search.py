@@ -30,7 +30,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from evidence.scenarios import kinds_problem  # noqa: E402
+from evidence.scenarios import add_scenario_arguments, scenario_arguments  # noqa: E402
 from shared.config import CellConfig  # noqa: E402
 
 SEARCHES = (1, 2, 4, 8)
@@ -103,11 +103,7 @@ def clairvoyant_report(got: list[dict], kinds: list[str], args) -> dict:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seeds", type=int, default=6)
-    parser.add_argument("--seed", type=int, default=300)
-    parser.add_argument("--kinds", default="two_humans,random_walk,paper")
-    parser.add_argument("--duration", type=float, default=12.0)
-    parser.add_argument("--workers", type=int, default=2)
+    add_scenario_arguments(parser, "two_humans,random_walk,paper", 6, 300)
     parser.add_argument("--paper", action="store_true", help="under the paper's formula (the measured speed held)")
     parser.add_argument("--judge", choices=("cost", "scaling"), default="cost",
                         help="what the oracle's decisions are predicted by: the time cost, or a forward run of the "
@@ -116,11 +112,7 @@ def main() -> int:
                         help="the oracle (the planning layer told the future) or the clairvoyant sequence of fixed "
                              "leg shapes (evidence.clairvoyant)")
     args = parser.parse_args()
-    kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    if args.seeds < 1 or not args.duration > 0 or args.workers < 1:
-        parser.error("--seeds, --workers >= 1; --duration > 0")
-    if problem := kinds_problem(kinds):
-        parser.error(f"--kinds: {problem}")
+    kinds = scenario_arguments(parser, args)
     if args.bound == "clairvoyant":
         cjobs = [(args.paper, k, s, args.duration) for k in kinds for s in range(args.seed, args.seed + args.seeds)]
         with ProcessPoolExecutor(args.workers) as pool:

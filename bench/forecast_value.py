@@ -29,7 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from evidence.scenarios import kinds_problem  # noqa: E402
+from evidence.scenarios import add_scenario_arguments, scenario_arguments  # noqa: E402
 from shared.planning.replanner import Replanner  # noqa: E402
 
 DECISIONS = ("goal", "trust", "search", "beta", "horizon", "slow")
@@ -115,19 +115,11 @@ def one(job: tuple[str, int, float, str, str | None]) -> tuple[str, int, str, fl
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--kinds", default="random_walk,two_humans,crossing")
-    parser.add_argument("--seeds", type=int, default=48, help="scenarios a kind")
-    parser.add_argument("--seed", type=int, default=20000)
-    parser.add_argument("--duration", type=float, default=12.0)
-    parser.add_argument("--workers", type=int, default=2)
+    add_scenario_arguments(parser, "random_walk,two_humans,crossing", 48, 20000)
     parser.add_argument("--forecaster", default=None,
                         help="the forecast told to the other decisions, module:attribute (default: constant velocity)")
     args = parser.parse_args()
-    kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    if args.seeds < 1 or not args.duration > 0 or args.workers < 1:
-        parser.error("--seeds, --workers >= 1; --duration > 0")
-    if problem := kinds_problem(kinds):
-        parser.error(f"--kinds: {problem}")
+    kinds = scenario_arguments(parser, args)
     if args.forecaster:
         from shared.planning.forecast import load_forecaster
         try:

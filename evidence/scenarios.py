@@ -252,6 +252,27 @@ def kinds_problem(kinds, allow_none: bool = False) -> str | None:
     return None
 
 
+def add_scenario_arguments(parser, kinds: str, seeds: int, seed: int) -> None:
+    """A benchmark's seeded scenarios as command-line options (argparse): --kinds, --seeds (a kind), --seed (the
+    first), --duration (s), --workers; ``scenario_arguments`` checks them."""
+    parser.add_argument("--kinds", default=kinds, help="comma-separated scenario kinds")
+    parser.add_argument("--seeds", type=int, default=seeds, help="scenarios a kind")
+    parser.add_argument("--seed", type=int, default=seed, help="the first scenario seed")
+    parser.add_argument("--duration", type=float, default=12.0, help="simulated seconds a scenario")
+    parser.add_argument("--workers", type=int, default=2, help="local processes")
+
+
+def scenario_arguments(parser, args) -> list[str]:
+    """The kinds of ``add_scenario_arguments``' options, each checked: a usage error (exit 2) saying what is wrong
+    with them, before anything runs."""
+    kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
+    if args.seeds < 1 or not args.duration > 0 or args.workers < 1:
+        parser.error("--seeds, --workers >= 1; --duration > 0")
+    if problem := kinds_problem(kinds):
+        parser.error(f"--kinds: {problem}")
+    return kinds
+
+
 def make_scenario(kind: str, seed: int, duration: float):
     """The human(s) of one seeded scenario: the same (kind, seed, duration) gives the same motion (a recorded
     kind: with the same recordings, evidence.recorded)."""

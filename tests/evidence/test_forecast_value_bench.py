@@ -19,10 +19,13 @@ def test_told_every_decision_it_is_the_foresight_strategy_and_told_none_the_fore
     assert told_none < told_all - 0.1           # the forecast matters here: 1.73 against 2.14 shuttles
 
 
-@pytest.mark.parametrize("args", [("--kinds", "moon"), ("--seeds", "0"), ("--forecaster", "nowhere:thing")])
-def test_bad_arguments_are_refused_with_exit_2(monkeypatch, args):
-    bench = load_bench("forecast_value")
-    monkeypatch.setattr(sys, "argv", ["forecast_value.py", *args])
+@pytest.mark.parametrize("name, args", [("forecast_value", ("--kinds", "moon")), ("forecast_value", ("--seeds", "0")),
+                                        ("forecast_value", ("--forecaster", "nowhere:thing")),
+                                        ("bound_search", ("--kinds", "moon")), ("bound_search", ("--duration", "0"))])
+def test_bad_arguments_are_refused_with_exit_2(monkeypatch, name, args):
+    """The scenario options both benchmarks share (evidence.scenarios.scenario_arguments), and the forecaster."""
+    bench = load_bench(name)
+    monkeypatch.setattr(sys, "argv", [f"{name}.py", *args])
     with pytest.raises(SystemExit) as stop:
         bench.main()
     assert stop.value.code == 2
