@@ -6,10 +6,10 @@ or a researcher's ``--forecaster``) to the rest: a new goal's leg (``goal``: ``R
 gate's check that the forecast has held (``trust``: ``shared.planning.trust``), the search on the way
 (``search``), the scaling layer's replan requests (``beta``), the horizon check (``horizon``) and the planning
 layer's own request (``slow``); then to every decision but a new goal's leg and the trust gate, and to all (a
-new goal's merge into a moving robot's trajectory among them). Each row is the
-shuttles made over the same scenarios, and over the row told nothing (the same planner with the forecast in
-every decision). Where one decision holds most of a perfect forecast's worth, a rule for that decision can win it
-back; where it is spread over all of them, only a better forecast can.
+new goal's merge into a moving robot's trajectory among them). Each row: the shuttles made over the same
+scenarios, as a ratio to the row told nothing (the same planner with the forecast in every decision). Where one
+decision holds most of a perfect forecast's worth, a rule for that decision can win it back; where it is spread
+over all of them, only a better forecast can.
 
 The planner is the foreseeing one (``foresight_options``: its predictions over the forecast's whole horizon,
 nobody assumed gone before the forecast says), so the row told everything is the foresight strategy itself.

@@ -149,8 +149,8 @@ def test_foresight_forecasts_a_kept_snapshot_from_its_own_moment_so_the_trust_ga
     for k in range(151):
         t = 0.01 * k
         trust.update(t, foreseen.at(t))
-    then = foreseen.at(0.5)              # handed out again: its own moment now, not 0.5 s ago's object
-    assert foreseen.moment(then) == 0.5
+    then = foreseen.at(0.5)              # the script's clock set back to 0.5 s: a kept snapshot's forecast
+    assert foreseen.moment(then) == 0.5  # does not depend on it, only on the snapshot's own moment
     assert trust.error(1.5) <= 1e-9 and trust.trusted(1.5)
     stranger = script.at(0.7)            # people the script did not hand out: forecast from the latest moment
     assert foreseen.moment(stranger) == 0.5
