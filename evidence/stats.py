@@ -34,13 +34,21 @@ class PairedRatio:
     worse: int
     same: int
 
+    def interval_text(self) -> str:
+        """The ratio and its interval, ``1.012 [1.003, 1.020]``."""
+        return f"{self.ratio:.3f} [{self.low:.3f}, {self.high:.3f}]"
+
     def describe(self) -> str:
-        return (f"{self.ratio:.3f} [{self.low:.3f}, {self.high:.3f}] (better in {self.better}, worse in "
-                f"{self.worse}, same in {self.same})")
+        return f"{self.interval_text()} (better in {self.better}, worse in {self.worse}, same in {self.same})"
 
     def as_list(self) -> list[float]:
         """[ratio, low, high], rounded, for a JSON line."""
         return [round(self.ratio, 4), round(self.low, 4), round(self.high, 4)]
+
+    def as_dict(self) -> dict:
+        """The ratio, its interval and the scenarios better, worse and the same, rounded, for a JSON document."""
+        ratio, low, high = self.as_list()
+        return {"ratio": ratio, "interval": [low, high], "better": self.better, "worse": self.worse, "same": self.same}
 
 
 def paired_ratio(numerator, denominator, rng: np.random.Generator, resamples: int = 4000,

@@ -152,6 +152,11 @@ def ratio_text(ratio) -> str:
     return ratio if isinstance(ratio, str) else ratio.describe()
 
 
+def seeds_text(scenarios: list[list]) -> str:
+    """``evidence.summary.extremes``' scenarios as a line names them: ``seed 9396 3.47 against 4.54, ...``."""
+    return ", ".join(f"seed {seed} {a:.2f} against {b:.2f}" for _, seed, a, b in scenarios)
+
+
 def kind_lines(point: dict, strategies: list[str]) -> list[str]:
     """A point's figures kind by kind (``evidence.summary.per_point``): where the planning layer gains and where it
     loses, which the overall figure sums away, and each pair's scenarios that lost most (the seeds to take apart
@@ -166,8 +171,7 @@ def kind_lines(point: dict, strategies: list[str]) -> list[str]:
         lines.append(f"  {kind} ({of_kind['scenarios']}): {figures}  {pairs}".rstrip())
         for pair, lost in of_kind["most_lost"].items():
             if lost:
-                lines.append(f"    {pair} most lost: " + ", ".join(f"seed {seed} {a:.2f} against {b:.2f}"
-                                                                   for _, seed, a, b in lost))
+                lines.append(f"    {pair} most lost: {seeds_text(lost)}")
     return lines
 
 
@@ -181,8 +185,7 @@ def compared_lines(comparisons: list[dict]) -> list[str]:
             continue
         for label in ("most_lost", "most_gained"):
             if c[label]:
-                lines.append(f"    {label.replace('_', ' ')}: " + ", ".join(f"seed {seed} {a:.2f} against {b:.2f}"
-                                                                          for _, seed, a, b in c[label]))
+                lines.append(f"    {label.replace('_', ' ')}: {seeds_text(c[label])}")
     return lines
 
 
@@ -195,8 +198,7 @@ def figure_lines(points: list[dict], strategies: list[str], first: list[dict], a
     for p in points:
         figures = "  ".join(f"{s} {p['strategies'][s]['shuttles_per_min']:.2f}/min (viol {p['strategies'][s]['violations']})"
                             for s in strategies if s in p["strategies"])
-        pairs = "  ".join(f"{pair} {r.describe().split(' (')[0]}" for pair, r in p["ratios"].items()
-                          if not isinstance(r, str))
+        pairs = "  ".join(f"{pair} {r.interval_text()}" for pair, r in p["ratios"].items() if not isinstance(r, str))
         lines.append(f"{point_label(sorted(p['point'].items()))}: {figures}  {pairs}")
         lines += kind_lines(p, strategies)
     for f in first:          # named by the values that differ (the others are the same in both)
@@ -214,14 +216,8 @@ def figure_lines(points: list[dict], strategies: list[str], first: list[dict], a
     return lines
 
 
-def _ratio_json(ratio) -> dict | str:
-    return ratio if isinstance(ratio, str) else {"ratio": round(ratio.ratio, 4), "interval": [round(ratio.low, 4),
-                                                 round(ratio.high, 4)], "better": ratio.better, "worse": ratio.worse,
-                                                 "same": ratio.same}
-
-
 def _comparisons_json(comparisons: list[dict]) -> list[dict]:
-    return [{**c, "ratio": _ratio_json(c["ratio"])} for c in comparisons]
+    return [{**c, "ratio": c["ratio"] if isinstance(c["ratio"], str) else c["ratio"].as_dict()} for c in comparisons]
 
 
 def write_summary(points: list[dict], grid: Grid, out: Path, first: list[dict] | None = None,
