@@ -69,6 +69,7 @@ from evidence.scenarios import SCENARIO_KINDS, kinds_problem  # noqa: E402
 from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES  # noqa: E402
 from evidence.summary import aggregate, columns, per_kind, ratios, wide_rows, won_back  # noqa: E402
 from evidence.sweep import ScenarioSpec, strategies_for  # noqa: E402
+from shared.planning.forecast import forecaster_problem  # noqa: E402
 from tools.sweep import SweepMismatch, code_version, plan_id, read_records, run_sweep  # noqa: E402
 
 
@@ -161,12 +162,8 @@ def main() -> int:
     kinds = sorted({k.strip() for k in args.kinds.split(",") if k.strip()})
     if problem := kinds_problem(kinds):
         parser.error(f"--kinds: {problem}")
-    if args.forecaster is not None:
-        from shared.planning.forecast import load_forecaster
-        try:
-            load_forecaster(args.forecaster)
-        except ValueError as exc:
-            parser.error(f"--forecaster: {exc}")
+    if args.forecaster is not None and (problem := forecaster_problem(args.forecaster)):
+        parser.error(f"--forecaster: {problem}")
     run = (STRATEGIES + (BASELINES if args.fixed_path else ()) + tuple(b for b in BOUNDS if getattr(args, b))
            + (PAPER if args.paper else ()))
     specs = [ScenarioSpec(kinds[k % len(kinds)], args.seed + k, args.duration, strategy, forecaster=args.forecaster)

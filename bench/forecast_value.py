@@ -30,6 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import add_scenario_arguments, scenario_arguments  # noqa: E402
+from shared.planning.forecast import forecaster_problem  # noqa: E402
 from shared.planning.replanner import Replanner  # noqa: E402
 
 DECISIONS = ("goal", "trust", "search", "beta", "horizon", "slow")
@@ -120,12 +121,8 @@ def main() -> int:
                         help="the forecast told to the other decisions, module:attribute (default: constant velocity)")
     args = parser.parse_args()
     kinds = scenario_arguments(parser, args)
-    if args.forecaster:
-        from shared.planning.forecast import load_forecaster
-        try:
-            load_forecaster(args.forecaster)
-        except ValueError as exc:
-            parser.error(f"--forecaster: {exc}")
+    if args.forecaster and (problem := forecaster_problem(args.forecaster)):
+        parser.error(f"--forecaster: {problem}")
     jobs = [(k, s, args.duration, row, args.forecaster) for k in kinds
             for s in range(args.seed, args.seed + args.seeds) for row in ROWS]
     with ProcessPoolExecutor(args.workers) as pool:

@@ -574,12 +574,10 @@ def _forecaster(spec: str | None) -> str | None:
     (UsageError saying what is wrong); None: the planning layer's own."""
     if spec is None:
         return None
-    from shared.planning.forecast import load_forecaster
+    from shared.planning.forecast import forecaster_problem
 
-    try:
-        load_forecaster(str(spec))
-    except ValueError as exc:
-        raise UsageError(f"--forecaster: {exc}") from None
+    if problem := forecaster_problem(str(spec)):
+        raise UsageError(f"--forecaster: {problem}")
     return str(spec)
 
 

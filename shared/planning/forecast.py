@@ -138,6 +138,16 @@ class WalksOrStops:
         return [(self.walk_weight, self.forecast(humans, horizon)), (1.0 - self.walk_weight, PeopleForecast.still(humans))]
 
 
+def forecaster_problem(spec: str) -> str | None:
+    """What is wrong with a forecaster's name (``load_forecaster`` tried once), in words, or None: an entry point
+    says so before anything runs."""
+    try:
+        load_forecaster(spec)
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
 def load_forecaster(spec: str) -> Forecaster:
     """The forecaster named `spec`, ``package.module:attribute``: an object with ``forecast``, or a class or
     factory called with no arguments that returns one. ValueError saying what is wrong otherwise (the

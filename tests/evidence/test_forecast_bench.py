@@ -7,7 +7,7 @@ import pytest
 
 from evidence.scenarios import make_scenario
 from shared.core.humans import HumanCapsules
-from shared.planning.forecast import ConstantVelocity, DampedVelocity, PeopleForecast, load_forecaster
+from shared.planning.forecast import ConstantVelocity, DampedVelocity, PeopleForecast, forecaster_problem, load_forecaster
 from tests.util import load_bench
 
 
@@ -58,6 +58,8 @@ def test_forecasters_are_loaded_by_name_or_refused_saying_why():
                       ("shared.planning.forecast:Nope", "has no 'Nope'"), ("numpy:pi", "no forecast")):
         with pytest.raises(ValueError, match=why):
             load_forecaster(spec)
+        assert why in forecaster_problem(spec)                     # what the entry points print before they run
+    assert forecaster_problem("shared.planning.forecast:ConstantVelocity") is None
 
 
 def test_a_damped_forecast_slows_the_people_down():
