@@ -100,6 +100,13 @@ class Foresight:
             return PeopleForecast.still(humans)
         start = self.moment(humans)
         frames = int(np.ceil(horizon / self.step))        # (the time cost keeps one forecast per snapshot)
-        future = [self.script.at(start + horizon * k / frames) for k in range(frames + 1)]
-        return PeopleForecast(np.stack([f.segments for f in future]), np.stack([f.velocities for f in future]),
-                              horizon / frames)
+        step = horizon / frames
+        future = []
+        for k in range(frames + 1):
+            then = self.script.at(start + horizon * k / frames)
+            if then is None or then.count != humans.count:     # a dropout, someone seen or lost: known to there, held
+                break
+            future.append(then)
+        if len(future) < 2:
+            return PeopleForecast.still(humans)
+        return PeopleForecast(np.stack([f.segments for f in future]), np.stack([f.velocities for f in future]), step)

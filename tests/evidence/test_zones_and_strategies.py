@@ -156,6 +156,42 @@ def test_foresight_forecasts_a_kept_snapshot_from_its_own_moment_so_the_trust_ga
     assert foreseen.moment(stranger) == 0.5
 
 
+
+class _SeenThenLost:
+    """Two people, of whom the second is lost from view at 1.0 s and nobody is seen from 2.0 s (as a recording's
+    dropouts come through the tracker): a script whose number of capsules changes."""
+
+    def __init__(self) -> None:
+        self.both = make_scenario("two_humans", 5, 4.0)
+
+    def at(self, t: float) -> HumanCapsules | None:
+        people = self.both.at(t)
+        if t >= 2.0:
+            return None
+        if t >= 1.0:
+            return HumanCapsules(people.segments[:3], people.radii[:3], people.velocities[:3], people.velocity_known[:3])
+        return people
+
+    def phase(self, t: float) -> str:
+        return "seen, then lost"
+
+
+def test_foresight_knows_the_future_up_to_a_change_in_who_is_seen_and_holds_it_there():
+    """Real people come through the tracker with dropouts: the foreseeing planner's forecast is the future while the
+    same capsules are seen, held after (it crashed the foresight strategy on recorded kinds: stacking frames of
+    other shapes)."""
+    script = _SeenThenLost()
+    foreseen = bounds.Foresight(script)
+    now = foreseen.at(0.5)
+    ahead = foreseen.forecast(now, 1.0)                 # the second person is lost 0.5 s ahead
+    assert ahead.frames.shape[1:] == now.segments.shape and 0.4 <= ahead.horizon < 0.5
+    np.testing.assert_allclose(ahead.at(0.3), script.at(0.8).segments)
+    np.testing.assert_allclose(ahead.at(0.9), ahead.frames[-1])              # held after the change
+    fewer = foreseen.at(1.5)
+    assert foreseen.forecast(fewer, 1.0).frames.shape[1:] == fewer.segments.shape   # nobody seen 0.5 s ahead
+    assert foreseen.forecast(fewer, 0.05).horizon == pytest.approx(0.05)
+    gone = foreseen.forecast(foreseen.at(1.95), 1.0)                          # nobody at the next frame: held now
+    assert gone.horizon == 0.0
 def test_the_foresight_bound_runs_safe_and_repeatably(strategies):
     first = strategies.run("foresight", "paper", 0, 6.0).summary()
     second = strategies.run("foresight", "paper", 0, 6.0).summary()
