@@ -95,6 +95,19 @@ def run_scenario(spec: ScenarioSpec) -> dict:
             "beta_requests": int(s["beta_requests"]), "wall_s": time.perf_counter() - started}
 
 
+class RunFailed(RuntimeError):
+    """A run of a chunk raised: the message names the run (kind, seed, strategy, configuration) and the error, so
+    that `hrc scenario` can take it apart; a plain string, so it crosses a process pool or Dask as it is."""
+
+
 def run_chunk(specs: list[ScenarioSpec]) -> list[dict]:
     """The records of a chunk of specs, in order (the unit an executor schedules)."""
-    return [run_scenario(spec) for spec in specs]
+    records = []
+    for spec in specs:
+        try:
+            records.append(run_scenario(spec))
+        except Exception as exc:
+            where = f"{spec.kind} seed {spec.seed}, {spec.duration:g} s, {spec.strategy}"
+            where += f", {spec.config_key()}" if spec.overrides else ""
+            raise RunFailed(f"{where}: {type(exc).__name__}: {exc}") from exc
+    return records
