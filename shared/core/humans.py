@@ -13,7 +13,7 @@ import numpy as np
 
 # m/s: below it a tracked body part counts as standing: a person shifting their stance or leaning in, not going
 # anywhere (people walk at 0.4 m/s and more). The planning layer's predictions neither move such a part on along
-# its velocity (``shared.planning.time_cost``) nor count its person as moving (``shared.planning.loop.StillClock``),
+# its velocity (``shared.planning.time_cost``) nor count its person as moving (``shared.planning.presence.StillClock``),
 # and a person standing still farther off makes no folded leg (``shared.planning.replanner``, ``still_gap``).
 # At 0.1 m/s, the paper's phase 4 (a person stepping in at 0.13 m/s for 1.2 s, then standing in the path) had a
 # goal planned while they stepped predicted 0.25 m further in, past the way round, and they stopped in its way.

@@ -29,9 +29,10 @@ how long it has been held) and takes at most one action, in this order:
    is still good for the people as they are then: the robot leaves without waiting for a search (in `hrc
    demo` a goal's search took 60-100 ms, and the robot stood at the goal meanwhile).
 
-Every prediction assumes the people stay at least as long as they have stood still (``StillClock``) or
-the robot has been held, whichever is longer, on top of the replanner's patience: someone who has stood
-in the way for three seconds is gone round sooner than someone who has just stopped.
+Every prediction assumes the people stay at least as long as they have stood still (``StillClock``) or dwelt
+where they are, working with their hands (``DwellClock``), or the robot has been held, whichever is longer, on
+top of the replanner's patience (``shared.planning.presence``): someone who has stayed in the way for three
+seconds is gone round sooner than someone who has just stopped.
 
 Nothing is planned while the people are not known (no valid human state yet, or the track lost:
 ``PlanningLoop.ready``): a plan made then would be the empty cell's, and the scaling layer does not move the
@@ -52,9 +53,10 @@ import numpy as np
 from shared.core.humans import STANDING_SPEED, HumanCapsules, standing
 from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.blocked import GoalBlock, goal_block
-from shared.planning.decision import HoldClock, ReplanFailed, ReplanResult
+from shared.planning.decision import ReplanFailed, ReplanResult
 from shared.planning.inputs import PlanningInputs
 from shared.planning.ompl_planner import PlanningError
+from shared.planning.presence import DWELL_RADIUS, DwellClock, StillClock
 from shared.planning.replanner import PreparedPlan, Replanner
 from shared.planning.timing import TimingError
 from shared.planning.trust import ForecastTrust
@@ -76,27 +78,6 @@ class PlanningOutcome:
     prepared: Trajectory | None = None
 
 
-class StillClock:
-    """How long the people have stood still (s): the same number of capsules, every one with a known
-    velocity below `speed` (m/s) at both ends. Anyone moving, appearing or leaving, or a velocity the
-    tracker does not know, starts it again. Someone who has stood for a while is likely to stand a while
-    longer, so the predictions assume the people stay at least this long on top of their patience."""
-
-    def __init__(self, speed: float = STANDING_SPEED) -> None:
-        self.speed = speed
-        self.count = -1
-        self.clock = HoldClock()           # the same timing as the robot's hold, fed "standing" instead of beta
-
-    def update(self, now: float, humans: HumanCapsules | None) -> None:
-        count = -1 if humans is None else humans.count
-        still = count > 0 and count == self.count and standing(humans, self.speed)
-        self.count = count
-        self.clock.update(now, still)
-
-    def waited(self, now: float) -> float:
-        return self.clock.waited(now)
-
-
 IDLE_LONGEST = 0.2     # s: the longest the planner's loop waits between turns when nothing is asked of it
 PREPARE_AHEAD = 0.5    # s of nominal time before the goal: the next leg's plan is prepared from then on
 APPROACH_SPEED = 2.0   # m/s: the ISO 13855 approach speed near the robot, the fastest a person comes
@@ -115,12 +96,14 @@ def idle_time(gap: float, period: float, longest: float = IDLE_LONGEST) -> float
 class PlanningLoop:
     """The cadence above around one Replanner. beta_replans False: the paper's ablation (no replan requests,
     the scaling layer's or the planning layer's own). still_speed: below it people count as standing
-    (StillClock; None: not used). slow_period (s): how often the path ahead is checked for a slow
-    prediction (None: never)."""
+    (StillClock; None: not used). dwell_radius (m): people whose centroid stays this near count as dwelling
+    (DwellClock; None: not used). slow_period (s): how often the path ahead is checked for a slow prediction
+    (None: never)."""
 
     def __init__(self, replanner: Replanner, horizon_period: float = 0.02, beta_cooldown: float = 0.5,
                  beta_replans: bool = True, still_speed: float | None = STANDING_SPEED,
-                 slow_period: float | None = 0.25, prepare_ahead: float | None = PREPARE_AHEAD) -> None:
+                 slow_period: float | None = 0.25, prepare_ahead: float | None = PREPARE_AHEAD,
+                 dwell_radius: float | None = DWELL_RADIUS) -> None:
         self.replanner = replanner
         replanner.forget()                 # a new run: no paths remembered from another one
         self.horizon_period, self.beta_cooldown, self.beta_replans = horizon_period, beta_cooldown, beta_replans
@@ -133,6 +116,7 @@ class PlanningLoop:
         self.answered: float | None = None   # the last stop_at a replan request was answered for
         self.last_sample: int | None = None
         self.still = StillClock(still_speed) if still_speed is not None else None
+        self.dwell = DwellClock(dwell_radius) if dwell_radius is not None else None
         self.last_people_sample: int | None = None   # the sample the people clocks last saw
         options = replanner.options             # whether the forecast has held (a new goal's line or fold)
         self.trust = ForecastTrust(replanner.cost.forecaster, options.trust_span, options.trust_tolerance) \
@@ -142,14 +126,16 @@ class PlanningLoop:
         """At most one planning action for this moment (see the module docstring); None when none is due."""
         if inputs.human_sample != self.last_people_sample:
             self.last_people_sample = inputs.human_sample
-            if self.still is not None:
-                self.still.update(now, inputs.humans)
+            for clock in (self.still, self.dwell):
+                if clock is not None:
+                    clock.update(now, inputs.humans)
             if self.trust is not None:
                 self.trust.update(now, inputs.humans)
         if not self.ready(inputs):
             return None
-        if self.still is not None:
-            inputs = replace(inputs, waited=max(inputs.waited, self.still.waited(now)))
+        stayed = [clock.waited(now) for clock in (self.still, self.dwell) if clock is not None]
+        if stayed:
+            inputs = replace(inputs, waited=max(inputs.waited, *stayed))
         before = self.replanner.searches
         self.replanner.begin()
         try:

@@ -19,9 +19,10 @@ from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace
 from shared.planning.forecast import ConstantVelocity
 from shared.planning.horizon import reach_gap
 from shared.planning.inputs import planning_inputs
-from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, StillClock, idle_time, warm_up
+from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import SearchOptions
+from shared.planning.presence import DWELL_RADIUS, StillClock
 from shared.planning.replanner import PreparedPlan, Replanner, ReplanOptions
 from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.robot.model import default_robot
@@ -705,6 +706,19 @@ def test_the_predictions_assume_standing_people_stay_at_least_as_long_as_they_ha
         walker.step(0.1 * k, inputs(humans=people(1.0), human_sample=k))
     walker.step(3.0, inputs(humans=people(1.0), human_sample=30, beta=True, waited=0.4))
     assert walker.replanner.waited == pytest.approx(0.4)
+
+
+def test_the_predictions_assume_people_working_in_place_stay_at_least_as_long_as_they_have_been_there():
+    """A person assembling at a table's edge moves their hands all the time: the still clock never counts, the
+    dwell clock does (shared.planning.presence), so a way round them is taken sooner."""
+    from tests.planning.test_presence import worker
+    for dwell, expected in ((DWELL_RADIUS, 2.9), (None, 0.4)):
+        loop = PlanningLoop(RecordingReplanner(), dwell_radius=dwell)
+        for k in range(30):
+            loop.step(0.1 * k, inputs(humans=worker(0.1 * k, shift=(-0.6, 0.0, 0.0)), human_sample=k))
+        loop.step(3.0, inputs(humans=worker(3.0, shift=(-0.6, 0.0, 0.0)), human_sample=30, beta=True, waited=0.4))
+        assert loop.replanner.calls[-1] == "beta"
+        assert loop.replanner.waited == pytest.approx(expected)
 
 
 def test_the_loop_idles_only_as_long_as_nobody_could_come_within_reach():
