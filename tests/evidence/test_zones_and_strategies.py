@@ -156,7 +156,6 @@ def test_foresight_forecasts_a_kept_snapshot_from_its_own_moment_so_the_trust_ga
     assert foreseen.moment(stranger) == 0.5
 
 
-
 class _SeenThenLost:
     """Two people, of whom the second is lost from view at 1.0 s and nobody is seen from 2.0 s (as a recording's
     dropouts come through the tracker): a script whose number of capsules changes."""
@@ -192,6 +191,8 @@ def test_foresight_knows_the_future_up_to_a_change_in_who_is_seen_and_holds_it_t
     assert foreseen.forecast(fewer, 0.05).horizon == pytest.approx(0.05)
     gone = foreseen.forecast(foreseen.at(1.95), 1.0)                          # nobody at the next frame: held now
     assert gone.horizon == 0.0
+
+
 def test_the_foresight_bound_runs_safe_and_repeatably(strategies):
     first = strategies.run("foresight", "paper", 0, 6.0).summary()
     second = strategies.run("foresight", "paper", 0, 6.0).summary()

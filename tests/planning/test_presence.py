@@ -11,10 +11,10 @@ TORSO = [[-0.9, 0.0, 0.9], [-0.9, 0.0, 1.35]]
 
 def worker(t: float, shift=(0.0, 0.0, 0.0), hand_speed: float = 0.4, walk=(0.0, 0.0, 0.0)) -> HumanCapsules:
     """A person at a table's edge: the torso where it is (moved by `shift` and on at the `walk` velocity, m/s), a
-    forearm reaching 0.3 m in and out every 2 s with its hand at up to `hand_speed` (m/s)."""
+    forearm reaching in and out every 2 s, its hand at up to `hand_speed` (m/s; 0.25 m in at 0.4 m/s)."""
     base = np.asarray(shift) + np.asarray(walk) * t
-    reach = 0.15 * (1.0 - np.cos(np.pi * t))
-    hand_v = 0.15 * np.pi * np.sin(np.pi * t) * hand_speed / (0.15 * np.pi)
+    reach = hand_speed / np.pi * (1.0 - np.cos(np.pi * t))
+    hand_v = hand_speed * np.sin(np.pi * t)
     segments = np.array([TORSO, [[-0.75, 0.2, 1.1], [-0.55 + reach, 0.2, 0.9]]]) + base
     velocities = np.array([[walk, walk], [walk, np.add(walk, (hand_v, 0.0, 0.0))]], dtype=float)
     return HumanCapsules(segments, np.array([0.2, 0.05]), velocities, np.array([True, True]))
