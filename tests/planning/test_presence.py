@@ -69,3 +69,18 @@ def test_a_person_seen_twice_in_one_state_still_dwells_and_stepping_in_slowly_is
         t = 0.1 * k
         creeping.update(t, worker(t, walk=(DWELL_SPEED + 0.02, 0.0, 0.0), hand_speed=0.0))
     assert creeping.waited(1.0) == 0.0
+
+
+def test_a_malformed_state_is_never_a_dwell_and_the_clock_recovers_after_it():
+    """Planning only, but a NaN that slipped through must not stretch the people's stay: not dwelling, then settled
+    anew at the next good state."""
+    dwell = DwellClock()
+    for t in (0.0, 0.1, 0.2):
+        dwell.update(t, worker(t, hand_speed=0.0))
+    bad = worker(0.3, hand_speed=0.0)
+    bad.segments[0, 0, 0] = np.nan
+    dwell.update(0.3, bad)
+    assert dwell.waited(0.3) == 0.0
+    for t in (0.4, 0.5, 0.6):
+        dwell.update(t, worker(t, hand_speed=0.0))
+    assert dwell.waited(0.6) == pytest.approx(0.1)
