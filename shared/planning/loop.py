@@ -115,8 +115,10 @@ class PlanningLoop:
         self.next_beta = self.next_horizon = self.next_slow = -np.inf
         self.answered: float | None = None   # the last stop_at a replan request was answered for
         self.last_sample: int | None = None
-        self.still = StillClock(still_speed) if still_speed is not None else None
-        self.dwell = DwellClock(dwell_radius) if dwell_radius is not None else None
+        # how long the people have stayed, by each clock in use (shared.planning.presence)
+        self.stays = tuple(clock for clock in (StillClock(still_speed) if still_speed is not None else None,
+                                               DwellClock(dwell_radius) if dwell_radius is not None else None)
+                           if clock is not None)
         self.last_people_sample: int | None = None   # the sample the people clocks last saw
         options = replanner.options             # whether the forecast has held (a new goal's line or fold)
         self.trust = ForecastTrust(replanner.cost.forecaster, options.trust_span, options.trust_tolerance) \
@@ -126,16 +128,14 @@ class PlanningLoop:
         """At most one planning action for this moment (see the module docstring); None when none is due."""
         if inputs.human_sample != self.last_people_sample:
             self.last_people_sample = inputs.human_sample
-            for clock in (self.still, self.dwell):
-                if clock is not None:
-                    clock.update(now, inputs.humans)
+            for clock in self.stays:
+                clock.update(now, inputs.humans)
             if self.trust is not None:
                 self.trust.update(now, inputs.humans)
         if not self.ready(inputs):
             return None
-        stayed = [clock.waited(now) for clock in (self.still, self.dwell) if clock is not None]
-        if stayed:
-            inputs = replace(inputs, waited=max(inputs.waited, *stayed))
+        if self.stays:
+            inputs = replace(inputs, waited=max(inputs.waited, *(clock.waited(now) for clock in self.stays)))
         before = self.replanner.searches
         self.replanner.begin()
         try:
