@@ -16,11 +16,13 @@ p (the last leg's part counted: the processes and the simulation compare by it),
 [monitor, recount, independent], "unchecked": n, "held": [recordings whose robot completed no shuttle]}}} (a count
 is null where no run of the placement measured it: the simulation has no recount).
 
-Placements (shoulders 1.35 m high, facing the robot across its sweep):
+Placements (shoulders 1.35 m high, facing the robot across its sweep; ``evidence.recorded.Placement``):
 * table_edge, X = -0.05: shoulders at x = -0.90 m, hands about 0.77 m from the base;
-* step_back, X = -0.75: shoulders at x = -1.60 m.
+* step_back, X = -0.75: shoulders at x = -1.60 m;
+* X:YAW, any other: moved X m along the base's x axis, then turned YAW degrees about the base (``-0.15:60``: near
+  the table's edge, beside the end of the sweep the robot starts from; the real_around scenario kind draws these).
 
-    python bench/real_people.py [--sim] [--paper-formula] [--placements table_edge,step_back]
+    python bench/real_people.py [--sim] [--paper-formula] [--placements table_edge,step_back,X:YAW]
                                 [--recordings DIR] [--only NAME ...] [--out DIR]
 
 Each processes run takes the recording's length plus about 15 s to start and stop the cell; the 24 runs of
@@ -39,17 +41,17 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from evidence.recorded import HEIGHT, PLACEMENTS, RECORDINGS  # noqa: E402  (the placements, one definition)
+from evidence.recorded import PLACEMENTS, RECORDINGS, placement_named  # noqa: E402  (the placements, one definition)
+from shared.core.errors import ConfigError  # noqa: E402
 
 HRC = [sys.executable, "-m", "tools.cli"]
 
 
 def convert(recording: Path, placement: str, out: Path) -> Path:
     """The recording as a motion file at the placement (the product's reader; raises CalledProcessError)."""
-    motion = out / f"{recording.stem}-{placement}.json"
+    motion = out / f"{recording.stem}-{placement.replace(':', '_')}.json"
     subprocess.run(HRC + ["human", "from-keypoints", str(recording), str(motion), "--format", "assembly",
-                          "--translate", str(PLACEMENTS[placement]), "0", str(HEIGHT)],
-                   check=True, cwd=ROOT, capture_output=True, text=True)
+                          *placement_named(placement).options()], check=True, cwd=ROOT, capture_output=True, text=True)
     return motion
 
 
@@ -161,15 +163,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--config", type=Path, default=None,
                         help="another cell configuration (hrc demo --config), e.g. to compare a planning setting")
     parser.add_argument("--placements", default="table_edge,step_back",
-                        help=f"comma-separated, of {', '.join(PLACEMENTS)} (default: both)")
+                        help=f"comma-separated, of {', '.join(PLACEMENTS)} or X:YAW (m, degrees; default: the two)")
     parser.add_argument("--recordings", type=Path, default=RECORDINGS, help="the folder of *.txt recordings")
     parser.add_argument("--only", nargs="*", default=None, help="recording names (without .txt) to run, not all")
     parser.add_argument("--out", type=Path, default=None, help="where each run's report goes (default: a temporary folder)")
     args = parser.parse_args(argv)
     placements = [p.strip() for p in args.placements.split(",") if p.strip()]
-    unknown = [p for p in placements if p not in PLACEMENTS]
-    if unknown or not placements:
-        parser.error(f"--placements: unknown {unknown}; known: {', '.join(PLACEMENTS)}")
+    if not placements:
+        parser.error(f"--placements: none; known: {', '.join(PLACEMENTS)}, or X:YAW")
+    for placement in placements:
+        try:
+            placement_named(placement)
+        except ConfigError as exc:
+            parser.error(f"--placements: {exc}")
     recordings = sorted(args.recordings.glob("*.txt")) if args.recordings.is_dir() else []
     if args.only is not None:
         recordings = [r for r in recordings if r.stem in set(args.only)]
@@ -192,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
             except subprocess.CalledProcessError as exc:
                 r = row(recording.stem, placement, {"error": f"conversion: {exc.stderr.strip()[-300:]}"})
             else:
-                r = row(recording.stem, placement, run(motion, out / f"{recording.stem}-{placement}", args.sim,
+                r = row(recording.stem, placement, run(motion, motion.with_suffix(""), args.sim,
                                                        args.paper_formula, args.config))
             rows.append(r)
             cells = [r["recording"], r["placement"]] + ([f"error: {r['error']}"] if r["error"] else

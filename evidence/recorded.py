@@ -8,11 +8,15 @@ assembly --translate X 0 1.1`` places it (shoulders 1.35 m high, facing the robo
 
 * table_edge, X = -0.05: shoulders at x = -0.90 m, hands about 0.77 m from the base, within 0.3-0.5 m of the
   links as they sweep past;
-* step_back, X = -0.75: shoulders at x = -1.60 m.
+* step_back, X = -0.75: shoulders at x = -1.60 m;
+* around: anywhere between those two distances, turned about the robot's base by up to a quarter turn either way
+  (beside the sweep's ends at the extremes), facing the base; the seed draws where. Two placements across the
+  sweep's middle say little about a person who works beside its start or its end, where the links pass them side
+  on, or diagonally: this kind is the cell's safety and planning checked wherever a person may work.
 
-Scenario kinds ``real_table_edge`` and ``real_step_back`` (``evidence.scenarios.make_scenario``): seed k is
-recording k mod n (the folder's ``*.txt`` in name order) from a start drawn from the seed within its length, so
-the seeds cycle through every recording and a run of many seeds covers each at many moments. The people are
+Scenario kinds ``real_table_edge``, ``real_step_back`` and ``real_around`` (``evidence.scenarios.make_scenario``):
+seed k is recording k mod n (the folder's ``*.txt`` in name order) from a start drawn from the seed within its
+length, so the seeds cycle through every recording and a run of many seeds covers each at many moments. The people are
 the recording's, frame by frame, as the cell's tracker passes them on (``shared.tracking.tracked``: velocities
 fitted over its window, unknown at a track's start and after a change in the capsules seen, nobody once no frame
 came for its dropout bound; a frame OpenPose lost a keypoint in is a dropout), as on the processes. The same seed
@@ -22,7 +26,9 @@ gives the same motion where the recordings are the same: the folder is ``HRC_REC
 from __future__ import annotations
 
 import json
+import math
 import os
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -36,8 +42,44 @@ from shared.tracking.motion import RecordedMotion, parse_json
 from shared.tracking.tracked import TrackedMotion
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "human-assembly"
-PLACEMENTS = {"table_edge": -0.05, "step_back": -0.75}     # m: --translate X of hrc human from-keypoints
 HEIGHT = 1.1                                                 # m: --translate Z (shoulders 1.35 m high)
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a recording's person stands: as the camera saw them (turned to face +x), moved `x` m along the robot
+    base's x axis and raised HEIGHT (shoulders at about x - 0.85 m on the x axis, facing the base), then turned
+    `yaw` rad about the base's vertical axis (0: across the middle of the sweep, which turns from -y through -x to
+    +y; +-pi/2: beside its ends). ``options`` are the ``hrc human from-keypoints`` options that place a file
+    there, so the processes run the person the simulation ran."""
+
+    x: float
+    yaw: float = 0.0
+
+    def transform(self) -> FrameTransform:
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return FrameTransform(camera=True, yaw=self.yaw, translation=(self.x * c, self.x * s, HEIGHT))
+
+    def options(self) -> list[str]:
+        """--yaw (degrees) and --translate X Y Z of ``hrc human from-keypoints --format assembly``."""
+        return ["--yaw", repr(math.degrees(self.yaw)), "--translate", *map(repr, self.transform().translation)]
+
+    def __str__(self) -> str:
+        return f"x {self.x:+.2f} m, yaw {math.degrees(self.yaw):+.0f} deg"
+
+
+PLACEMENTS = {"table_edge": Placement(-0.05), "step_back": Placement(-0.75)}
+AROUND_X = (-0.75, -0.05)         # m: the around kind's x, from one step back to the table's edge
+AROUND_YAW = 0.5 * math.pi        # rad: ... turned by up to this either way
+AROUND = "around"
+
+
+def around(seed: int) -> Placement:
+    """The around kind's placement for `seed` (its own generator: the window's start is drawn as for the fixed
+    placements), rounded to the millimetre and the milliradian (a file's options give the same person)."""
+    rng = np.random.default_rng([seed, 1])
+    x, yaw = rng.uniform(*AROUND_X), rng.uniform(-AROUND_YAW, AROUND_YAW)
+    return Placement(round(float(x), 3), round(float(yaw), 3))
 
 
 def recordings_folder() -> Path:
@@ -54,24 +96,41 @@ def recordings(folder: Path) -> list[Path]:
     return found
 
 
+def placement_named(placement: str | Placement) -> Placement:
+    """A placement by its name in PLACEMENTS or as X:YAW (m, degrees: ``-0.15:60``), or the placement itself;
+    ConfigError saying what is wrong with any other text."""
+    if isinstance(placement, Placement):
+        return placement
+    if placement in PLACEMENTS:
+        return PLACEMENTS[placement]
+    x, colon, yaw = str(placement).partition(":")
+    try:
+        found = Placement(float(x), math.radians(float(yaw))) if colon else None
+    except ValueError:
+        found = None
+    if found is None or not (math.isfinite(found.x) and math.isfinite(found.yaw)):
+        raise ConfigError(f"unknown placement {placement!r}; known: {', '.join(PLACEMENTS)}, or X:YAW (m along the "
+                          "base's x axis, degrees about its vertical axis, e.g. -0.15:60)")
+    return found
+
+
 @lru_cache(maxsize=64)
-def placed_motion(recording: Path, placement: str) -> RecordedMotion:
-    """One recording at a placement, as ``hrc human from-keypoints --format assembly --translate X 0 1.1``
-    writes it and ``hrc demo --human`` reads it (the same values: the motion document goes through the file
-    format's own parser). Kept per process: a sweep runs every strategy on the same few recordings."""
-    if placement not in PLACEMENTS:
-        raise ConfigError(f"unknown placement {placement!r}; known: {', '.join(PLACEMENTS)}")
+def placed_motion(recording: Path, placement: str | Placement) -> RecordedMotion:
+    """One recording at a placement (by name or itself), as ``hrc human from-keypoints --format assembly`` with
+    the placement's options writes it and ``hrc demo --human`` reads it (the same values: the motion document
+    goes through the file format's own parser). Kept per process: a sweep runs every strategy on the same few
+    recordings."""
+    transform = placement_named(placement).transform()
     try:
         text = Path(recording).read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{recording}: cannot read: {exc}") from None
-    transform = FrameTransform(camera=True, translation=(PLACEMENTS[placement], 0.0, HEIGHT))
     doc, _ = to_motion(read_assembly(text, str(recording)), transform)
     return RecordedMotion(parse_json(json.dumps(doc), str(recording)))
 
 
 @lru_cache(maxsize=64)
-def tracked_motion(recording: Path, placement: str) -> TrackedMotion:
+def tracked_motion(recording: Path, placement: str | Placement) -> TrackedMotion:
     """``placed_motion`` through the cell's tracker, the whole recording once (a window's tracker has been running
     before the window starts, as in a cell). Kept per process."""
     return TrackedMotion(placed_motion(recording, placement))
@@ -82,8 +141,9 @@ class RecordingWindow:
     start; past the recording's end its last frame holds, as ``RecordedMotion.at`` holds it). motion: anything
     with the motion's ``at`` and ``phase`` (a ``TrackedMotion`` for the scenario kinds)."""
 
-    def __init__(self, motion: RecordedMotion | TrackedMotion, start: float, name: str) -> None:
-        self.motion, self.start, self.name = motion, float(start), name
+    def __init__(self, motion: RecordedMotion | TrackedMotion, start: float, name: str,
+                 placement: Placement | None = None) -> None:
+        self.motion, self.start, self.name, self.placement = motion, float(start), name, placement
 
     def at(self, t: float) -> HumanCapsules | None:
         return self.motion.at(self.start + t)
@@ -93,12 +153,15 @@ class RecordingWindow:
 
 
 def recorded_scenario(kind: str, seed: int, duration: float) -> RecordingWindow:
-    """The people of one real-people scenario: recording seed mod n at the kind's placement, from a start the
-    seed draws within the recording's length (0 where it is shorter than `duration`)."""
+    """The people of one real-people scenario: recording seed mod n at the kind's placement (the around kind's
+    drawn from the seed, ``around``), from a start the seed draws within the recording's length (0 where it is
+    shorter than `duration`)."""
     if kind not in RECORDED_KINDS:
         raise ValueError(f"unknown recorded scenario kind {kind!r}; known: {sorted(RECORDED_KINDS)}")
     files = recordings(recordings_folder())
     recording = files[seed % len(files)]
-    motion = tracked_motion(recording, RECORDED_KINDS[kind])
+    named = RECORDED_KINDS[kind]
+    placement = around(seed) if named == AROUND else placement_named(named)
+    motion = tracked_motion(recording, placement)
     start = float(np.random.default_rng(seed).uniform(0.0, max(0.0, motion.duration - duration)))
-    return RecordingWindow(motion, round(start, 3), recording.stem)
+    return RecordingWindow(motion, round(start, 3), recording.stem, placement)

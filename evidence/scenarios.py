@@ -231,7 +231,8 @@ SCENARIO_KINDS = {"paper": perturbed_paper, "crossing": crossing,
 
 # real people (evidence.recorded): windows of the human-assembly recordings at a placement; not among the defaults
 # of the benchmarks, which run the scripted kinds unless asked
-RECORDED_KINDS = {"real_step_back": "step_back", "real_table_edge": "table_edge"}      # kind: its placement
+RECORDED_KINDS = {"real_step_back": "step_back", "real_table_edge": "table_edge",      # kind: its placement
+                  "real_around": "around"}                                             # (around: drawn per seed)
 KNOWN_KINDS = tuple(sorted(SCENARIO_KINDS)) + tuple(sorted(RECORDED_KINDS))
 
 

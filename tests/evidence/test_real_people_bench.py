@@ -2,8 +2,10 @@
 one short recording in the simulation end to end (the figures themselves are the benchmark's, not asserted)."""
 
 import json
+import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from tests.util import load_bench
@@ -15,7 +17,11 @@ def test_bad_arguments_are_refused_with_the_reason(capsys, tmp_path):
     bench = load_bench("real_people")
     with pytest.raises(SystemExit) as exit_:
         bench.main(["--placements", "on_the_table"])
-    assert exit_.value.code == 2 and "unknown ['on_the_table']" in capsys.readouterr().err
+    assert exit_.value.code == 2 and "unknown placement 'on_the_table'" in capsys.readouterr().err
+    for bad in ("-0.1:north", "x:30", "-0.1:nan"):
+        with pytest.raises(SystemExit) as exit_:
+            bench.main([f"--placements=table_edge,{bad}"])
+        assert exit_.value.code == 2 and f"unknown placement '{bad}'" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exit_:
         bench.main(["--recordings", str(tmp_path)])
     assert exit_.value.code == 2 and "no recordings" in capsys.readouterr().err
@@ -41,6 +47,22 @@ def test_a_recording_goes_through_the_simulation_and_its_row_comes_from_the_runs
     assert result["means"]["step_back"]["violations"] == [summary["violations"], None, None]
     motion = json.loads((tmp_path / "task1_human1_trial1_first300-step_back.json").read_text())
     assert motion                                   # the product's own reader wrote the placed motion
+
+
+def test_a_placement_anywhere_is_the_one_the_simulation_kinds_use(capsys, tmp_path):
+    """X:YAW places the file where ``evidence.recorded.Placement`` does (the real_around kind's people), so a
+    scenario found in a sweep runs on the processes as it ran in the simulation."""
+    from evidence.recorded import Placement, placed_motion
+    from shared.tracking.motion import RecordedMotion
+
+    bench = load_bench("real_people")
+    assert bench.main(["--sim", "--recordings", str(FIXTURE), "--placements=-0.3:40", "--out", str(tmp_path)]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert result["rows"][0]["placement"] == "-0.3:40" and result["rows"][0]["error"] is None
+    written = RecordedMotion.load(tmp_path / "task1_human1_trial1_first300--0.3_40.json")
+    placed = placed_motion(FIXTURE / "task1_human1_trial1_first300.txt", Placement(-0.3, math.radians(40.0)))
+    for t in (0.0, 3.3):
+        assert np.allclose(written.at(t).segments, placed.at(t).segments, atol=2e-5)
 
 
 def test_a_run_without_a_summary_is_a_row_with_its_error_and_the_table_goes_on():

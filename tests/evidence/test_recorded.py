@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from evidence.recorded import PLACEMENTS, placed_motion, recorded_scenario
+from evidence.recorded import AROUND_X, AROUND_YAW, PLACEMENTS, Placement, around, placed_motion, recorded_scenario
 from evidence.scenarios import KNOWN_KINDS, RECORDED_KINDS, SCENARIO_KINDS, kinds_problem, make_scenario
 from shared.core.errors import ConfigError
 from shared.tracking.motion import RecordedMotion
@@ -29,7 +29,8 @@ def two_recordings(tmp_path, monkeypatch):
 
 
 def test_the_real_kinds_are_known_but_not_among_the_scripted_defaults():
-    assert set(RECORDED_KINDS) == {"real_table_edge", "real_step_back"} and set(RECORDED_KINDS) <= set(KNOWN_KINDS)
+    assert set(RECORDED_KINDS) == {"real_table_edge", "real_step_back", "real_around"}
+    assert set(RECORDED_KINDS) <= set(KNOWN_KINDS)
     assert not set(RECORDED_KINDS) & set(SCENARIO_KINDS)
 
 
@@ -49,7 +50,7 @@ def test_the_placements_are_the_same_person_moved_along_x(two_recordings):
     edge, back = make_scenario("real_table_edge", 1, 3.0), make_scenario("real_step_back", 1, 3.0)
     assert edge.start == back.start
     shift = edge.at(1.0).segments - back.at(1.0).segments
-    assert np.allclose(shift[..., 0], PLACEMENTS["table_edge"] - PLACEMENTS["step_back"], atol=2e-5)
+    assert np.allclose(shift[..., 0], PLACEMENTS["table_edge"].x - PLACEMENTS["step_back"].x, atol=2e-5)
     assert np.allclose(shift[..., 1:], 0.0, atol=2e-5)
     assert edge.phase(1.0).startswith("b_second at ")
 
@@ -68,11 +69,40 @@ def test_the_people_are_what_the_cells_tracker_passes_on_as_on_the_processes(two
 def test_the_motion_is_what_hrc_human_from_keypoints_writes_and_hrc_demo_reads(tmp_path):
     out = tmp_path / "person.json"
     assert run_hrc("human", "from-keypoints", str(SUBSET), str(out), "--format", "assembly", "--translate",
-                   str(PLACEMENTS["table_edge"]), "0", "1.1").returncode == 0
+                   str(PLACEMENTS["table_edge"].x), "0", "1.1").returncode == 0
     written, placed = RecordedMotion.load(out), placed_motion(SUBSET, "table_edge")
     for t in (0.0, 0.5, 4.2, 9.9):
         a, b = written.at(t), placed.at(t)
         assert np.array_equal(a.segments, b.segments) and np.array_equal(a.velocities, b.velocities)
+    turned = Placement(-0.3, 0.9)          # a placement's own options give the file the simulation runs
+    assert run_hrc("human", "from-keypoints", str(SUBSET), str(out), "--format", "assembly",
+                   *turned.options()).returncode == 0
+    written, placed = RecordedMotion.load(out), placed_motion(SUBSET, turned)
+    for t in (0.0, 4.2):
+        assert np.allclose(written.at(t).segments, placed.at(t).segments, atol=2e-5)
+
+
+def test_around_the_person_is_the_table_edge_person_turned_about_the_base_and_moved_out(two_recordings):
+    """The around kind's person is one of the recordings at a distance between one step back and the table's
+    edge, turned about the robot's base by up to a quarter turn (beside the sweep's ends), facing the base: the
+    same person as straight across, rotated, so only where they stand changes."""
+    placements = [around(seed) for seed in range(200)]
+    xs, yaws = np.array([p.x for p in placements]), np.array([p.yaw for p in placements])
+    assert AROUND_X[0] <= xs.min() < xs.max() <= AROUND_X[1] and -AROUND_YAW <= yaws.min() < yaws.max() <= AROUND_YAW
+    assert yaws.min() < -1.2 and yaws.max() > 1.2 and xs.max() - xs.min() > 0.6     # the whole range is drawn
+    window = make_scenario("real_around", 3, 4.0)
+    assert window.placement == around(3) and window.name == "b_second"
+    assert make_scenario("real_around", 3, 4.0).start == window.start == make_scenario("real_table_edge", 3, 4.0).start
+    straight = placed_motion(two_recordings / "b_second.txt", Placement(window.placement.x))
+    c, s = np.cos(window.placement.yaw), np.sin(window.placement.yaw)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    for t in (0.0, 2.5):
+        seen = placed_motion(two_recordings / "b_second.txt", window.placement).at(window.start + t)
+        assert np.allclose(seen.segments, straight.at(window.start + t).segments @ turn.T, atol=2e-5)
+        assert np.allclose(seen.velocities, straight.at(window.start + t).velocities @ turn.T, atol=1e-3)
+    centre = window.at(1.0).segments.reshape(-1, 3).mean(axis=0)       # facing the base from where they stand
+    bearing = np.arctan2(centre[1], centre[0])
+    assert abs(np.angle(np.exp(1j * (bearing - np.pi - window.placement.yaw)))) < 0.35
 
 
 def test_without_recordings_the_kinds_say_where_they_looked(tmp_path, monkeypatch, capsys):
