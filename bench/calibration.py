@@ -2,7 +2,9 @@
 test: it prints figures). For seeded scenarios, at a few moments each, the legs a planner would choose between
 (the straight line, the fixed folded path of ``evidence.fixed_path``, and the path search's winner, each timed as
 the planner times it) are predicted by the cost (``SsmTimeCost.trajectory_time``, the people tracked at that
-moment, forecast as the planner forecasts them, staying ``patience``) and then executed by the product's own
+moment, forecast as the planner forecasts them, staying as long as the planner has them stay: ``patience`` plus
+how long its presence clocks, ``shared.planning.presence.Presence``, say they have stayed by that moment, the
+scenario replayed from its start; ``--stay S`` for a fixed stay instead) and then executed by the product's own
 ``ScalingLayer`` against the scripted people as they really move, until the leg's end. Per kind: the prediction's
 error (predicted / executed - 1: its median, the median and p95 of its size), and how often the candidate
 predicted fastest is the one executed fastest (a cost that misranks shows there), with what choosing by the
@@ -38,6 +40,7 @@ from shared.config import CellConfig  # noqa: E402
 from shared.core.trajectory import Trajectory, straight_line_trajectory  # noqa: E402
 from shared.planning.collision import CollisionModel  # noqa: E402
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions  # noqa: E402
+from shared.planning.presence import Presence  # noqa: E402
 from shared.planning.replanner import Replanner, ReplanOptions  # noqa: E402
 from shared.planning.scene import DEFAULT_SCENE, load_scene  # noqa: E402
 from shared.robot.model import default_robot  # noqa: E402
@@ -57,6 +60,15 @@ def executed(robot, config: CellConfig, trajectory: Trajectory, human, t0: float
     return LONGEST
 
 
+def presence_waited(human, t0: float, period: float) -> float:
+    """How long the planning layer's presence clocks say the people have stayed at t0 (s), the scenario's people
+    replayed from 0 every `period` s (the planning loop updates them on every new people state)."""
+    presence = Presence()
+    for k in range(int(round(t0 / period)) + 1):
+        presence.update(k * period, human.at(k * period))
+    return presence.waited(t0)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=20, help="scenarios per kind")
@@ -64,7 +76,8 @@ def main() -> int:
     parser.add_argument("--kinds", default="crossing,random_walk,standing,two_humans")
     parser.add_argument("--moments", type=int, default=3, help="moments per scenario a leg starts at")
     parser.add_argument("--stay", type=float, default=None,
-                        help="s the prediction has the people stay (default: the planner's patience; inf: for good)")
+                        help="s the prediction has the people stay (default: as the planner has them stay, its "
+                             "patience plus how long they have stayed by then; inf: for good)")
     parser.add_argument("--truth", action="store_true",
                         help="predict with the people's own future (the timeline's error alone, no forecast's)")
     parser.add_argument("--judge", choices=("cost", "scaling"), default="cost",
@@ -90,7 +103,8 @@ def main() -> int:
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm, options=options,
                           scaling=config.scaling)
     fixed = FixedPath(collision)
-    stay = replanner.stay(0.0)
+    clocks = not args.truth and args.stay is None       # the stay as the planning loop has it at each moment
+    waits = []
     lim = robot.limits
     summary = {}
     for kind in kinds:
@@ -100,16 +114,18 @@ def main() -> int:
             if args.truth:
                 human = replanner.cost.forecaster = Foresight(human)
             for t0 in np.linspace(0.0, 10.0, args.moments):
+                waited = presence_waited(human, float(t0), config.scaling.period) if clocks else 0.0
+                waits.append(waited)
                 for a, b in ((Q_START, Q_GOAL), (Q_GOAL, Q_START)):
                     people = human.at(float(t0))
                     legs = {"straight": straight_line_trajectory(a, b, lim.velocity, lim.acceleration),
                             "fixed_path": fixed.leg(a, b, 0)}
                     try:
                         replanner.forget()
-                        legs["searched"] = replanner.plan_fresh(a, b, people, 0)
+                        legs["searched"] = replanner.plan_fresh(a, b, people, 0, waited)
                     except Exception as exc:          # noqa: BLE001 (a search may find nothing: said, not fatal)
                         print(f"{kind} {seed} t={t0:.1f}: no search ({type(exc).__name__})", file=sys.stderr)
-                    predicted = {n: replanner.predicted_time(t, 0.0, people) for n, t in legs.items()}
+                    predicted = {n: replanner.predicted_time(t, 0.0, people, waited) for n, t in legs.items()}
                     done = {n: executed(robot, config, t, human, float(t0)) for n, t in legs.items()}
                     legs_said += [(predicted[n] / done[n] - 1.0, seed, float(t0), "out" if a is Q_START else "back", n,
                                    predicted[n], done[n]) for n in legs if done[n] < LONGEST]
@@ -133,6 +149,10 @@ def main() -> int:
         for err, seed, t0, way, name, said, took in sorted(legs_said, key=lambda r: -abs(r[0]))[:args.worst]:
             print(f"  worst: seed {seed} from {t0:.1f} s, the leg {way}, {name}: predicted {said:.2f} s, "
                   f"executed {took:.2f} s ({err:+.3f})", flush=True)
+    stay = "the planner's: patience + the presence clocks" if clocks else replanner.stay(0.0)
+    if clocks:
+        print(f"the people's stay: patience {replanner.stay(0.0):.2f} s plus the presence clocks' count at each "
+              f"moment (median {np.median(waits):.2f} s, max {max(waits):.2f} s)")
     print(json.dumps({"bench": "calibration", "seeds": args.seeds, "moments": args.moments, "stay_s": stay,
                       "truth": args.truth, "judge": args.judge, "kinds": summary}))
     return 0

@@ -56,7 +56,7 @@ from shared.planning.blocked import GoalBlock, goal_block
 from shared.planning.decision import ReplanFailed, ReplanResult
 from shared.planning.inputs import PlanningInputs
 from shared.planning.ompl_planner import PlanningError
-from shared.planning.presence import DWELL_RADIUS, DwellClock, StillClock
+from shared.planning.presence import DWELL_RADIUS, Presence
 from shared.planning.replanner import PreparedPlan, Replanner
 from shared.planning.timing import TimingError
 from shared.planning.trust import ForecastTrust
@@ -115,10 +115,7 @@ class PlanningLoop:
         self.next_beta = self.next_horizon = self.next_slow = -np.inf
         self.answered: float | None = None   # the last stop_at a replan request was answered for
         self.last_sample: int | None = None
-        # how long the people have stayed, by each clock in use (shared.planning.presence)
-        self.stays = tuple(clock for clock in (StillClock(still_speed) if still_speed is not None else None,
-                                               DwellClock(dwell_radius) if dwell_radius is not None else None)
-                           if clock is not None)
+        self.stays = Presence(still_speed, dwell_radius)    # how long the people have stayed (the clocks in use)
         self.last_people_sample: int | None = None   # the sample the people clocks last saw
         options = replanner.options             # whether the forecast has held (a new goal's line or fold)
         self.trust = ForecastTrust(replanner.cost.forecaster, options.trust_span, options.trust_tolerance) \
@@ -128,14 +125,13 @@ class PlanningLoop:
         """At most one planning action for this moment (see the module docstring); None when none is due."""
         if inputs.human_sample != self.last_people_sample:
             self.last_people_sample = inputs.human_sample
-            for clock in self.stays:
-                clock.update(now, inputs.humans)
+            self.stays.update(now, inputs.humans)
             if self.trust is not None:
                 self.trust.update(now, inputs.humans)
         if not self.ready(inputs):
             return None
-        if self.stays:
-            inputs = replace(inputs, waited=max(inputs.waited, *(clock.waited(now) for clock in self.stays)))
+        if self.stays.clocks:
+            inputs = replace(inputs, waited=max(inputs.waited, self.stays.waited(now)))
         before = self.replanner.searches
         self.replanner.begin()
         try:

@@ -84,3 +84,23 @@ class DwellClock:
 
     def waited(self, now: float) -> float:
         return self.clock.waited(now)
+
+
+class Presence:
+    """How long the people have stayed by every clock in use, the longest (s): what the planning loop adds to every
+    prediction's stay (``PlanningLoop``), and what ``bench/calibration.py`` replays over a scenario up to the moment a
+    leg is predicted. still_speed (m/s): the still clock's bound (None: not used); dwell_radius (m): the dwell
+    clock's (None: not used)."""
+
+    def __init__(self, still_speed: float | None = STANDING_SPEED, dwell_radius: float | None = DWELL_RADIUS) -> None:
+        self.clocks = tuple(clock for clock in (StillClock(still_speed) if still_speed is not None else None,
+                                                DwellClock(dwell_radius) if dwell_radius is not None else None)
+                            if clock is not None)
+
+    def update(self, now: float, humans: HumanCapsules | None) -> None:
+        for clock in self.clocks:
+            clock.update(now, humans)
+
+    def waited(self, now: float) -> float:
+        """The longest any clock in use has counted (0 with none in use)."""
+        return max((clock.waited(now) for clock in self.clocks), default=0.0)

@@ -33,3 +33,19 @@ def test_bad_arguments_are_refused_with_exit_2(monkeypatch, capsys, args):
     with pytest.raises(SystemExit) as stop:
         run(monkeypatch, capsys, *args)
     assert stop.value.code == 2
+
+
+def test_the_people_stay_as_long_as_the_planning_layers_presence_clocks_say_by_each_moment():
+    """The default prediction has the people stay as the planning loop has them stay: patience plus how long its
+    presence clocks have counted by then, the scenario replayed from its start (a person who has stood beside the
+    path for seconds is expected to stay that much longer; a walker is not)."""
+    from evidence.scenarios import make_scenario
+
+    bench = load_bench("calibration")
+    standing = make_scenario("standing", 3, 12.0)              # walks up, then stands reaching in for good
+    arrived = standing.keyframes[1].t
+    waited = bench.presence_waited(standing, 8.0, 0.01)
+    assert 8.0 - arrived - 0.5 < waited <= 8.0 - arrived + 0.01, (arrived, waited)
+    assert bench.presence_waited(standing, 0.0, 0.01) == 0.0
+    crossing = make_scenario("crossing", 3, 12.0)              # walking at 1.6 m/s the whole time
+    assert bench.presence_waited(crossing, 8.0, 0.01) < 0.2
