@@ -64,9 +64,6 @@ class Placement:
         """--yaw (degrees) and --translate X Y Z of ``hrc human from-keypoints --format assembly``."""
         return ["--yaw", repr(math.degrees(self.yaw)), "--translate", *map(repr, self.transform().translation)]
 
-    def __str__(self) -> str:
-        return f"x {self.x:+.2f} m, yaw {math.degrees(self.yaw):+.0f} deg"
-
 
 PLACEMENTS = {"table_edge": Placement(-0.05), "step_back": Placement(-0.75)}
 AROUND_X = (-0.75, -0.05)         # m: the around kind's x, from one step back to the table's edge

@@ -130,8 +130,7 @@ class PlanningLoop:
                 self.trust.update(now, inputs.humans)
         if not self.ready(inputs):
             return None
-        if self.stays.clocks:
-            inputs = replace(inputs, waited=max(inputs.waited, self.stays.waited(now)))
+        inputs = replace(inputs, waited=max(inputs.waited, self.stays.waited(now)))
         before = self.replanner.searches
         self.replanner.begin()
         try:
