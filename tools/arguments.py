@@ -287,7 +287,7 @@ def _add_scenario(sub) -> None:
                                           "or refused with both predicted times). For the seeds a sweep names as "
                                           "most lost (docs/sweeps.md).")
     scenario.add_argument("kind", help="the scenario kind (paper, crossing, standing, two_humans, random_walk, "
-                                       "real_table_edge, real_step_back)")
+                                       "real_table_edge, real_step_back, real_around)")
     scenario.add_argument("seed", type=int, help="its seed, as the sweep names it")
     scenario.add_argument("--strategies", default="full,fixed_path", help="comma-separated (default full,fixed_path)")
     scenario.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="values",

@@ -584,9 +584,10 @@ def _forecaster(spec: str | None) -> str | None:
 def cmd_scenario(args: argparse.Namespace) -> int:
     """One seeded scenario, each strategy's run taken apart (tools.scenario); the configuration checked as a
     sweep's point is, before anything runs."""
+    from evidence.scenarios import make_scenario
     from evidence.sweep import config_of, strategies_for
     from tools import grid as grids
-    from tools.scenario import story_lines
+    from tools.scenario import people_lines, story_lines
 
     overrides = []
     for text in args.values:
@@ -602,6 +603,7 @@ def cmd_scenario(args: argparse.Namespace) -> int:
     alpha_min = config_of(point).scaling.alpha_min
     print(f"hrc scenario: {args.kind} seed {args.seed}, {args.duration:g} s, {grids.point_label(point)}"
           + (f", full's forecaster {args.forecaster}" if args.forecaster else ""))
+    print("\n".join(people_lines(make_scenario(args.kind, args.seed, args.duration))) or "people: scripted")
     for strategy in strategies:
         print("\n".join(story_lines(strategy, runs.run(strategy, args.kind, args.seed, args.duration), alpha_min)))
     return 0

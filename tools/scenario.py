@@ -6,6 +6,9 @@ The runs are the sweep's own (``evidence.sweep.strategies_for``), so the figures
 
 from __future__ import annotations
 
+import math
+import shlex
+
 from evidence.sim import SimResult
 
 GAP = 0.05      # s: spans held below alpha_min closer than this are one span
@@ -47,3 +50,20 @@ def story_lines(strategy: str, result: SimResult, alpha_min: float) -> list[str]
         taken = "taken" if event.ok else "refused"
         lines.append(f"  {event.t:6.2f} s  {event.reason:<7} {taken:<8} {event.detail}".rstrip())
     return lines
+
+
+def people_lines(window) -> list[str]:
+    """Where a real-people scenario's person comes from and stands (a ``evidence.recorded.RecordingWindow``: the
+    recording, the window's start in it, the placement), and the two commands that run that person on the
+    processes (the whole recording, the window inside it); none for scripted people."""
+    placement = getattr(window, "placement", None)
+    if placement is None:
+        return []
+    from evidence.recorded import recordings_folder
+
+    recording = recordings_folder() / f"{window.name}.txt"
+    convert = ["hrc", "human", "from-keypoints", str(recording), "person.json", "--format", "assembly",
+               *placement.options()]
+    return [f"people: {window.name} from {window.start:.2f} s of it, moved {placement.x:+.3f} m along x and turned "
+            f"{math.degrees(placement.yaw):+.1f} deg about the base; on the processes (the whole recording):",
+            "  " + shlex.join(convert), "  hrc demo --human person.json"]

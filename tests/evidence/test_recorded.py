@@ -146,3 +146,26 @@ def test_hrc_sweep_runs_a_real_kind_and_says_when_there_are_no_recordings(tmp_pa
     done = run_hrc(*args, "--out", str(tmp_path / "ran"))
     assert done.returncode == 0 and "viol 0" in done.stdout, done.stderr[-2000:]
     assert (tmp_path / "ran" / "sweep.csv").read_text().count("\n") == 2            # a header and the point
+
+
+def test_hrc_scenario_says_where_a_real_person_stands_and_how_to_run_them_on_the_processes(two_recordings, tmp_path):
+    """A seed a sweep names in the around kind, taken apart: which recording, from when, where the person stands,
+    and the command that writes that person as a motion file for `hrc demo --human` (the same placed person)."""
+    import shlex
+
+    done = run_hrc("scenario", "real_around", "3", "--strategies", "scale_only", "--duration", "1")
+    assert done.returncode == 0, done.stderr[-2000:]
+    window = make_scenario("real_around", 3, 1.0)
+    people = done.stdout.splitlines()[1]
+    assert people.startswith(f"people: {window.name} from {window.start:.2f} s of it"), done.stdout
+    command = shlex.split(done.stdout.splitlines()[2])
+    assert command[:3] == ["hrc", "human", "from-keypoints"] and done.stdout.splitlines()[3].strip() == \
+        "hrc demo --human person.json"
+    out = tmp_path / "person.json"
+    command[4] = str(out)
+    assert run_hrc(*command[1:]).returncode == 0
+    written, placed = RecordedMotion.load(out), placed_motion(two_recordings / f"{window.name}.txt", window.placement)
+    for t in (0.0, 2.0):
+        assert np.allclose(written.at(t).segments, placed.at(t).segments, atol=2e-5)
+    assert "people: scripted" in run_hrc("scenario", "standing", "1", "--strategies", "scale_only",
+                                         "--duration", "0.5").stdout
