@@ -163,7 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--config", type=Path, default=None,
                         help="another cell configuration (hrc demo --config), e.g. to compare a planning setting")
     parser.add_argument("--placements", default="table_edge,step_back",
-                        help=f"comma-separated, of {', '.join(PLACEMENTS)} or X:YAW (m, degrees; default: the two)")
+                        help=f"comma-separated, of {', '.join(PLACEMENTS)} or X:YAW (m, degrees; default: the two; "
+                             "--placements=-0.15:60 with the '=' where the list starts with a minus)")
     parser.add_argument("--recordings", type=Path, default=RECORDINGS, help="the folder of *.txt recordings")
     parser.add_argument("--only", nargs="*", default=None, help="recording names (without .txt) to run, not all")
     parser.add_argument("--out", type=Path, default=None, help="where each run's report goes (default: a temporary folder)")
