@@ -140,12 +140,19 @@ def main() -> int:
                          "abs_error_p95": figure(np.percentile(np.abs(e), 95) if e.size else 0),
                          "ranked_right": round(float(np.mean(ranked)), 3),
                          "loss_by_the_cost_s": round(float(np.mean(loss)), 3)}
+        moments = sorted({said[2] for said in legs_said})      # |error| by the moment a leg starts at
+        summary[kind]["by_moment"] = {f"{t0:g}": [round(float(np.median(np.abs(m))), 3),
+                                                  round(float(np.percentile(np.abs(m), 95)), 3)]
+                                      for t0 in moments
+                                      for m in [np.asarray([said[0] for said in legs_said if said[2] == t0])]}
         s = summary[kind]
         errors_said = (f"error median {s['error_median']:+.3f}, |error| median {s['abs_error_median']:.3f} p95 "
                        f"{s['abs_error_p95']:.3f}" if s["finished"] else f"no leg finished within {LONGEST:.0f} s")
         print(f"{kind:<12} {s['legs']} choices, {s['finished']} legs finished: {errors_said}; "
               f"the predicted fastest the executed fastest in "
               f"{100 * s['ranked_right']:.0f} %, {s['loss_by_the_cost_s']:.3f} s lost a leg on average", flush=True)
+        print("  |error| median, p95 by the moment a leg starts at: " + ", ".join(
+            f"{t0} s {m[0]:.3f}, {m[1]:.3f}" for t0, m in s["by_moment"].items()), flush=True)
         for err, seed, t0, way, name, said, took in sorted(legs_said, key=lambda r: -abs(r[0]))[:args.worst]:
             print(f"  worst: seed {seed} from {t0:.1f} s, the leg {way}, {name}: predicted {said:.2f} s, "
                   f"executed {took:.2f} s ({err:+.3f})", flush=True)

@@ -24,6 +24,8 @@ def test_with_the_future_known_the_forward_run_predicts_the_execution(monkeypatc
     crossing = figures["kinds"]["crossing"]
     assert figures["truth"] and figures["judge"] == "scaling" and crossing["finished"] == 6, figures
     assert crossing["abs_error_p95"] < 0.02 and crossing["ranked_right"] == 1.0, crossing
+    assert list(crossing["by_moment"]) == ["0"] and crossing["by_moment"]["0"] == [crossing["abs_error_median"],
+                                                                                   crossing["abs_error_p95"]]
     assert sum(line.startswith("  worst: seed 1 from 0.0 s") for line in out.splitlines()) == 2, out
 
 
