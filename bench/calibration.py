@@ -60,13 +60,17 @@ def executed(robot, config: CellConfig, trajectory: Trajectory, human, t0: float
     return LONGEST
 
 
-def presence_waited(human, t0: float, period: float) -> float:
-    """How long the planning layer's presence clocks say the people have stayed at t0 (s), the scenario's people
-    replayed from 0 every `period` s (the planning loop updates them on every new people state)."""
-    presence = Presence()
-    for k in range(int(round(t0 / period)) + 1):
-        presence.update(k * period, human.at(k * period))
-    return presence.waited(t0)
+def presence_waited(human, moments, period: float) -> list[float]:
+    """How long the planning layer's presence clocks say the people have stayed (s) at each of the ascending
+    `moments` (s), the scenario's people replayed once from 0 every `period` s (the planning loop updates them on
+    every new people state)."""
+    presence, waits, k = Presence(), [], 0
+    for t0 in moments:
+        while k * period <= t0 + 1e-9:
+            presence.update(k * period, human.at(k * period))
+            k += 1
+        waits.append(presence.waited(t0))
+    return waits
 
 
 def main() -> int:
@@ -104,6 +108,7 @@ def main() -> int:
                           scaling=config.scaling)
     fixed = FixedPath(collision)
     clocks = not args.truth and args.stay is None       # the stay as the planning loop has it at each moment
+    moments = [float(t0) for t0 in np.linspace(0.0, 10.0, args.moments)]    # s: when the legs start
     waits = []
     lim = robot.limits
     summary = {}
@@ -113,9 +118,9 @@ def main() -> int:
             human = make_scenario(kind, seed, 12.0 + LONGEST)
             if args.truth:
                 human = replanner.cost.forecaster = Foresight(human)
-            for t0 in np.linspace(0.0, 10.0, args.moments):
-                waited = presence_waited(human, float(t0), config.scaling.period) if clocks else 0.0
-                waits.append(waited)
+            stayed = presence_waited(human, moments, config.scaling.period) if clocks else [0.0] * len(moments)
+            waits += stayed
+            for t0, waited in zip(moments, stayed):
                 for a, b in ((Q_START, Q_GOAL), (Q_GOAL, Q_START)):
                     people = human.at(float(t0))
                     legs = {"straight": straight_line_trajectory(a, b, lim.velocity, lim.acceleration),

@@ -139,8 +139,9 @@ class RecordingWindow:
     with the motion's ``at`` and ``phase`` (a ``TrackedMotion`` for the scenario kinds)."""
 
     def __init__(self, motion: RecordedMotion | TrackedMotion, start: float, name: str,
-                 placement: Placement | None = None) -> None:
+                 placement: Placement | None = None, recording: Path | None = None) -> None:
         self.motion, self.start, self.name, self.placement = motion, float(start), name, placement
+        self.recording = recording          # the file the motion was read from, where it was one
 
     def at(self, t: float) -> HumanCapsules | None:
         return self.motion.at(self.start + t)
@@ -161,4 +162,4 @@ def recorded_scenario(kind: str, seed: int, duration: float) -> RecordingWindow:
     placement = around(seed) if named == AROUND else placement_named(named)
     motion = tracked_motion(recording, placement)
     start = float(np.random.default_rng(seed).uniform(0.0, max(0.0, motion.duration - duration)))
-    return RecordingWindow(motion, round(start, 3), recording.stem, placement)
+    return RecordingWindow(motion, round(start, 3), recording.stem, placement, recording)

@@ -59,10 +59,7 @@ def people_lines(window) -> list[str]:
     placement = getattr(window, "placement", None)
     if placement is None:
         return []
-    from evidence.recorded import recordings_folder
-
-    recording = recordings_folder() / f"{window.name}.txt"
-    convert = ["hrc", "human", "from-keypoints", str(recording), "person.json", "--format", "assembly",
+    convert = ["hrc", "human", "from-keypoints", str(window.recording), "person.json", "--format", "assembly",
                *placement.options()]
     return [f"people: {window.name} from {window.start:.2f} s of it, moved {placement.x:+.3f} m along x and turned "
             f"{math.degrees(placement.yaw):+.1f} deg about the base; on the processes (the whole recording):",
