@@ -4,9 +4,11 @@ RRT-Connect (shared.planning.ompl_planner) finds a collision-free path; it does 
 through a person's slowdown, where the scaling layer makes the robot crawl. ``PathSearch`` looks for
 the path that *takes the least time* under the scaling layer's bound (``shared.planning.time_cost``):
 
-1. candidates: the seeds it is given (the direct line, an RRT-Connect path); escapes, which first
-   move in the joint directions the SSM lets the robot take fastest from where it is (away from every
-   person close by), then go on; and random detours, each a few waypoints: the straight line bent by a
+1. candidates: the seeds it is given (the direct line, an RRT-Connect path); lifts, the shoulder and elbow
+   offset over a stretch of the line (over, under or folded past a person's arm); raises, the arm raised
+   towards upright over a stretch of it (every link near the base's axis, past a person in the sweep);
+   escapes, which first move in the joint directions the SSM lets the robot take fastest from where it is
+   (away from every person close by), then go on; and random detours, each a few waypoints: the straight line bent by a
    joint offset at one point of it, held over a stretch of it (a plateau: lift, go across, lower), or
    taken at once (move away first, then go). Offsets are drawn with growing radii, so small detours are
    as likely as large ones;
@@ -47,9 +49,10 @@ LIMIT_MARGIN = 0.01
 class SearchOptions:
     """candidates: random detours costed per search; refinements: perturbations of the winner;
     radii (rad): the scales of the detours' joint offsets; escape_directions: random joint directions
-    weighed for leaving the people's slowdown first, escape_best of them tried (``_escapes``); time_budget (s):
-    wall-clock bound (None:
-    bounded by the counts only, the same result for the same seed)."""
+    weighed for leaving the people's slowdown first, escape_best of them tried (``_escapes``); lift_joints,
+    lift_offsets, lift_spans: the lifts (``_lifts``); raises: (shoulder, elbow) offsets (rad) that raise the arm
+    towards upright (``_raises``); time_budget (s): wall-clock bound (None: bounded by the counts only, the same
+    result for the same seed)."""
 
     candidates: int = 72
     refinements: int = 60
@@ -59,6 +62,7 @@ class SearchOptions:
     lift_joints: tuple[int, int] = (1, 2)
     lift_offsets: tuple[tuple[float, ...], tuple[float, ...]] = ((-0.6, -0.3, 0.3, 0.6), (0.0, 0.4, 0.8, 1.2))
     lift_spans: tuple[tuple[float, float], ...] = ((0.0, 0.5), (0.25, 0.75), (0.5, 1.0))
+    raises: tuple[tuple[float, float], ...] = tuple((a, b) for a in (0.0, 0.3, 0.6, 0.9) for b in (-0.6, -0.9, -1.2))
     time_budget: float | None = None
 
 
@@ -117,16 +121,31 @@ class PathSearch:
         line), which raises, lowers, folds or stretches the arm there. Random 6-joint offsets seldom hit
         these: a person's arm across a sweep is passed over by a few tenths of a radian of exactly these
         two joints, with the wrist left as it is."""
-        lower, upper = self.lower, self.upper
+        offsets = self.options.lift_offsets
+        return self._held_offsets(q_from, q_goal, [(a, b) for a in offsets[0] for b in offsets[1]])
+
+    def _raises(self, q_from: np.ndarray, q_goal: np.ndarray) -> list[np.ndarray]:
+        """The arm raised towards upright over a stretch of the straight line: the shoulder back and the elbow
+        opened by each pair of ``raises`` (the shuttle's arm, shoulder -0.4 and elbow 1.17 rad, is upright at
+        +0.4 and -1.17). Upright, every link is within 0.13 m of the base's axis where the shuttle's reach out
+        0.46 m: a turn of the base hardly moves them, and people at the table are 0.3 m farther from them, so
+        the SSM lets the base turn at full speed where the folded arm crawls past a person standing in the
+        sweep. Opening the elbow and raising the shoulder costs time with nobody there (the elbow travels as
+        far as the base), so it is a candidate, not a posture taken by default."""
+        return self._held_offsets(q_from, q_goal, self.options.raises)
+
+    def _held_offsets(self, q_from: np.ndarray, q_goal: np.ndarray,
+                      pairs: list[tuple[float, float]] | tuple[tuple[float, float], ...]) -> list[np.ndarray]:
+        """The straight line with the shoulder and elbow (``lift_joints``) offset by each (a, b) of `pairs`
+        between the fractions of each of ``lift_spans``, within the joint ranges."""
         first, second = self.options.lift_joints
         out = []
-        for a in self.options.lift_offsets[0]:
-            for b in self.options.lift_offsets[1]:
-                offset = np.zeros(q_from.size)
-                offset[first], offset[second] = a, b
-                for f1, f2 in self.options.lift_spans:
-                    via = [q_from + f * (q_goal - q_from) + offset for f in (f1, f2)]
-                    out.append(np.vstack([q_from, np.clip(via, lower, upper), q_goal]))
+        for a, b in pairs:
+            offset = np.zeros(q_from.size)
+            offset[first], offset[second] = a, b
+            for f1, f2 in self.options.lift_spans:
+                via = [q_from + f * (q_goal - q_from) + offset for f in (f1, f2)]
+                out.append(np.vstack([q_from, np.clip(via, self.lower, self.upper), q_goal]))
         return out
 
     def _escapes(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
@@ -179,6 +198,7 @@ class PathSearch:
         # that finds the way over a person's arm has been costed
         labelled = [(f"seed {k}", np.asarray(w, dtype=float)) for k, w in enumerate(seeds)]
         labelled += [("lift", w) for w in self._lifts(q_from, q_goal)]
+        labelled += [("raise", w) for w in self._raises(q_from, q_goal)]
         labelled += [("escape", w) for w in self._escapes(q_from, q_goal, humans, rng)]
         labelled += [("detour", w) for w in self._detours(q_from, q_goal, rng, self.options.candidates)]
         costs = []

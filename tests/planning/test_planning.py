@@ -448,7 +448,7 @@ def test_a_search_starts_from_the_paths_the_last_ones_found_to_the_same_goal():
     assert len(first) > 2 and len(replanner.remembered) == 1
     bare = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=7)), PAPER_SSM,
                      options=ReplanOptions(seed=3, search=SearchOptions(candidates=0, refinements=0, escape_directions=0,
-                                                                        lift_offsets=((), ()))))
+                                                                        lift_offsets=((), ()), raises=())))
     bare.remembered = list(replanner.remembered)
     recalled = bare.path(Q_START, Q_GOAL, ARM_ACROSS)
     assert np.allclose(recalled, first)                       # the remembered path, from the same start

@@ -323,8 +323,39 @@ def test_lifts_pass_over_an_arm_across_the_sweep_where_random_offsets_seldom_do(
     assert found.predicted < 0.8 * COST.path_time(direct, NEAR, 5.0)
     assert np.allclose(found.waypoints[:, 3:], Q_START[3:])        # the wrist as it is: the shoulder and elbow
     assert np.abs(found.waypoints[1:-1, 1:3] - Q_START[1:3]).max() > 0.2      # carry the arm over
-    none = PathSearch(CM, COST, SearchOptions(candidates=0, refinements=0, escape_directions=0, lift_offsets=((), ())))
+    none = PathSearch(CM, COST, SearchOptions(candidates=0, refinements=0, escape_directions=0, lift_offsets=((), ()),
+                                              raises=()))
     assert none.search(Q_START, Q_GOAL, NEAR, np.random.default_rng(0), stay=5.0, seeds=(direct,)).origin == "seed 0"
+
+
+def test_a_raised_arm_is_chosen_past_a_person_standing_in_the_sweep_and_is_faster_when_executed():
+    """Under the shipped model (a person may start to move), a person standing at the table's edge reaching into
+    the middle of the sweep: the arm raised towards upright (shoulder back, elbow opened) keeps every link near
+    the base's axis, and beats the best lift (folded, over or under) by the cost and by a forward run of the
+    scaling layer itself along both timed legs. Without the raises the search takes a lift."""
+    from shared.planning.executed import ExecutedTime
+    from shared.planning.timing import parameterize
+    from shared.scaling.parameters import ScalingParameters
+
+    shipped = SsmParameters()
+    cost = SsmTimeCost(ROBOT, shipped)
+    standing = person(-1.0, 0.0, 0.6, (-0.5, 0.0, 0.9))
+    direct = np.vstack([Q_START, Q_GOAL])
+    families = {"lifts": SearchOptions(candidates=0, refinements=0, escape_directions=0, raises=()),
+                "both": SearchOptions(candidates=0, refinements=0, escape_directions=0)}
+    found = {name: PathSearch(CM, cost, options).search(Q_START, Q_GOAL, standing, np.random.default_rng(0),
+                                                        stay=5.0, seeds=(direct,))
+             for name, options in families.items()}
+    raised, lifted = found["both"], found["lifts"]
+    assert raised.origin == "raise" and lifted.origin == "lift"
+    assert raised.predicted < 0.95 * lifted.predicted < 0.8 * cost.path_time(direct, standing, 5.0)
+    inner = raised.waypoints[1:-1]
+    assert np.all(inner[:, 1] > Q_START[1] + 0.2) and np.all(inner[:, 2] < Q_START[2] - 0.5)    # raised, opened
+    assert np.allclose(inner[:, 3:], Q_START[3:])
+    executed = ExecutedTime(ROBOT, shipped, ScalingParameters())
+    times = {name: executed.time(parameterize(result.waypoints, LIM, collision=CM), 0.0, standing, stay=5.0)
+             for name, result in found.items()}
+    assert times["both"] < 0.95 * times["lifts"]
 
 
 def test_the_lifts_are_costed_right_after_the_seeds_so_a_cut_short_search_has_them():
@@ -362,7 +393,7 @@ def test_no_candidate_waypoint_is_put_on_a_joint_limit():
     near = Q_START.copy()
     near[2] = LIM.upper[2] - 0.1                       # the elbow 0.1 rad below its limit: the lifts go past it
     rng = np.random.default_rng(3)
-    candidates = search._lifts(near, Q_GOAL) + search._detours(near, Q_GOAL, rng, 72) \
+    candidates = search._lifts(near, Q_GOAL) + search._raises(near, Q_GOAL) + search._detours(near, Q_GOAL, rng, 72) \
         + search._escapes(near, Q_GOAL, NEAR, rng)
     inner = np.vstack([w[1:-1] for w in candidates])
     assert np.all(inner >= LIM.lower + LIMIT_MARGIN - 1e-12) and np.all(inner <= LIM.upper - LIMIT_MARGIN + 1e-12)
