@@ -125,7 +125,7 @@ class PathSearch:
         return self._held_offsets(q_from, q_goal, [(a, b) for a in offsets[0] for b in offsets[1]])
 
     def _raises(self, q_from: np.ndarray, q_goal: np.ndarray) -> list[np.ndarray]:
-        """The arm raised towards upright over a stretch of the straight line: the shoulder back and the elbow
+        """The arm raised towards upright over a stretch of the straight line: the shoulder raised and the elbow
         opened by each pair of ``raises`` (the shuttle's arm, shoulder -0.4 and elbow 1.17 rad, is upright at
         +0.4 and -1.17). Upright, every link is within 0.13 m of the base's axis where the shuttle's reach out
         0.46 m: a turn of the base hardly moves them, and people at the table are 0.3 m farther from them, so
