@@ -330,7 +330,7 @@ def test_lifts_pass_over_an_arm_across_the_sweep_where_random_offsets_seldom_do(
 
 def test_a_raised_arm_is_chosen_past_a_person_standing_in_the_sweep_and_is_faster_when_executed():
     """Under the shipped model (a person may start to move), a person standing at the table's edge reaching into
-    the middle of the sweep: the arm raised towards upright (shoulder back, elbow opened) keeps every link near
+    the middle of the sweep: the arm raised towards upright (shoulder raised, elbow opened) keeps every link near
     the base's axis, and beats the best lift (folded, over or under) by the cost and by a forward run of the
     scaling layer itself along both timed legs. Without the raises the search takes a lift."""
     from shared.planning.executed import ExecutedTime
