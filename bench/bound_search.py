@@ -9,7 +9,7 @@ choices are ranked by the time cost's prediction, not by what the scaling layer 
 calibration benchmark, bench/calibration.py, measures that misranking).
 
 --bound clairvoyant: the clairvoyant bound of ``evidence.clairvoyant`` (the best sequence of fixed leg shapes,
-found by running the whole scenario with each) at 2, 4, 8 and 16 shapes, beside scale_only, fixed_path and full on
+found by running the whole scenario with each) at 2, 4, 8, 16 and 20 shapes, beside scale_only, fixed_path and full on
 the same scenarios: per kind the shuttles of each, the scenarios where a larger search fell (0 by construction:
 a check), the runs it took, the shapes its best sequences use, and the share of the bound's room over
 scale_only that full and fixed_path use ((x - scale_only) / (bound - scale_only)).

@@ -4,9 +4,9 @@ The oracle (``evidence.foresight``) is the planning layer told the people's futu
 candidates by a prediction: `bench/bound_search.py` shows it falling as its search grows, so it is no bound.
 This one ranks by what happens. Its policies are sequences of fixed leg shapes, one shape per leg of the
 shuttle (``SHAPES``: the straight line, the fold of ``shared.planning.postures`` and variations of it, other
-joints offset, a hold at the leg's start). Each sequence is judged by running the whole scenario with it:
-the product's own scaling layer, with the same people and the same judge (``evidence.sim.run_shuttle``). The
-scripted people are deterministic, so every run knows their future exactly.
+joints offset, the arm raised towards upright, a hold at the leg's start). Each sequence is judged by running
+the whole scenario with it: the product's own scaling layer, with the same people and the same judge
+(``evidence.sim.run_shuttle``). The scripted people are deterministic, so every run knows their future exactly.
 
 The search (``best_sequence``, pure):
 1. Every sequence of one shape throughout. So the bound is never below the straight shuttle (scale_only) or
@@ -15,7 +15,8 @@ The search (``best_sequence``, pure):
    shuttles (coordinate ascent).
 3. A larger search starts from the smaller one's best and holds a superset of its shapes. It keeps a
    change only where a change does better, so it can never end lower. The bound rises with its search by
-   construction, at 2, 4, 8 and 16 shapes (``SEARCHES``).
+   construction, at 2, 4, 8, 16 and 20 shapes (``SEARCHES``; the last four the arm raised towards upright, the
+   path search's raises, added when the planning layer got them).
 
 What it is: the most a planner that picks one of these shapes per leg reaches with perfect knowledge of the
 people, found by search (a lower estimate of that optimum, not an upper bound on every planner). A planner
@@ -40,18 +41,19 @@ from shared.planning.postures import ELBOW, FOLD, FOLD_SPAN, FoldedLegs
 from shared.planning.timing import TimingError
 
 SHOULDER, BASE = 1, 0       # joint indices (0-based): the PRBT's shoulder and base
+RAISED = (0.3, -1.2)        # rad, shoulder and elbow: the arm near upright (the path search's raises, its largest)
 LEGS = 24                   # legs a sequence names (12 s make at most about 8); later legs repeat the last
 
 
 @dataclass(frozen=True)
 class LegShape:
-    """One way to drive a leg: the straight line with `joint` offset by `offset` (rad) between the fractions
-    `span` of the way (``folded_waypoints``; offset 0: the straight line, the exact trapezoid), after holding
-    `wait` seconds at the start."""
+    """One way to drive a leg: the straight line with `joint` (or a tuple of joints) offset by `offset` (rad; a
+    tuple, one per joint) between the fractions `span` of the way (``folded_waypoints``; offset 0: the straight
+    line, the exact trapezoid), after holding `wait` seconds at the start."""
 
     name: str
-    offset: float = 0.0
-    joint: int = ELBOW
+    offset: float | tuple[float, ...] = 0.0
+    joint: int | tuple[int, ...] = ELBOW
     span: tuple[float, float] = FOLD_SPAN
     wait: float = 0.0
 
@@ -74,8 +76,12 @@ SHAPES: tuple[LegShape, ...] = (
     LegShape("elbow -0.4", -0.4),
     LegShape("base +0.3", 0.3, BASE),
     LegShape("base -0.3", -0.3, BASE),
+    LegShape("raised", RAISED, (SHOULDER, ELBOW)),
+    LegShape("raised 25-75 %", RAISED, (SHOULDER, ELBOW), span=(0.25, 0.75)),
+    LegShape("half raised", (0.3, -0.6), (SHOULDER, ELBOW)),
+    LegShape("raised 20-80 %", RAISED, (SHOULDER, ELBOW), span=(0.2, 0.8)),
 )
-SEARCHES = (2, 4, 8, 16)    # the nested searches (numbers of shapes) a benchmark runs
+SEARCHES = (2, 4, 8, 16, 20)    # the nested searches (numbers of shapes) a benchmark runs
 BETTER = 1e-6               # shuttles: a change must gain more than this to be kept
 
 
@@ -98,7 +104,7 @@ class ShapedLegs:
     def __init__(self, collision: CollisionModel, shapes: Sequence[LegShape] = SHAPES) -> None:
         self.collision, self.shapes = collision, tuple(shapes)
         self._folds = {k: FoldedLegs(collision, shape.offset, shape.span, shape.joint)
-                       for k, shape in enumerate(self.shapes) if shape.offset != 0.0}
+                       for k, shape in enumerate(self.shapes) if np.any(np.asarray(shape.offset) != 0.0)}
 
     def leg(self, shape: int, start: np.ndarray, goal: np.ndarray, version: int) -> Trajectory:
         """Shape number `shape`'s leg from start to goal, numbered `version` (TimingError where it cannot be

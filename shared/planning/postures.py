@@ -25,13 +25,14 @@ FOLD_SPAN = (0.35, 0.65)    # the fractions of the straight line between which t
 LEGS_KEPT = 16              # timed folded legs kept (a shuttle needs two)
 
 
-def folded_waypoints(start: np.ndarray, goal: np.ndarray, limits: JointLimits, fold: float = FOLD,
-                     span: tuple[float, float] = FOLD_SPAN, joint: int = ELBOW) -> np.ndarray:
+def folded_waypoints(start: np.ndarray, goal: np.ndarray, limits: JointLimits, fold: float | tuple[float, ...] = FOLD,
+                     span: tuple[float, float] = FOLD_SPAN, joint: int | tuple[int, ...] = ELBOW) -> np.ndarray:
     """start, the two folded points of the span, goal (4, 6): the straight line with `joint` offset by `fold` (rad)
-    between the fractions `span`, ramping in from the start and out to the goal; within the joint limits."""
+    between the fractions `span`, ramping in from the start and out to the goal; within the joint limits. Several
+    joints take a tuple of joints and one of their offsets (the arm raised: shoulder and elbow)."""
     start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
     offset = np.zeros(start.size)
-    offset[joint] = fold
+    offset[np.atleast_1d(joint)] = fold
     via = [np.clip(start + f * (goal - start) + offset, limits.lower, limits.upper) for f in span]
     return np.vstack([start, *via, goal])
 
@@ -41,8 +42,8 @@ class FoldedLegs:
     LEGS_KEPT pairs of ends): the planning layer's posture (``Replanner._posture``) and the fixed-path baseline
     (``evidence.fixed_path``) follow the same trajectory. fold, span, joint: as ``folded_waypoints``."""
 
-    def __init__(self, collision: CollisionModel, fold: float = FOLD, span: tuple[float, float] = FOLD_SPAN,
-                 joint: int = ELBOW) -> None:
+    def __init__(self, collision: CollisionModel, fold: float | tuple[float, ...] = FOLD,
+                 span: tuple[float, float] = FOLD_SPAN, joint: int | tuple[int, ...] = ELBOW) -> None:
         self.collision, self.fold, self.span, self.joint = collision, fold, span, joint
         self._legs: dict[tuple[bytes, bytes], Trajectory | TimingError] = {}
 
