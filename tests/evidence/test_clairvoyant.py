@@ -105,3 +105,28 @@ def test_episode_runs_run_each_sequence_once():
     runs = EpisodeRuns(run, legs=None)
     assert runs((0, 1)) == (1.5, 3) and runs((0, 1)) == (1.5, 3)
     assert runs.runs == 1 and made == [(0, 1)]
+
+
+def test_a_raised_shape_offsets_the_shoulder_and_the_elbow_together_and_is_timed_both_ways():
+    """A shape of several joints (the arm raised towards upright): the leg passes, at both ends of its span, the
+    straight line with the shoulder and the elbow offset by the shape's two offsets, within the joint ranges, and
+    the bound can use it (timed both ways between the shuttle's ends)."""
+    from evidence.clairvoyant import RAISED, ShapedLegs
+    from evidence.scenarios import Q_GOAL, Q_START
+    from shared.planning.collision import CollisionModel
+    from shared.planning.postures import folded_waypoints
+    from shared.planning.scene import Scene
+    from shared.robot.model import default_robot
+
+    robot = default_robot()
+    legs = ShapedLegs(CollisionModel(robot, Scene(floor_z=0.0), 0.05))
+    raised = next(k for k, shape in enumerate(SHAPES) if shape.name == "raised")
+    assert SHAPES[raised].joint == (1, 2) and SHAPES[raised].offset == RAISED
+    assert legs.usable(raised, (Q_START, Q_GOAL))
+    waypoints = folded_waypoints(Q_START, Q_GOAL, robot.limits, RAISED, SHAPES[raised].span, (1, 2))
+    for via, f in zip(waypoints[1:3], SHAPES[raised].span):
+        line = Q_START + f * (Q_GOAL - Q_START)
+        assert np.allclose(via - line, [0.0, RAISED[0], RAISED[1], 0.0, 0.0, 0.0])
+    leg = legs.leg(raised, Q_START, Q_GOAL, 3)
+    assert leg.version == 3 and np.allclose(leg.positions[[0, -1]], [Q_START, Q_GOAL])
+    assert leg.positions[:, 2].min() < Q_START[2] + RAISED[1] + 0.05        # the elbow opened on the way
