@@ -69,6 +69,9 @@ def unknown_within_reach(pairs: PairSsm, velocity_known: np.ndarray) -> bool:
 
 AT_REST = 1e-9            # rad/s: a commanded joint speed below this is the robot at rest (``ScalingLayer.take``)
 STOP_REACH = 0.5          # nominal s: how far ahead a plan for a crawling robot may start (``ScalingLayer.take``)
+AT_START = 1e-3           # rad: the most a plan from rest may start from where the robot is commanded to stand. A
+                          # command that jumps is a motion the drives make that no SSM check has seen (0.74 mm at
+                          # the PRBT's reach; the start_tolerance the scaler allows is the drives' following error)
 
 
 def held_by_ssm(alpha: float, safe_alpha: float) -> bool:
@@ -192,12 +195,16 @@ class ScalingLayer:
     def take(self, trajectory: Trajectory, from_rest: bool, junction: float, q_here: np.ndarray | None,
              start_tolerance: float) -> str | None:
         """The one rule for taking a new trajectory without a jump (the scaler service and the simulation):
-        one planned from rest (a fresh plan) while the robot is at its start (within start_tolerance, rad),
-        from s = 0 at rest, or, when its start lies a little ahead on the path the robot is moving along
-        (a plan for a crawling robot), once the robot has stopped there (``_stop_for``; a moving robot is
-        always stopped at a start ahead, never jumped to it, however near it is); a merged one only
-        while the follower has not passed its junction, at the same s and path speed (q_here is not needed
-        then). None when taken (or pending that stop), else why not."""
+        one planned from rest (a fresh plan) while the robot is at its start (its joints within start_tolerance,
+        rad, and its command within AT_START), from s = 0 at rest, or, when its start lies a little ahead on the
+        path the robot is moving along (a plan for a crawling robot), once the robot has stopped there
+        (``_stop_for``; a moving robot is always stopped at a start ahead, never jumped to it, however near it
+        is); a merged one only while the follower has not passed its junction, at the same s and path speed
+        (q_here is not needed then). None when taken (or pending that stop), else why not. A plan for a crawling
+        robot that comes after the SSM has stopped it short of the start is refused, as it is dropped when the SSM
+        holds the robot short of it while pending: the drives would jump to its start, towards the person who
+        stopped the robot, unchecked (up to 13 mrad on the processes with real people before this rule); a plan
+        from where it stands follows."""
         if from_rest:
             if q_here is None:
                 return "the robot's position is not known"
@@ -205,6 +212,10 @@ class ScalingLayer:
                 return None          # moving towards its start: stopped there first, even if it is near
             if np.abs(trajectory.positions[0] - np.asarray(q_here)).max() > start_tolerance:
                 return "the robot is not at its start, nor moving towards it"
+            jump = self._command_jump(trajectory.positions[0])
+            if jump > AT_START:
+                return (f"its start is {jump * 1e3:.1f} mrad from where the robot is commanded to stand: never "
+                        "jumped to (a plan from where it stands must follow)")
             self.set_trajectory(trajectory, 0.0)
             self.sdot = 0.0
             return None
@@ -212,6 +223,13 @@ class ScalingLayer:
             return f"junction {junction:.3f} already passed (s = {self.s:.3f})"
         self.set_trajectory(trajectory, self.s)
         return None
+
+    def _command_jump(self, start: np.ndarray) -> float:
+        """How far (rad, the largest joint) the command would jump to `start` from where it stands now (0 with no
+        trajectory yet: the first plan starts where the joints are)."""
+        if self.trajectory is None:
+            return 0.0
+        return float(np.abs(np.asarray(start) - self.trajectory.sample(np.array([self.s]))[0][0]).max())
 
     def _moving(self) -> bool:
         """The robot's commanded joints move: a positive path speed on a path that goes somewhere here. A path

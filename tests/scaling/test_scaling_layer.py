@@ -292,6 +292,33 @@ def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_i
     assert lay.trajectory is fresh
 
 
+def test_a_plan_for_a_crawling_robot_that_comes_after_the_ssm_stopped_it_short_is_refused_not_jumped_to():
+    """The SSM has stopped the robot (at rest, its joints where its command is) short of where a plan for a crawling
+    robot starts, within the scaler's start tolerance: taking it would make the command jump ahead, towards the
+    person who stopped it, and the drives would move there unchecked (seen on the processes: 13 mrad). It is
+    refused, saying so, the command stays, and a plan from where the robot stands is taken."""
+    from shared.scaling.layer import AT_START
+
+    lim = ROBOT.limits
+    old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
+    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters())
+    lay.set_trajectory(old, 1.0)
+    lay.sdot = 0.0                                           # stopped by the SSM at s = 1.0
+    here = old.sample(1.0)[0]
+    ahead = straight_line_trajectory(old.sample(1.01)[0], Q_START, lim.velocity, lim.acceleration, version=2)
+    assert AT_START < np.abs(ahead.positions[0] - here).max() < 0.02        # within the drives' tolerance
+    why = lay.take(ahead, True, 0.0, q_here=here, start_tolerance=0.02)
+    assert why is not None and "never jumped to" in why
+    step = lay.step(ScalingInputs(humans=NOBODY))
+    assert step.trajectory_version == 1 and step.speed <= lim.acceleration.max() * 0.01 + 1e-9   # no jump: on from
+    assert np.abs(step.q_command - here).max() <= step.speed * 0.01 + 1e-12                # rest, as the SSM allows
+    fresh = straight_line_trajectory(here, Q_START, lim.velocity, lim.acceleration, version=3)
+    lay.set_trajectory(old, 1.0)
+    lay.sdot = 0.0
+    assert lay.take(fresh, True, 0.0, q_here=here + 0.005, start_tolerance=0.02) is None   # the drives' lag: fine
+    assert lay.trajectory is fresh
+
+
 def _crawling_beside_a_person(await_plan: float = 0.3):
     """The shuttle at s = 1.0, crawling at the SSM's bound (0.17) towards a person 0.65 m ahead of the flange,
     where the bound is 0.18 and falling: a replan request is due."""
