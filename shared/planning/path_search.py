@@ -127,11 +127,12 @@ class PathSearch:
     def _raises(self, q_from: np.ndarray, q_goal: np.ndarray) -> list[np.ndarray]:
         """The arm raised towards upright over a stretch of the straight line: the shoulder raised and the elbow
         opened by each pair of ``raises`` (the shuttle's arm, shoulder -0.4 and elbow 1.17 rad, is upright at
-        +0.4 and -1.17). Upright, every link is within 0.13 m of the base's axis where the shuttle's reach out
-        0.46 m: a turn of the base hardly moves them, and people at the table are 0.3 m farther from them, so
-        the SSM lets the base turn at full speed where the folded arm crawls past a person standing in the
-        sweep. Opening the elbow and raising the shoulder costs time with nobody there (the elbow travels as
-        far as the base), so it is a candidate, not a posture taken by default."""
+        +0.4 and -1.17; the largest pairs take the shoulder up to 0.5 rad past it). Upright, every link is within
+        0.13 m of the base's axis, where the shuttle's arm reaches 0.46 m out: a turn of the base hardly moves
+        them, and people at the table are 0.3 m farther from them, so the SSM lets the base turn fast where the
+        folded arm crawls past a person standing in the sweep. Opening the elbow and raising the shoulder costs
+        time with nobody there (the elbow travels as far as the base), so it is a candidate, not a posture taken
+        by default."""
         return self._held_offsets(q_from, q_goal, self.options.raises)
 
     def _held_offsets(self, q_from: np.ndarray, q_goal: np.ndarray,
