@@ -122,7 +122,7 @@ def main() -> int:
             waits += stayed
             for t0, waited in zip(moments, stayed):
                 for a, b in ((Q_START, Q_GOAL), (Q_GOAL, Q_START)):
-                    people = human.at(float(t0))
+                    people = human.at(t0)
                     legs = {"straight": straight_line_trajectory(a, b, lim.velocity, lim.acceleration),
                             "fixed_path": fixed.leg(a, b, 0)}
                     try:
@@ -131,8 +131,8 @@ def main() -> int:
                     except Exception as exc:          # noqa: BLE001 (a search may find nothing: said, not fatal)
                         print(f"{kind} {seed} t={t0:.1f}: no search ({type(exc).__name__})", file=sys.stderr)
                     predicted = {n: replanner.predicted_time(t, 0.0, people, waited) for n, t in legs.items()}
-                    done = {n: executed(robot, config, t, human, float(t0)) for n, t in legs.items()}
-                    legs_said += [(predicted[n] / done[n] - 1.0, seed, float(t0), "out" if a is Q_START else "back", n,
+                    done = {n: executed(robot, config, t, human, t0) for n, t in legs.items()}
+                    legs_said += [(predicted[n] / done[n] - 1.0, seed, t0, "out" if a is Q_START else "back", n,
                                    predicted[n], done[n]) for n in legs if done[n] < LONGEST]
                     chosen, best = min(predicted, key=predicted.get), min(done, key=done.get)
                     ranked.append(chosen == best)
@@ -145,10 +145,12 @@ def main() -> int:
                          "abs_error_p95": figure(np.percentile(np.abs(e), 95) if e.size else 0),
                          "ranked_right": round(float(np.mean(ranked)), 3),
                          "loss_by_the_cost_s": round(float(np.mean(loss)), 3)}
-        moments = sorted({said[2] for said in legs_said})      # |error| by the moment a leg starts at
+        # |error| by the moment a leg starts at, over the moments a leg finished from (its own name: `moments` is
+        # every kind's, and a kind with no leg finished from one moment took that moment from the kinds after it)
+        finished_from = sorted({said[2] for said in legs_said})
         summary[kind]["by_moment"] = {f"{t0:g}": [round(float(np.median(np.abs(m))), 3),
                                                   round(float(np.percentile(np.abs(m), 95)), 3)]
-                                      for t0 in moments
+                                      for t0 in finished_from
                                       for m in [np.asarray([said[0] for said in legs_said if said[2] == t0])]}
         s = summary[kind]
         errors_said = (f"error median {s['error_median']:+.3f}, |error| median {s['abs_error_median']:.3f} p95 "
