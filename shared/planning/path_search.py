@@ -6,8 +6,9 @@ the path that *takes the least time* under the scaling layer's bound (``shared.p
 
 1. candidates: the seeds it is given (the direct line, an RRT-Connect path); lifts, the shoulder and elbow
    offset over a stretch of the line (over, under or folded past a person's arm); raises, the arm raised
-   towards upright over a stretch of it (every link near the base's axis, past a person in the sweep);
-   escapes, which first move in the joint directions the SSM lets the robot take fastest from where it is
+   towards upright over a stretch of it (every link near the base's axis, past a person in the sweep); both
+   staged one joint at a time where the SSM forbids their change of posture where the robot stands as one
+   motion; escapes, which first move in the joint directions the SSM lets the robot take fastest from where it is
    (away from every person close by), then go on; and random detours, each a few waypoints: the straight line bent by a
    joint offset at one point of it, held over a stretch of it (a plateau: lift, go across, lower), or
    taken at once (move away first, then go). Offsets are drawn with growing radii, so small detours are
@@ -149,6 +150,46 @@ class PathSearch:
                 out.append(np.vstack([q_from, np.clip(via, self.lower, self.upper), q_goal]))
         return out
 
+    def _staged(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None) -> list[np.ndarray]:
+        """The lifts and raises that change posture where the robot stands (their stretch begins at the line's start),
+        where the SSM lets no part of that change start as one motion, with the change staged: one joint first (each
+        of ``lift_joints`` whose own motion may start), then the other, then on as the lift or raise goes. Why: a
+        robot held beside a person (every link inside their protective distance, where the shipped model lets
+        nothing approach them) may fold its elbow away from them but not raise its shoulder; folding and raising
+        together approaches them, and every candidate that starts with it waits for them to leave, as the old
+        trajectory does (``hrc demo --human docs/motions/two_people.json`` on the processes: held for 19 s, every
+        plan from rest predicted as slow as the one it would replace), while the fold first, the shoulder next,
+        then the turn with the arm folded passes them slowly without waiting."""
+        if humans is None or humans.count == 0:
+            return []
+        first, second = self.options.lift_joints
+        offsets = self.options.lift_offsets
+        pairs = [(a, b) for a in offsets[0] for b in offsets[1]] + list(self.options.raises)
+        speed = self.limits.velocity
+
+        def may_start(change: np.ndarray) -> bool:
+            return ssm_alpha_bound(self.collision.robot, q_from, change / np.abs(change).max() * speed, humans,
+                                   self.cost.ssm) > 0.0
+
+        out = []
+        for a, b in pairs:
+            offset = np.zeros(q_from.size)
+            offset[first], offset[second] = a, b
+            if a == 0.0 or b == 0.0 or may_start(offset):
+                continue
+            stages = []
+            for joint in (first, second):
+                part = np.zeros(q_from.size)
+                part[joint] = offset[joint]
+                if may_start(part):
+                    stages.append(np.clip(q_from + part, self.lower, self.upper))
+            for f1, f2 in self.options.lift_spans:
+                if f1 > 0.0:
+                    continue
+                via = np.clip([q_from + f * (q_goal - q_from) + offset for f in (f1, f2)], self.lower, self.upper)
+                out += [np.vstack([q_from, stage, via, q_goal]) for stage in stages]
+        return out
+
     def _escapes(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
                  rng: np.random.Generator) -> list[np.ndarray]:
         """Detours that first leave the people's slowdown: of `escape_directions` random joint directions,
@@ -200,6 +241,7 @@ class PathSearch:
         labelled = [(f"seed {k}", np.asarray(w, dtype=float)) for k, w in enumerate(seeds)]
         labelled += [("lift", w) for w in self._lifts(q_from, q_goal)]
         labelled += [("raise", w) for w in self._raises(q_from, q_goal)]
+        labelled += [("staged", w) for w in self._staged(q_from, q_goal, humans)]
         labelled += [("escape", w) for w in self._escapes(q_from, q_goal, humans, rng)]
         labelled += [("detour", w) for w in self._detours(q_from, q_goal, rng, self.options.candidates)]
         costs = []
