@@ -71,7 +71,7 @@ class SearchOptions:
 class SearchResult:
     waypoints: np.ndarray        # (K, 6), q_from first, q_goal last, every segment collision-free
     predicted: float             # its SSM-aware time (s), as SsmTimeCost.path_time
-    origin: str                  # which candidate it grew from: 'seed k', 'escape' or 'detour'
+    origin: str                  # its family: 'seed k', 'lift', 'raise', 'staged', 'escape' or 'detour'
     costed: int                  # candidates and refinements costed
     checked: int                 # of them, checked for collisions
 
