@@ -17,7 +17,7 @@ from shared.core.humans import HumanCapsules
 from shared.core.trajectory import Trajectory, polyline_trajectory, straight_line_trajectory
 from shared.planning.budget import ActionBudget
 from shared.planning.collision import CollisionModel
-from shared.planning.decision import ReplanFailed, ReplanResult
+from shared.planning.decision import ReplanFailed, ReplanResult, required_gain
 from shared.planning.merge import merge
 from shared.planning.ompl_planner import PlanningError
 from shared.planning.options import ReplanOptions
@@ -44,20 +44,34 @@ class Candidates:
         self.limits = collision.robot.limits
         self.leg_start: np.ndarray | None = None
 
-    def from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, version: int) -> Trajectory:
+    def from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, version: int,
+                  waited: float | None = None) -> Trajectory:
         """Rest to rest through waypoints. A direct connection gets the exact trapezoid, which is
         time-optimal for a straight line and needs none of the acceleration headroom TOPP-RA's grid calls
         for where a path bends (2 % faster on the paper's shuttle); a bent path gets TOPP-RA, its smoothed
         path checked never to come closer to the people than its ends are, or, where the smoothing cuts a
-        corner too close, the exact polyline with a stop at each corner (its segments are checked free)."""
+        corner too close, the exact polyline with a stop at each corner (its segments are checked free).
+        waited (s, the time held so far; None: not weighed): with people present, a bent path's exact polyline
+        is taken instead of its smoothing where the one prediction has it faster by what a replan must save
+        (``required_gain``). Why: smoothing cuts the corners, and where the SSM lets a robot beside a person start
+        only one motion at a time (the search's staged lifts: the elbow first), the smoothed start makes both at
+        once, which may not start until they leave (held 2 s beside a person: the staged path predicted 5.4 s
+        with its corners, 7.1 s smoothed)."""
         if len(waypoints) == 2:
             return straight_line_trajectory(waypoints[0], waypoints[1], self.limits.velocity,
                                             self.limits.acceleration, version=version)
+        corners = polyline_trajectory(waypoints, self.limits.velocity, self.limits.acceleration, version=version)
         try:
-            return parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
-                                inflation=self.collision.capped_inflation(0.0, waypoints[[0, -1]], humans), version=version)
+            smooth = parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
+                                  inflation=self.collision.capped_inflation(0.0, waypoints[[0, -1]], humans),
+                                  version=version)
         except TimingError:          # the smoothed path cuts a corner into a person: stop at the corners
-            return polyline_trajectory(waypoints, self.limits.velocity, self.limits.acceleration, version=version)
+            return corners
+        if waited is None or humans is None or humans.count == 0:
+            return smooth
+        smooth_time = self.predict(smooth, 0.0, humans, waited)
+        gain = required_gain(smooth_time, self.options.min_gain, self.options.min_saving)
+        return corners if self.predict(corners, 0.0, humans, waited) < (1.0 - gain) * smooth_time else smooth
 
     def branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
                 humans: HumanCapsules | None, version: int, waited: float,
@@ -116,7 +130,7 @@ class Candidates:
         s_branch = min(old.duration, s_now + self.options.lead) if s_branch is None else s_branch
         try:
             if s_branch >= old.duration - 1e-9:          # at the end, at rest: a fresh plan from there
-                fresh = self.from_rest(self.path(old.positions[-1], q_goal, humans, waited), humans, 0)
+                fresh = self.from_rest(self.path(old.positions[-1], q_goal, humans, waited), humans, 0, waited)
                 merged, s_j = merge(old, old.duration, fresh, old.version + 1), old.duration
             else:
                 merged, s_j = self.branch(old, s_now, s_branch, q_goal, humans, old.version + 1, waited, route)
@@ -134,7 +148,7 @@ class Candidates:
         failed = None
         try:                       # the search first: the way back takes no time from its budget
             waypoints = self.path(q_now, q_goal, humans, waited)
-            traj = self.from_rest(waypoints, humans, old.version + 1)
+            traj = self.from_rest(waypoints, humans, old.version + 1, waited)
             predicted = self.predict(traj, 0.0, humans, waited)
         except (PlanningError, TimingError) as exc:
             failed, traj, predicted = f"from rest: {type(exc).__name__}: {exc}", None, np.inf

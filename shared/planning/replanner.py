@@ -168,7 +168,7 @@ class Replanner:
     def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
                    waited: float = 0.0) -> Trajectory:
         """A rest-to-rest trajectory to a new goal on the searched path (raises PlanningError or TimingError)."""
-        return self.candidates.from_rest(self.path(q_start, q_goal, humans, waited), humans, version)
+        return self.candidates.from_rest(self.path(q_start, q_goal, humans, waited), humans, version, waited)
 
     def plan_goal(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
                   waited: float = 0.0, prepared: PreparedPlan | None = None, leaving: bool = False,
@@ -386,7 +386,7 @@ class Replanner:
         started = time.perf_counter()
         try:
             waypoints = self.path(old.positions[0], q_goal, humans, waited)
-            searched = self.candidates.from_rest(waypoints, humans, old.version + 1)
+            searched = self.candidates.from_rest(waypoints, humans, old.version + 1, waited)
         except (PlanningError, TimingError) as exc:
             raise ReplanFailed(f"the new goal's search, on the way: {type(exc).__name__}: {exc}") from None
         leg_time, searched_time = (self.predicted_time(t, 0.0, humans, waited) for t in (old, searched))

@@ -358,50 +358,6 @@ def test_a_raised_arm_is_chosen_past_a_person_standing_in_the_sweep_and_is_faste
     assert times["both"] < 0.95 * times["lifts"]
 
 
-# a person standing beside the start of the sweep, leaning in, a hand reaching half-way into it (capsule ends, m,
-# and radii: docs/motions/two_people.json's Bob from 6 s on), and the arm held beside them on the folded leg
-BESIDE = HumanCapsules.from_arrays(
-    np.array([[[-0.9, -0.5, 0.95], [-0.74, -0.41, 1.3]], [[-0.74, -0.41, 1.57], [-0.74, -0.41, 1.57]],
-              [[-0.84, -0.24, 1.3], [-0.86, -0.19, 1.0]], [[-0.86, -0.19, 1.0], [-0.82, -0.17, 0.73]],
-              [[-0.82, -0.17, 0.73], [-0.82, -0.17, 0.73]], [[-0.65, -0.59, 1.3], [-0.61, -0.47, 1.03]],
-              [[-0.61, -0.47, 1.03], [-0.56, -0.34, 0.71]], [[-0.56, -0.34, 0.71], [-0.56, -0.34, 0.71]]]),
-    np.array([0.217, 0.217, 0.1, 0.066, 0.103, 0.1, 0.066, 0.103]), np.zeros((8, 2, 3)), np.ones(8, bool))
-HELD = np.array([1.542, -0.4, 1.191, 0.0, 1.57, 0.0])
-
-
-def test_a_robot_held_beside_a_person_folds_first_and_passes_them_without_waiting_for_them_to_leave():
-    """Under the shipped model every link is inside the person's protective distance: the SSM lets the arm fold
-    its elbow away from them, but not raise its shoulder or turn its base, and the lifts' change of posture (both
-    joints at once) cannot start. Without staging, every candidate waits for them to leave (the whole stay); staged
-    (the elbow, then the shoulder, then the turn with the arm folded) the path's cost does not grow with the stay,
-    and a forward run of the scaling layer itself takes the arm to the goal with the person still there."""
-    from shared.planning.executed import ExecutedTime
-    from shared.scaling.parameters import ScalingParameters
-
-    shipped = SsmParameters()
-    cost = SsmTimeCost(ROBOT, shipped)
-    fold_and_raise = np.array([0.0, 0.3, 1.2, 0.0, 0.0, 0.0])          # rad/s: shoulder raised, elbow folded
-    elbow = np.array([0.0, 0.0, 1.2, 0.0, 0.0, 0.0])
-    assert ssm_alpha_bound(ROBOT, HELD, fold_and_raise, BESIDE, shipped) == 0.0
-    assert ssm_alpha_bound(ROBOT, HELD, elbow, BESIDE, shipped) > 0.5
-    options = SearchOptions(candidates=0, refinements=0, escape_directions=0)
-    direct = np.vstack([HELD, Q_GOAL])
-    unstaged, staged = PathSearch(CM, cost, options), PathSearch(CM, cost, options)
-    unstaged._staged = lambda *args: []
-    long_stay = 30.0
-    waits = unstaged.search(HELD, Q_GOAL, BESIDE, np.random.default_rng(0), stay=long_stay, seeds=(direct,))
-    passes = staged.search(HELD, Q_GOAL, BESIDE, np.random.default_rng(0), stay=long_stay, seeds=(direct,))
-    assert waits.predicted > long_stay
-    assert passes.origin == "staged" and passes.predicted < long_stay / 2 and staged.free(passes.waypoints, BESIDE)
-    first = passes.waypoints[1] - HELD
-    assert first[2] > 1.0 and np.abs(np.delete(first, 2)).max() < 1e-9          # the elbow alone first
-    # timed with a stop at each corner (the planning layer's timing where the smoothed path would touch the elbow's
-    # limit, as here), the person staying throughout: the staged path gets there, the unstaged one never starts
-    executed = ExecutedTime(ROBOT, shipped, ScalingParameters(), longest=long_stay)
-    assert executed.time(polyline_trajectory(passes.waypoints, LIM.velocity, LIM.acceleration), 0.0, BESIDE) < 15.0
-    assert executed.time(polyline_trajectory(waits.waypoints, LIM.velocity, LIM.acceleration), 0.0, BESIDE) == long_stay
-
-
 def test_the_lifts_are_costed_right_after_the_seeds_so_a_cut_short_search_has_them():
     class Recording:                       # the search's cost, recording what it is asked, in order
         def __init__(self):
