@@ -60,15 +60,16 @@ class Candidates:
         if len(waypoints) == 2:
             return straight_line_trajectory(waypoints[0], waypoints[1], self.limits.velocity,
                                             self.limits.acceleration, version=version)
-        corners = polyline_trajectory(waypoints, self.limits.velocity, self.limits.acceleration, version=version)
+        limits = self.limits
         try:
-            smooth = parameterize(waypoints, self.limits, collision=self.collision, humans=humans,
+            smooth = parameterize(waypoints, limits, collision=self.collision, humans=humans,
                                   inflation=self.collision.capped_inflation(0.0, waypoints[[0, -1]], humans),
                                   version=version)
         except TimingError:          # the smoothed path cuts a corner into a person: stop at the corners
-            return corners
+            return polyline_trajectory(waypoints, limits.velocity, limits.acceleration, version=version)
         if waited is None or humans is None or humans.count == 0:
             return smooth
+        corners = polyline_trajectory(waypoints, limits.velocity, limits.acceleration, version=version)
         smooth_time = self.predict(smooth, 0.0, humans, waited)
         gain = required_gain(smooth_time, self.options.min_gain, self.options.min_saving)
         return corners if self.predict(corners, 0.0, humans, waited) < (1.0 - gain) * smooth_time else smooth
