@@ -12,10 +12,12 @@ calibration benchmark, bench/calibration.py, measures that misranking).
 found by running the whole scenario with each) at 2, 4, 8, 16 and 20 shapes, beside scale_only, fixed_path and full on
 the same scenarios: per kind the shuttles of each, the scenarios where a larger search fell (0 by construction:
 a check), the runs it took, the shapes its best sequences use, and the share of the bound's room over
-scale_only that full and fixed_path use ((x - scale_only) / (bound - scale_only)).
+scale_only that full and fixed_path use ((x - scale_only) / (bound - scale_only)). --greedy adds the clairvoyant
+chooser one leg ahead (``evidence.clairvoyant.greedy_sequence``): whether the bound's room needs looking further
+than the leg being driven.
 
     python bench/bound_search.py [--seeds 6] [--kinds two_humans,random_walk,paper] [--duration 12] [--paper]
-                                 [--judge cost|scaling] [--bound oracle|clairvoyant]
+                                 [--judge cost|scaling] [--bound oracle|clairvoyant] [--greedy]
 """
 
 from __future__ import annotations
@@ -59,12 +61,15 @@ def one(job: tuple[int, bool, str, str, int, float]) -> tuple[int, str, int, flo
 BESIDE = ("scale_only", "fixed_path", "full", "foresight")
 
 
-def clairvoyant_one(job: tuple[bool, str, int, float]) -> dict:
-    """The clairvoyant bound's nested searches and the strategies beside it on one scenario."""
-    paper, kind, seed, duration = job
+def clairvoyant_one(job: tuple[bool, str, int, float, bool]) -> dict:
+    """The clairvoyant bound's nested searches and the strategies beside it on one scenario (with greedy, the
+    clairvoyant chooser one leg ahead too)."""
+    paper, kind, seed, duration, greedy = job
     s = strategies(1, paper, "cost")
     choices, runs = s.clairvoyant(kind, seed, duration)
     beside = {name: s.run(name, kind, seed, duration).progress for name in BESIDE}
+    if greedy:
+        beside["greedy"] = s.greedy(kind, seed, duration)[0].shuttles
     return {"kind": kind, "seed": seed, "runs": runs, "beside": beside,
             "bound": {size: (c.shuttles, c.shapes[:c.legs]) for size, c in choices.items()}}
 
@@ -81,10 +86,11 @@ def clairvoyant_report(got: list[dict], kinds: list[str], args) -> dict:
         totals = {size: sum(r["bound"][size][0] for r in rows) for size in SEARCHES}
         falls = {f"{a}->{b}": sum(r["bound"][b][0] < r["bound"][a][0] - 1e-9 for r in rows)
                  for a, b in zip(SEARCHES, SEARCHES[1:])}
-        beside = {name: sum(r["beside"][name] for r in rows) for name in BESIDE}
+        names = BESIDE + (("greedy",) if args.greedy else ())
+        beside = {name: sum(r["beside"][name] for r in rows) for name in names}
         room = totals[max(SEARCHES)] - beside["scale_only"]
         share = {name: round((beside[name] - beside["scale_only"]) / room, 3) if room > 1e-9 else None
-                 for name in BESIDE[1:]}
+                 for name in names[1:]}
         used = Counter(SHAPES[k].name for r in rows for k in r["bound"][max(SEARCHES)][1])
         runs = [r["runs"] for r in rows]
         out["kinds"][kind] = {"bound": {str(k): round(v, 3) for k, v in totals.items()}, "fell_in": falls,
@@ -98,6 +104,9 @@ def clairvoyant_report(got: list[dict], kinds: list[str], args) -> dict:
               f"by replanning within a leg); runs per scenario (median) "
               f"{out['kinds'][kind]['runs_median']:.0f}", flush=True)
         print(f"{'':<12} the bound's legs: " + ", ".join(f"{n} {c}" for n, c in used.most_common()), flush=True)
+        if args.greedy:
+            print(f"{'':<12} the clairvoyant chooser one leg ahead: {beside['greedy']:.2f}, {share['greedy']} of the "
+                  f"bound's room", flush=True)
     return out
 
 
@@ -111,10 +120,16 @@ def main() -> int:
     parser.add_argument("--bound", choices=("oracle", "clairvoyant"), default="oracle",
                         help="the oracle (the planning layer told the future) or the clairvoyant sequence of fixed "
                              "leg shapes (evidence.clairvoyant)")
+    parser.add_argument("--greedy", action="store_true",
+                        help="with --bound clairvoyant: also the clairvoyant chooser one leg ahead (each leg the shape "
+                             "whose leg ends first; evidence.clairvoyant.greedy_sequence), as many runs again")
     args = parser.parse_args()
     kinds = scenario_arguments(parser, args)
+    if args.greedy and args.bound != "clairvoyant":
+        parser.error("--greedy goes with --bound clairvoyant")
     if args.bound == "clairvoyant":
-        cjobs = [(args.paper, k, s, args.duration) for k in kinds for s in range(args.seed, args.seed + args.seeds)]
+        cjobs = [(args.paper, k, s, args.duration, args.greedy) for k in kinds
+                 for s in range(args.seed, args.seed + args.seeds)]
         with ProcessPoolExecutor(args.workers) as pool:
             got = list(pool.map(clairvoyant_one, cjobs))
         print(json.dumps(clairvoyant_report(got, kinds, args)))

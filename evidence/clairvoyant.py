@@ -201,9 +201,42 @@ class EpisodeRuns:
         self._seen: dict[tuple[int, ...], tuple[float, int]] = {}
 
     def __call__(self, shapes: tuple[int, ...]) -> tuple[float, int]:
+        return self._run(shapes)[:2]
+
+    def ends(self, shapes: tuple[int, ...]) -> list[float]:
+        """When (s) each leg of the sequence's run ended (``SimResult.leg_ends``)."""
+        return self._run(shapes)[2]
+
+    def _run(self, shapes: tuple[int, ...]) -> tuple[float, int, list[float]]:
         if shapes not in self._seen:
             sequence = LegSequence(self.legs, shapes)
             result = self.run(sequence)
             self.runs += 1
-            self._seen[shapes] = (float(result.progress), sequence.begun)
+            self._seen[shapes] = (float(result.progress), sequence.begun, result.leg_ends())
         return self._seen[shapes]
+
+
+def greedy_sequence(runs: EpisodeRuns | Callable, candidates: Sequence[int], legs: int = LEGS) -> Choice:
+    """The clairvoyant chooser that looks one leg ahead: leg by leg, the shape of `candidates` whose leg ends first
+    in the run (the people's future known; ties: the more shuttles), the later legs the first candidate, never
+    revised. runs(shapes) -> (shuttles, legs begun) and runs.ends(shapes) -> each leg's end (s), as
+    ``EpisodeRuns``. What it answers beside the bound's search of whole sequences: whether the bound's room needs
+    looking further than the leg being driven (bench/bound_search.py --greedy). Pure given runs."""
+    if not candidates:
+        raise ValueError("no candidate shapes")
+    chosen: list[int] = []
+    for leg in range(legs):
+        best = None
+        for shape in candidates:
+            shapes = tuple(chosen) + (shape,) + (candidates[0],) * (legs - leg - 1)
+            shuttles, begun = runs(shapes)
+            ends = runs.ends(shapes)
+            key = (ends[leg] if len(ends) > leg else np.inf, -shuttles)
+            if best is None or key < best[0]:
+                best = (key, shape)
+        chosen.append(best[1])
+        if not np.isfinite(best[0][0]):          # this leg does not end within the run: the rest does not matter
+            break
+    shapes = tuple(chosen) + (candidates[0],) * (legs - len(chosen))
+    shuttles, begun = runs(shapes)
+    return Choice(shapes, shuttles, begun)

@@ -77,6 +77,15 @@ class SimResult:
     beta_requests: int = 0
     progress: float = 0.0        # shuttles completed plus the fraction of the current leg covered
 
+    def leg_ends(self) -> list[float]:
+        """When (s) each leg of the shuttle ended: the first record that counts it."""
+        ends, done = [], 0
+        for record in self.records:
+            if record.shuttles > done:
+                ends += [record.t] * (record.shuttles - done)
+                done = record.shuttles
+        return ends
+
     def summary(self) -> dict:
         steps = [r.step for r in self.records]
         compute = np.array([s.compute_us for s in steps]) if steps else np.zeros(1)

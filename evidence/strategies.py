@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from evidence.clairvoyant import SEARCHES, Choice, EpisodeRuns, LegSequence, ShapedLegs, nested_searches
+from evidence.clairvoyant import SEARCHES, Choice, EpisodeRuns, LegSequence, ShapedLegs, greedy_sequence, nested_searches
 from evidence.fixed_path import FixedPath
 from evidence.foresight import ORACLE_SEARCH, Foresight, foresight_options, oracle_options
 from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
@@ -99,6 +99,13 @@ class Strategies:
         """The clairvoyant bound's nested searches on one seeded scenario (``evidence.clairvoyant``): ({number
         of shapes: the best sequence found}, the runs it took)."""
         return self._clairvoyant(make_scenario(kind, seed, duration), duration, sizes)
+
+    def greedy(self, kind: str, seed: int, duration: float) -> tuple[Choice, int]:
+        """The clairvoyant chooser one leg ahead on one seeded scenario (``evidence.clairvoyant.greedy_sequence``,
+        every usable shape): (its sequence, the runs it took)."""
+        human = make_scenario(kind, seed, duration)
+        runs = EpisodeRuns(lambda legs: self.shaped_run(human, duration, legs), self.shaped)
+        return greedy_sequence(runs, self.usable_shapes), runs.runs
 
     def _clairvoyant(self, human, duration: float, sizes: tuple[int, ...]) -> tuple[dict[int, Choice], int]:
         runs = EpisodeRuns(lambda legs: self.shaped_run(human, duration, legs), self.shaped)

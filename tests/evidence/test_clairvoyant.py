@@ -7,7 +7,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evidence.clairvoyant import SHAPES, Choice, EpisodeRuns, LegSequence, best_sequence, held, nested_searches
+from evidence.clairvoyant import (
+    SHAPES,
+    Choice,
+    EpisodeRuns,
+    LegSequence,
+    best_sequence,
+    greedy_sequence,
+    held,
+    nested_searches,
+)
 from evidence.scenarios import make_scenario
 from evidence.strategies import Strategies
 from shared.config import CellConfig
@@ -97,14 +106,62 @@ def test_episode_runs_run_each_sequence_once():
     class Result:
         progress = 1.5
 
+        def leg_ends(self):
+            return [2.0]
+
     def run(legs):
         made.append(legs.shapes)
         legs.begun = 3
         return Result()
 
     runs = EpisodeRuns(run, legs=None)
-    assert runs((0, 1)) == (1.5, 3) and runs((0, 1)) == (1.5, 3)
+    assert runs((0, 1)) == (1.5, 3) and runs((0, 1)) == (1.5, 3) and runs.ends((0, 1)) == [2.0]
     assert runs.runs == 1 and made == [(0, 1)]
+
+
+class TimedLegs:
+    """``EpisodeRuns`` for a run of `duration` s whose leg n takes durations[n, shape] s, whatever came before:
+    a known best per leg."""
+
+    def __init__(self, durations: np.ndarray, duration: float) -> None:
+        self.durations, self.duration = durations, duration
+
+    def ends(self, shapes: tuple[int, ...]) -> list[float]:
+        ends = np.cumsum([self.durations[n, k] for n, k in enumerate(shapes[:len(self.durations)])])
+        return [float(t) for t in ends if t <= self.duration]
+
+    def __call__(self, shapes: tuple[int, ...]) -> tuple[float, int]:
+        ends = self.ends(shapes)
+        begun = min(len(ends) + 1, len(self.durations))
+        part = (self.duration - (ends[-1] if ends else 0.0)) / self.durations[len(ends), shapes[len(ends)]] \
+            if len(ends) < len(self.durations) else 0.0
+        return len(ends) + part, begun
+
+
+def test_the_greedy_chooser_takes_each_legs_quickest_shape_and_stops_at_the_leg_the_run_does_not_end():
+    durations = np.random.default_rng(2).uniform(1.0, 3.0, size=(LEGS, 4))
+    legs = TimedLegs(durations, duration=7.0)
+    chosen = greedy_sequence(legs, range(4), legs=LEGS)
+    quickest = durations.argmin(axis=1)
+    ended = len(legs.ends(chosen.shapes))
+    assert ended >= 1 and chosen.shapes[:ended] == tuple(int(k) for k in quickest[:ended])
+    assert chosen.shuttles == pytest.approx(legs(chosen.shapes)[0])
+    assert chosen.shuttles >= max(legs((k,) * LEGS)[0] for k in range(4)) - 1e-9     # never below a constant shape
+
+
+def test_on_two_people_the_greedy_chooser_runs_safe_and_replays(strategies):
+    kind, seed, duration = "two_humans", 301, 8.0
+    human = make_scenario(kind, seed, duration)
+    runs = EpisodeRuns(lambda legs: strategies.shaped_run(human, duration, legs), strategies.shaped)
+    chosen = greedy_sequence(runs, [0, 1])
+    replay = strategies.shaped_run(human, duration, LegSequence(strategies.shaped, chosen.shapes))
+    assert replay.progress == pytest.approx(chosen.shuttles) and replay.violations == 0
+    ends = replay.leg_ends()
+    assert len(ends) == replay.shuttles and ends == sorted(ends) and ends[-1] <= duration
+    for leg, end in enumerate(ends):            # each leg's shape was the one of the two that ended it first
+        other = chosen.shapes[:leg] + (1 - chosen.shapes[leg],) + (0,) * (len(chosen.shapes) - leg - 1)
+        theirs = runs.ends(other)
+        assert len(theirs) <= leg or theirs[leg] >= end - 1e-9
 
 
 def test_a_raised_shape_offsets_the_shoulder_and_the_elbow_together_and_is_timed_both_ways():
