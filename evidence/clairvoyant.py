@@ -216,12 +216,13 @@ class EpisodeRuns:
         return self._seen[shapes]
 
 
-def greedy_sequence(runs: EpisodeRuns | Callable, candidates: Sequence[int], legs: int = LEGS) -> Choice:
+def greedy_sequence(runs: EpisodeRuns, candidates: Sequence[int], legs: int = LEGS) -> Choice:
     """The clairvoyant chooser that looks one leg ahead: leg by leg, the shape of `candidates` whose leg ends first
     in the run (the people's future known; ties: the more shuttles), the later legs the first candidate, never
-    revised. runs(shapes) -> (shuttles, legs begun) and runs.ends(shapes) -> each leg's end (s), as
-    ``EpisodeRuns``. What it answers beside the bound's search of whole sequences: whether the bound's room needs
-    looking further than the leg being driven (bench/bound_search.py --greedy). Pure given runs."""
+    revised. runs(shapes) -> (shuttles, legs begun) and runs.ends(shapes) -> each leg's end (s): an
+    ``EpisodeRuns``, or anything with those two calls. What it answers beside the bound's search of whole
+    sequences: whether the bound's room needs looking further than the leg being driven (bench/bound_search.py
+    --greedy). Pure given runs."""
     if not candidates:
         raise ValueError("no candidate shapes")
     chosen: list[int] = []

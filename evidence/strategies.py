@@ -103,13 +103,16 @@ class Strategies:
     def greedy(self, kind: str, seed: int, duration: float) -> tuple[Choice, int]:
         """The clairvoyant chooser one leg ahead on one seeded scenario (``evidence.clairvoyant.greedy_sequence``,
         every usable shape): (its sequence, the runs it took)."""
-        human = make_scenario(kind, seed, duration)
-        runs = EpisodeRuns(lambda legs: self.shaped_run(human, duration, legs), self.shaped)
+        runs = self._episode(make_scenario(kind, seed, duration), duration)
         return greedy_sequence(runs, self.usable_shapes), runs.runs
 
     def _clairvoyant(self, human, duration: float, sizes: tuple[int, ...]) -> tuple[dict[int, Choice], int]:
-        runs = EpisodeRuns(lambda legs: self.shaped_run(human, duration, legs), self.shaped)
+        runs = self._episode(human, duration)
         return nested_searches(runs, self.usable_shapes, sizes), runs.runs
+
+    def _episode(self, human, duration: float) -> EpisodeRuns:
+        """The runs of sequences of leg shapes with these people (each sequence run once)."""
+        return EpisodeRuns(lambda legs: self.shaped_run(human, duration, legs), self.shaped)
 
     def shaped_run(self, human, duration: float, legs: LegSequence) -> SimResult:
         """The scaling layer alone, each leg the shape the sequence names."""
