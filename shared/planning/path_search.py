@@ -168,8 +168,10 @@ class PathSearch:
         speed = self.limits.velocity
 
         def may_start(change: np.ndarray) -> bool:
-            return ssm_alpha_bound(self.collision.robot, q_from, change / np.abs(change).max() * speed, humans,
-                                   self.cost.ssm) > 0.0
+            """Whether the SSM lets the straight joint motion along `change` start (at the joints' speed)."""
+            moved = change != 0.0
+            scale = float(np.min(speed[moved] / np.abs(change[moved])))
+            return ssm_alpha_bound(self.collision.robot, q_from, change * scale, humans, self.cost.ssm) > 0.0
 
         out = []
         for a, b in pairs:
