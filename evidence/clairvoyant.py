@@ -230,9 +230,8 @@ def greedy_sequence(runs: EpisodeRuns, candidates: Sequence[int], legs: int = LE
         best = None
         for shape in candidates:
             shapes = tuple(chosen) + (shape,) + (candidates[0],) * (legs - leg - 1)
-            shuttles, begun = runs(shapes)
             ends = runs.ends(shapes)
-            key = (ends[leg] if len(ends) > leg else np.inf, -shuttles)
+            key = (ends[leg] if len(ends) > leg else np.inf, -runs(shapes)[0])
             if best is None or key < best[0]:
                 best = (key, shape)
         chosen.append(best[1])

@@ -122,8 +122,12 @@ class PathSearch:
         line), which raises, lowers, folds or stretches the arm there. Random 6-joint offsets seldom hit
         these: a person's arm across a sweep is passed over by a few tenths of a radian of exactly these
         two joints, with the wrist left as it is."""
+        return self._held_offsets(q_from, q_goal, self._lift_pairs())
+
+    def _lift_pairs(self) -> list[tuple[float, float]]:
+        """Every (shoulder, elbow) pair of ``lift_offsets`` (rad)."""
         offsets = self.options.lift_offsets
-        return self._held_offsets(q_from, q_goal, [(a, b) for a in offsets[0] for b in offsets[1]])
+        return [(a, b) for a in offsets[0] for b in offsets[1]]
 
     def _raises(self, q_from: np.ndarray, q_goal: np.ndarray) -> list[np.ndarray]:
         """The arm raised towards upright over a stretch of the straight line: the shoulder raised and the elbow
@@ -140,15 +144,24 @@ class PathSearch:
                       pairs: list[tuple[float, float]] | tuple[tuple[float, float], ...]) -> list[np.ndarray]:
         """The straight line with the shoulder and elbow (``lift_joints``) offset by each (a, b) of `pairs`
         between the fractions of each of ``lift_spans``, within the joint ranges."""
-        first, second = self.options.lift_joints
         out = []
         for a, b in pairs:
-            offset = np.zeros(q_from.size)
-            offset[first], offset[second] = a, b
-            for f1, f2 in self.options.lift_spans:
-                via = [q_from + f * (q_goal - q_from) + offset for f in (f1, f2)]
-                out.append(np.vstack([q_from, np.clip(via, self.lower, self.upper), q_goal]))
+            offset = self._offset(a, b, q_from.size)
+            for span in self.options.lift_spans:
+                out.append(np.vstack([q_from, self._held_via(q_from, q_goal, offset, span), q_goal]))
         return out
+
+    def _offset(self, a: float, b: float, size: int) -> np.ndarray:
+        """The joint offset (rad) of shoulder a and elbow b (``lift_joints``)."""
+        offset = np.zeros(size)
+        offset[list(self.options.lift_joints)] = a, b
+        return offset
+
+    def _held_via(self, q_from: np.ndarray, q_goal: np.ndarray, offset: np.ndarray,
+                  span: tuple[float, float]) -> np.ndarray:
+        """The two waypoints (2, 6) of the straight line offset by `offset` at the fractions `span`, within the
+        joint ranges."""
+        return np.clip([q_from + f * (q_goal - q_from) + offset for f in span], self.lower, self.upper)
 
     def _staged(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None) -> list[np.ndarray]:
         """The lifts and raises that change posture where the robot stands (their stretch begins at the line's start),
@@ -162,9 +175,6 @@ class PathSearch:
         then the turn with the arm folded passes them slowly without waiting."""
         if humans is None or humans.count == 0:
             return []
-        first, second = self.options.lift_joints
-        offsets = self.options.lift_offsets
-        pairs = [(a, b) for a in offsets[0] for b in offsets[1]] + list(self.options.raises)
         speed = self.limits.velocity
 
         def may_start(change: np.ndarray) -> bool:
@@ -174,22 +184,17 @@ class PathSearch:
             return ssm_alpha_bound(self.collision.robot, q_from, change * scale, humans, self.cost.ssm) > 0.0
 
         out = []
-        for a, b in pairs:
-            offset = np.zeros(q_from.size)
-            offset[first], offset[second] = a, b
+        for a, b in self._lift_pairs() + list(self.options.raises):
+            offset = self._offset(a, b, q_from.size)
             if a == 0.0 or b == 0.0 or may_start(offset):
                 continue
-            stages = []
-            for joint in (first, second):
-                part = np.zeros(q_from.size)
-                part[joint] = offset[joint]
-                if may_start(part):
-                    stages.append(np.clip(q_from + part, self.lower, self.upper))
-            for f1, f2 in self.options.lift_spans:
-                if f1 > 0.0:
-                    continue
-                via = np.clip([q_from + f * (q_goal - q_from) + offset for f in (f1, f2)], self.lower, self.upper)
-                out += [np.vstack([q_from, stage, via, q_goal]) for stage in stages]
+            stages = [np.clip(q_from + part, self.lower, self.upper)
+                      for part in (self._offset(a, 0.0, q_from.size), self._offset(0.0, b, q_from.size))
+                      if may_start(part)]
+            for span in self.options.lift_spans:
+                if span[0] == 0.0:
+                    via = self._held_via(q_from, q_goal, offset, span)
+                    out += [np.vstack([q_from, stage, via, q_goal]) for stage in stages]
         return out
 
     def _escapes(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
