@@ -76,6 +76,18 @@ def test_scenarios_are_seeded_and_walk_no_faster_than_iso_13855(kind):
         make_scenario("flying", 1, 1.0)
 
 
+def test_a_scripted_person_moves_on_with_the_velocity_they_report_even_at_a_keyframe():
+    """At a keyframe the script's speed changes at once: the velocity is the one the person moves on with (a central
+    difference reported the mean, the crossing walker at 0 s at half their 1.6 m/s, which the planning layer's
+    forecast then took for the truth)."""
+    walker = make_scenario("crossing", 5041, 12.0)
+    assert np.linalg.norm(walker.at(0.0).velocities[0, 0]) == pytest.approx(1.6, abs=1e-6)
+    wanderer = make_scenario("random_walk", 5079, 12.0)              # pauses where it starts, then walks
+    arrive = wanderer.keyframes[1].t
+    assert np.allclose(wanderer.at(0.0).velocities, 0.0)
+    assert np.linalg.norm(wanderer.at(arrive).velocities[0, 0]) > 0.5
+
+
 def test_the_paper_is_a_distribution_of_phase_periods_within_five_percent():
     periods = [make_scenario("paper", seed, 12.0).keyframes[1].t for seed in range(16)]
     assert all(3.0 * 0.95 <= p <= 3.0 * 1.05 for p in periods)
@@ -282,3 +294,14 @@ def test_the_planning_layers_first_leg_leaves_at_t0_as_the_fixed_path_does(strat
     for mine, theirs in zip(full.records[:90], alone.records[:90]):
         assert np.allclose(mine.step.q_command, theirs.step.q_command, atol=1e-9), mine.t
 
+
+
+def test_a_walker_seen_at_t0_is_bet_on_and_a_wanderer_at_rest_is_not(strategies):
+    """At 0 s the forecast has no record. A crossing walker's course is in their velocity: the first goal is the
+    straight line, at its nominal 2.45 s, where the fold takes 2.67 s; a wanderer standing at first sight gives no
+    sign of where they go next: the fold (shared.planning.trust)."""
+    walker = strategies.run("full", "crossing", 5041, 3.0)
+    fold = strategies.run("fixed_path", "crossing", 5041, 3.0)
+    assert walker.goals[0].detail == "the straight line" and walker.leg_ends()[0] < fold.leg_ends()[0] - 0.15
+    wanderer = strategies.run("full", "random_walk", 5079, 3.0)
+    assert wanderer.goals[0].detail == "the folded leg"

@@ -38,13 +38,35 @@ def walk(trust: ForecastTrust, t0: float, t1: float, start, velocity, rate: floa
     return x, y
 
 
-def test_a_steady_walk_is_trusted_once_it_has_held_for_the_span():
+def test_a_steady_walk_is_trusted_from_its_first_sample_and_a_turn_within_the_first_span_ends_that():
     trust = ForecastTrust(ConstantVelocity(), span=1.0, tolerance=0.15)
     assert not trust.trusted(0.0)                                  # nobody yet
+    trust.update(0.0, person(-2.0, -2.0, (0.0, 1.6, 0.0)))
+    assert trust.error(0.0) == np.inf and trust.trusted(0.0)       # a walker's course is in their velocity
     walk(trust, 0.0, 0.5, (-2.0, -2.0), (0.0, 1.6))
-    assert not trust.trusted(0.5)                                  # half a span of history: not yet
+    assert trust.trusted(0.5)                                      # half a span, and it has held so far
     walk(trust, 0.5, 1.5, (-2.0, -1.2), (0.0, 1.6))
     assert trust.error(1.5) < 0.01 and trust.trusted(1.5)
+    turning = ForecastTrust(ConstantVelocity(), span=1.0, tolerance=0.15)
+    x, y = walk(turning, 0.0, 0.4, (-2.0, -2.0), (0.0, 1.6))
+    walk(turning, 0.4 + 1 / 30, 0.7, (x, y), (0.0, -1.6))        # turned back after 0.4 s
+    assert turning.error(0.7, partial=True) > 0.5 and not turning.trusted(0.7)
+
+
+def test_someone_at_rest_when_first_seen_is_trusted_only_once_the_span_has_held():
+    """A person standing, or one whose body is partly at rest (a hand still, the torso walking), gives no sign of
+    where they go next: the fold is made until the forecast has held for the span."""
+    trust = ForecastTrust(ConstantVelocity(), span=1.0, tolerance=0.15)
+    for t in np.arange(0.0, 0.9 + 1e-9, 1 / 30):
+        trust.update(float(t), person(-1.5, 0.5))
+        assert not trust.trusted(float(t))
+    for t in np.arange(0.9 + 1 / 30, 1.2 + 1e-9, 1 / 30):
+        trust.update(float(t), person(-1.5, 0.5))
+    assert trust.trusted(1.2)
+    half = ForecastTrust(ConstantVelocity(), span=1.0, tolerance=0.15)
+    half.update(0.0, HumanCapsules.from_arrays([[[-2.0, 1.0, 0.0], [-2.0, 1.0, 1.7]], [[-2.0, 1.2, 1.0], [-1.6, 1.2, 1.2]]],
+                                               [0.2, 0.05], [[[0.0, 1.6, 0.0]] * 2, [[0.0, 0.0, 0.0]] * 2], [True, True]))
+    assert not half.trusted(0.0)
 
 
 def test_a_walker_who_has_just_stopped_is_not_trusted_until_the_stop_has_held():
@@ -67,9 +89,9 @@ def test_an_unknown_velocity_or_a_new_capsule_starts_the_record_again():
     trust.update(1.55, person(x, y + 0.08, known=False))           # the tracker lost the velocity
     assert not trust.trusted(1.55)
     walk(trust, 1.6, 2.0, (x, y + 0.16), (0.0, 1.6))
-    assert not trust.trusted(2.0)                                  # less than a span since
+    assert trust.error(2.0) == np.inf and trust.trusted(2.0)       # less than a span since, a walk that has held
     walk(trust, 2.0, 2.7, (x, y + 0.8), (0.0, 1.6))
-    assert trust.trusted(2.7)
+    assert trust.error(2.7) < 0.01 and trust.trusted(2.7)
     two = HumanCapsules.from_arrays([[[-2.0, 1.0, 0.0], [-2.0, 1.0, 1.7]], [[-3.0, 0.0, 0.0], [-3.0, 0.0, 1.7]]],
                                     [0.2, 0.2], np.zeros((2, 2, 3)), [True, True])
     trust.update(2.75, two)                                        # someone came in
