@@ -31,8 +31,8 @@ class ForecastTrust:
     end point). Nobody in view, a change in the number of capsules or a velocity the tracker does not know: not
     trusted (the robust choice is made). Less than `span` of history (people just seen): trusted only where every
     capsule in view moves at least at the standing speed and the record there is holds. A walker's course is in
-    their velocity from the first sample (the crossing walker at 0 s: the line, where the fold cost 0.06-0.3 s);
-    someone at rest gives no sign of where they go next, so a wanderer pausing is not bet on."""
+    their velocity from the first sample; someone at rest gives no sign of where they go next, so a wanderer
+    pausing is not bet on (docs/measurements.md, session 73)."""
 
     def __init__(self, forecaster: Forecaster, span: float = 1.0, tolerance: float = 0.15) -> None:
         if not (span > 0.0 and tolerance >= 0.0):

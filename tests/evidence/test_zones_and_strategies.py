@@ -295,7 +295,6 @@ def test_the_planning_layers_first_leg_leaves_at_t0_as_the_fixed_path_does(strat
         assert np.allclose(mine.step.q_command, theirs.step.q_command, atol=1e-9), mine.t
 
 
-
 def test_a_walker_seen_at_t0_is_bet_on_and_a_wanderer_at_rest_is_not(strategies):
     """At 0 s the forecast has no record. A crossing walker's course is in their velocity: the first goal is the
     straight line, at its nominal 2.45 s, where the fold takes 2.67 s; a wanderer standing at first sight gives no
