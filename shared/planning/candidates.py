@@ -28,19 +28,24 @@ from shared.scaling.stopping import stopping_time
 RETREAT_FROM = 0.05     # rad (largest joint): nearer to where the leg began than this, no way back is offered
 
 
+REST_ALTERNATIVES = 3     # runners-up of the search timed beside its winner for a plan from rest (``rest_plan``)
+
+
 class Candidates:
     """path(q_from, q_goal, humans, waited, from_rest=True) -> waypoints: the searched path; predict(trajectory,
     s_from, humans, waited) -> s: the one prediction; stay(waited) -> s: how long the people are assumed to stay;
     leg(q_start, q_goal, humans, version) -> the leg a new goal takes from rest there without a search (None where
-    there is none); budget: the action's wall clock (a merge tries no further junction once it is spent).
+    there is none); paths(q_from, q_goal, humans, waited, alternatives) -> [waypoints, ...]: the searched path
+    from rest and its runners-up (None: the searched path alone); budget: the action's wall clock (a merge tries no further junction once it is spent).
     leg_start: where the robot stood when its goal's leg began (None: not known, or the goal came while it
     moved), which a plan from rest may go back to (``retreat``)."""
 
     def __init__(self, collision: CollisionModel, options: ReplanOptions, cost: SsmTimeCost, budget: ActionBudget,
                  path: Callable[..., np.ndarray], predict: Callable[..., float], stay: Callable[[float], float],
-                 leg: Callable[..., Trajectory | None] | None = None) -> None:
+                 leg: Callable[..., Trajectory | None] | None = None,
+                 paths: Callable[..., list[np.ndarray]] | None = None) -> None:
         self.collision, self.options, self.cost, self.budget = collision, options, cost, budget
-        self.path, self.predict, self.stay, self.leg = path, predict, stay, leg
+        self.path, self.predict, self.stay, self.leg, self.paths = path, predict, stay, leg, paths
         self.limits = collision.robot.limits
         self.leg_start: np.ndarray | None = None
 
@@ -142,15 +147,17 @@ class Candidates:
 
     def rest_plan(self, old: Trajectory, s_now: float, q_goal: np.ndarray, humans: HumanCapsules | None,
                    reason: str, waited: float) -> ReplanResult:
-        """A trajectory from rest where the robot stands (old at s_now) to the goal, on the searched path
-        (raises ReplanFailed)."""
+        """A trajectory from rest where the robot stands (old at s_now) to the goal, on the searched path or one
+        of its runners-up, whichever is predicted fastest as timed (``timed_best``; raises ReplanFailed)."""
         started = time.perf_counter()
         q_now = old.sample(float(s_now))[0]
         failed = None
         try:                       # the search first: the way back takes no time from its budget
-            waypoints = self.path(q_now, q_goal, humans, waited)
-            traj = self.from_rest(waypoints, humans, old.version + 1, waited)
-            predicted = self.predict(traj, 0.0, humans, waited)
+            if self.paths is None or humans is None or humans.count == 0:
+                routes = [self.path(q_now, q_goal, humans, waited)]
+            else:
+                routes = self.paths(q_now, q_goal, humans, waited, REST_ALTERNATIVES)
+            traj, predicted = self.timed_best(routes, humans, old.version + 1, waited)
         except (PlanningError, TimingError) as exc:
             failed, traj, predicted = f"from rest: {type(exc).__name__}: {exc}", None, np.inf
         back = self.retreat(q_now, q_goal, humans, old.version + 1)
@@ -161,6 +168,29 @@ class Candidates:
             return ReplanResult(back, s_now, reason, time.perf_counter() - started, back_time,
                                 detail="back by where the leg began", from_rest=True)
         return ReplanResult(traj, s_now, reason, time.perf_counter() - started, predicted, from_rest=True)
+
+    def timed_best(self, routes: list[np.ndarray], humans: HumanCapsules | None, version: int,
+                   waited: float) -> tuple[Trajectory, float]:
+        """Of the routes (waypoints, the search's winner first), the one whose trajectory from rest is predicted
+        fastest, and that prediction (s). The search ranks its paths by the cost of their waypoints with a stop
+        at each corner; the trajectory driven smooths them, and that can change the time by up to a tenth, so
+        which of a few nearly equal winners drives fastest is a matter of the search's seed unless each is timed
+        (a robot held beside a person: the winner predicted 3.31-3.71 s by seed; docs/measurements.md, session
+        73). The runners-up are timed only while the action has time left."""
+        best, best_time = None, np.inf
+        for k, route in enumerate(routes):
+            if k and self.budget.out_of_time():
+                break
+            try:
+                traj = self.from_rest(route, humans, version, waited)
+            except TimingError:
+                if k == 0:
+                    raise
+                continue
+            predicted = self.predict(traj, 0.0, humans, waited)
+            if predicted < best_time:
+                best, best_time = traj, predicted
+        return best, best_time
 
     def retreat(self, q_now: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
                 version: int) -> Trajectory | None:

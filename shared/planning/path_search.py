@@ -74,6 +74,7 @@ class SearchResult:
     origin: str                  # its family: 'seed k', 'lift', 'raise', 'staged', 'escape' or 'detour'
     costed: int                  # candidates and refinements costed
     checked: int                 # of them, checked for collisions
+    others: tuple[np.ndarray, ...] = ()   # runners-up asked for (``search``'s alternatives): free, bent, by cost
 
 
 class PathSearch:
@@ -219,23 +220,27 @@ class PathSearch:
 
     def search(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, rng: np.random.Generator,
                stay: float = np.inf, seeds: tuple[np.ndarray, ...] = (), from_rest: bool = True,
-               inflation: float = 0.0) -> SearchResult | None:
+               inflation: float = 0.0, alternatives: int = 0) -> SearchResult | None:
         """The fastest collision-free path found from q_from to q_goal, or None when no candidate is free.
         Seeds are candidates like the others (checked for collisions too). inflation (m, may be negative):
-        added to the people's margin (negative for a robot a person has already come closer to)."""
+        added to the people's margin (negative for a robot a person has already come closer to). alternatives:
+        up to this many runners-up as well (``SearchResult.others``: the next free bent candidates by cost, within
+        BENT_WITHIN of the winner), for a caller that times each as it will be driven: the cost walks the
+        waypoints with a stop at each corner, and a timing law that smooths them can be slower or faster by
+        up to a tenth (docs/measurements.md, session 73)."""
         q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
         started = time.perf_counter()
         budget = self.options.time_budget
         stop_at = min(started + budget if budget is not None else np.inf,
                       self.deadline if self.deadline is not None else np.inf)
         try:
-            return self._search(q_from, q_goal, humans, rng, stay, seeds, from_rest, inflation, stop_at)
+            return self._search(q_from, q_goal, humans, rng, stay, seeds, from_rest, inflation, stop_at, alternatives)
         finally:
             self.spent += time.perf_counter() - started
 
     def _search(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, rng: np.random.Generator,
                 stay: float, seeds: tuple[np.ndarray, ...], from_rest: bool, inflation: float,
-                stop_at: float) -> SearchResult | None:
+                stop_at: float, alternatives: int = 0) -> SearchResult | None:
         """search, stopping at the perf_counter time stop_at (inf: bounded by the counts only)."""
         def out_of_time() -> bool:
             return time.perf_counter() > stop_at
@@ -258,7 +263,8 @@ class PathSearch:
             costs.append(cost(w))
         checked = 0
         best = bent = None
-        for k in np.argsort(costs, kind="stable"):
+        order = np.argsort(costs, kind="stable")
+        for k in order:
             if best is not None and (labelled[k][1].shape[0] <= 2 or costs[k] > BENT_WITHIN * best[1]):
                 continue
             checked += 1
@@ -283,7 +289,19 @@ class PathSearch:
         costed, checked = costed + refined, checked + refined_checked
         if predicted >= best[1]:
             waypoints, predicted, origin = best
-        return SearchResult(waypoints, predicted, origin, costed, checked)
+        others: list[np.ndarray] = []
+        if alternatives > 0 and waypoints.shape[0] > 2:
+            taken = (best[0], waypoints) if bent is None else (best[0], bent[0], waypoints)
+            for k in order:
+                if len(others) >= alternatives or out_of_time() or costs[k] > BENT_WITHIN * predicted:
+                    break
+                w = labelled[k][1]
+                if w.shape[0] <= 2 or any(w.shape == t.shape and np.array_equal(w, t) for t in taken):
+                    continue
+                checked += 1
+                if self.free(w, humans, inflation):
+                    others.append(w)
+        return SearchResult(waypoints, predicted, origin, costed, checked, tuple(others))
 
     def _refine(self, waypoints: np.ndarray, predicted: float, q_from: np.ndarray, humans: HumanCapsules | None,
                 rng: np.random.Generator, inflation: float, cost, out_of_time) -> tuple[np.ndarray, float, int, int]:

@@ -61,10 +61,15 @@ class SearchedPaths:
 
     def path(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, stay: float,
              from_rest: bool = True) -> np.ndarray:
-        """Waypoints (K, 6) of the path the search finds fastest under the SSM, every segment free of the
-        scene and the people (never closer to them than the ends already are); RRT-Connect seeds a second
-        search where no simple detour is free (raises PlanningError when nothing is found). stay (s): how long
-        the people are assumed to stay."""
+        """Waypoints (K, 6) of the path the search finds fastest (``paths``' first)."""
+        return self.paths(q_from, q_goal, humans, stay, from_rest)[0]
+
+    def paths(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, stay: float,
+              from_rest: bool = True, alternatives: int = 0) -> list[np.ndarray]:
+        """The waypoints (each (K, 6)) of the path the search finds fastest under the SSM, every segment free of
+        the scene and the people (never closer to them than the ends already are), then up to `alternatives`
+        runners-up (``PathSearch.search``); RRT-Connect seeds a second search where no simple detour is free
+        (raises PlanningError when nothing is found). stay (s): how long the people are assumed to stay."""
         q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
         direct = np.vstack([q_from, q_goal])
         inflation = self.collision.capped_inflation(0.0, direct, humans)      # < 0 where a person has come closer already
@@ -72,16 +77,16 @@ class SearchedPaths:
         rng = self.rng(q_from, q_goal)
         self.searches += 1
         found = self.search.search(q_from, q_goal, humans, rng, stay, (direct, *self.recalled(q_from, q_goal)),
-                                   from_rest, inflation)
+                                   from_rest, inflation, alternatives)
         if found is None:
             budget = self.options.rrt_budget
             if self.search.deadline is not None:           # within the action's budget, but never nothing
                 budget = min(budget, max(0.02, self.search.deadline - time.perf_counter()))
             rrt = self.planner.plan(q_from, q_goal, humans, inflation, time_budget=budget)
             self.searches += 1
-            found = self.search.search(q_from, q_goal, humans, rng, stay, (rrt,), from_rest, inflation)
+            found = self.search.search(q_from, q_goal, humans, rng, stay, (rrt,), from_rest, inflation, alternatives)
             if found is None:                               # out of time before reaching it: it is free
-                return rrt
+                return [rrt]
         if len(found.waypoints) > 2:
             self.remember(found.waypoints)
-        return found.waypoints
+        return [found.waypoints, *found.others]

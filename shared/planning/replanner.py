@@ -99,7 +99,7 @@ class Replanner:
         self.paths = SearchedPaths(collision, planner, self.search, options)
         self.budget = ActionBudget(self.search, options.action_budget)
         self.candidates = Candidates(collision, options, self.cost, self.budget, self.path, self.predicted_time,
-                                     self.stay, self.default_leg)
+                                     self.stay, self.default_leg, self.path_and_others)
         self.took_prepared = False     # the last plan_goal took the prepared trajectory it was given
         self.search_deferred = False   # the last plan_goal left a search to be run on the way (leaving)
         self.goal_searched = False     # the last plan_goal took the leg its search found
@@ -164,6 +164,11 @@ class Replanner:
         """Waypoints (K, 6) of the path the search finds fastest under the SSM, the people staying
         patience + waited (``SearchedPaths.path``; raises PlanningError when nothing is found)."""
         return self.paths.path(q_from, q_goal, humans, self.stay(waited), from_rest)
+
+    def path_and_others(self, q_from: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
+                        waited: float, alternatives: int) -> list[np.ndarray]:
+        """The searched path from rest (``path``) and up to `alternatives` runners-up (``SearchedPaths.paths``)."""
+        return self.paths.paths(q_from, q_goal, humans, self.stay(waited), True, alternatives)
 
     def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
                    waited: float = 0.0) -> Trajectory:
