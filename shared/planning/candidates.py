@@ -36,8 +36,8 @@ class Candidates:
     s_from, humans, waited) -> s: the one prediction; stay(waited) -> s: how long the people are assumed to stay;
     leg(q_start, q_goal, humans, version) -> the leg a new goal takes from rest there without a search (None where
     there is none); paths(q_from, q_goal, humans, waited, alternatives) -> [waypoints, ...]: the searched path
-    from rest and its runners-up (None: the searched path alone); budget: the action's wall clock (a merge tries no further junction once it is spent).
-    leg_start: where the robot stood when its goal's leg began (None: not known, or the goal came while it
+    from rest and its runners-up (None: the searched path alone); budget: the action's wall clock (a merge tries
+    no further junction once it is spent, a plan from rest times no further runner-up). leg_start: where the robot stood when its goal's leg began (None: not known, or the goal came while it
     moved), which a plan from rest may go back to (``retreat``)."""
 
     def __init__(self, collision: CollisionModel, options: ReplanOptions, cost: SsmTimeCost, budget: ActionBudget,
