@@ -37,8 +37,9 @@ class Candidates:
     leg(q_start, q_goal, humans, version) -> the leg a new goal takes from rest there without a search (None where
     there is none); paths(q_from, q_goal, humans, waited, alternatives) -> [waypoints, ...]: the searched path
     from rest and its runners-up (None: the searched path alone); budget: the action's wall clock (a merge tries
-    no further junction once it is spent, a plan from rest times no further runner-up). leg_start: where the robot stood when its goal's leg began (None: not known, or the goal came while it
-    moved), which a plan from rest may go back to (``retreat``)."""
+    no further junction once it is spent, a plan from rest times no further runner-up). leg_start: where the
+    robot stood when its goal's leg began (None: not known, or the goal came while it moved), which a plan from
+    rest may go back to (``retreat``)."""
 
     def __init__(self, collision: CollisionModel, options: ReplanOptions, cost: SsmTimeCost, budget: ActionBudget,
                  path: Callable[..., np.ndarray], predict: Callable[..., float], stay: Callable[[float], float],
