@@ -100,10 +100,10 @@ def test_where_the_search_finds_nothing_the_way_back_is_still_a_plan_and_without
         raise PlanningError("no path found")
 
     planner = replanner(LEG_START)
-    planner.candidates.path = nothing
+    planner.candidates.path = planner.candidates.paths = nothing
     result = planner.candidates.rest_plan(HELD, 0.0, GOAL, PERSON, "beta", 14.0)
     assert result.detail == "back by where the leg began" and np.allclose(result.trajectory.positions[-1], GOAL)
     bare = replanner(None)
-    bare.candidates.path = nothing
+    bare.candidates.path = bare.candidates.paths = nothing
     with pytest.raises(ReplanFailed, match="from rest: PlanningError: no path found"):
         bare.candidates.rest_plan(HELD, 0.0, GOAL, PERSON, "beta", 14.0)
