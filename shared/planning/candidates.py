@@ -189,7 +189,7 @@ class Candidates:
                     raise
                 continue
             predicted = self.predict(traj, 0.0, humans, waited)
-            if predicted < best_time:
+            if best is None or predicted < best_time:
                 best, best_time = traj, predicted
         return best, best_time
 
