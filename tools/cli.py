@@ -123,8 +123,11 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
         collision = CollisionModel(robot, _scene(args.scene), config.ssm.min_separation)
         from shared.planning.options import ReplanOptions
 
+        # the planner service's seeds (services/planner.py): OMPL's and the path search's, so that --sim is the
+        # processes' planning layer, not one that draws other random detours
         replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
-                              options=ReplanOptions(**config.planning.replan_fields()), scaling=config.scaling)
+                              options=ReplanOptions(seed=args.seed or 0, **config.planning.replan_fields()),
+                              scaling=config.scaling)
     every = max(1, int(round(0.5 / config.scaling.period)))
     count = [0]
 
