@@ -20,10 +20,15 @@ import numpy as np
 STANDING_SPEED = 0.15
 
 
+def end_speeds(humans: "HumanCapsules") -> np.ndarray:
+    """Each capsule's faster end's speed (M,), m/s: what says whether it drifts, walks or stands."""
+    return np.linalg.norm(humans.velocities, axis=2).max(axis=1)
+
+
 def standing(humans: "HumanCapsules", speed: float = STANDING_SPEED) -> bool:
     """Every capsule's velocity known and below `speed` (m/s) at both ends (True for nobody)."""
     return humans.count == 0 or (bool(humans.velocity_known.all())
-                                 and float(np.linalg.norm(humans.velocities, axis=2).max()) < speed)
+                                 and float(end_speeds(humans).max()) < speed)
 
 
 @dataclass(frozen=True)

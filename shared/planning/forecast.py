@@ -27,7 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
-from shared.core.humans import STANDING_SPEED, HumanCapsules
+from shared.core.humans import STANDING_SPEED, HumanCapsules, end_speeds
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ class ConstantVelocity:
     def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
         if horizon <= 0.0 or humans.count == 0:
             return PeopleForecast.still(humans)
-        fastest_end = np.linalg.norm(humans.velocities, axis=2).max(axis=1)
+        fastest_end = end_speeds(humans)
         drifts = humans.velocity_known & (fastest_end >= self.drift_speed)
         end = humans.segments + np.where(drifts[:, None, None], humans.velocities * horizon, 0.0)
         return PeopleForecast(np.stack([humans.segments, end]), np.stack([humans.velocities, humans.velocities]),
@@ -107,7 +107,7 @@ class DampedVelocity:
     def forecast(self, humans: HumanCapsules, horizon: float) -> PeopleForecast:
         if horizon <= 0.0 or humans.count == 0:
             return PeopleForecast.still(humans)
-        fastest_end = np.linalg.norm(humans.velocities, axis=2).max(axis=1)
+        fastest_end = end_speeds(humans)
         moving = np.where((humans.velocity_known & (fastest_end >= self.drift_speed))[:, None, None],
                           humans.velocities, 0.0)
         t = np.linspace(0.0, horizon, self.frames + 1)[:, None, None, None]

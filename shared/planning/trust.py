@@ -19,7 +19,7 @@ from collections import deque
 
 import numpy as np
 
-from shared.core.humans import STANDING_SPEED, HumanCapsules
+from shared.core.humans import STANDING_SPEED, HumanCapsules, end_speeds
 from shared.planning.forecast import Forecaster
 
 SNAPSHOT_EVERY = 0.1     # s between the snapshots kept
@@ -79,5 +79,4 @@ class ForecastTrust:
             return False
         if self.has_span(now):
             return self.error(now) <= self.tolerance
-        fastest_end = np.linalg.norm(self.now.velocities, axis=2).max(axis=1)
-        return bool(np.all(fastest_end >= STANDING_SPEED)) and self.error(now, partial=True) <= self.tolerance
+        return bool(np.all(end_speeds(self.now) >= STANDING_SPEED)) and self.error(now, partial=True) <= self.tolerance
