@@ -63,22 +63,28 @@ class Candidates:
         only one motion at a time (the search's staged lifts: the elbow first), the smoothed start makes both at
         once, which may not start until they leave (held 2 s beside a person: the staged path predicted 5.4 s
         with its corners, 7.1 s smoothed)."""
+        return self._from_rest(waypoints, humans, version, waited)[0]
+
+    def _from_rest(self, waypoints: np.ndarray, humans: HumanCapsules | None, version: int,
+                   waited: float | None) -> tuple[Trajectory, float | None]:
+        """``from_rest``, and its prediction (s) where weighing the corners made one (else None)."""
         if len(waypoints) == 2:
             return straight_line_trajectory(waypoints[0], waypoints[1], self.limits.velocity,
-                                            self.limits.acceleration, version=version)
+                                            self.limits.acceleration, version=version), None
         limits = self.limits
         try:
             smooth = parameterize(waypoints, limits, collision=self.collision, humans=humans,
                                   inflation=self.collision.capped_inflation(0.0, waypoints[[0, -1]], humans),
                                   version=version)
         except TimingError:          # the smoothed path cuts a corner into a person: stop at the corners
-            return polyline_trajectory(waypoints, limits.velocity, limits.acceleration, version=version)
+            return polyline_trajectory(waypoints, limits.velocity, limits.acceleration, version=version), None
         if waited is None or humans is None or humans.count == 0:
-            return smooth
+            return smooth, None
         corners = polyline_trajectory(waypoints, limits.velocity, limits.acceleration, version=version)
         smooth_time = self.predict(smooth, 0.0, humans, waited)
+        corners_time = self.predict(corners, 0.0, humans, waited)
         gain = required_gain(smooth_time, self.options.min_gain, self.options.min_saving)
-        return corners if self.predict(corners, 0.0, humans, waited) < (1.0 - gain) * smooth_time else smooth
+        return (corners, corners_time) if corners_time < (1.0 - gain) * smooth_time else (smooth, smooth_time)
 
     def branch(self, old: Trajectory, s_now: float, s_branch: float, q_goal: np.ndarray,
                 humans: HumanCapsules | None, version: int, waited: float,
@@ -183,12 +189,13 @@ class Candidates:
             if k and self.budget.out_of_time():
                 break
             try:
-                traj = self.from_rest(route, humans, version, waited)
+                traj, predicted = self._from_rest(route, humans, version, waited)
             except TimingError:
                 if k == 0:
                     raise
                 continue
-            predicted = self.predict(traj, 0.0, humans, waited)
+            if predicted is None:
+                predicted = self.predict(traj, 0.0, humans, waited)
             if best is None or predicted < best_time:
                 best, best_time = traj, predicted
         return best, best_time
