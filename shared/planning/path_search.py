@@ -264,10 +264,12 @@ class PathSearch:
         checked = 0
         best = bent = None
         order = np.argsort(costs, kind="stable")
+        tried: set[int] = set()                 # the candidates checked for collisions here
         for k in order:
             if best is not None and (labelled[k][1].shape[0] <= 2 or costs[k] > BENT_WITHIN * best[1]):
                 continue
             checked += 1
+            tried.add(int(k))
             if self.free(labelled[k][1], humans, inflation):
                 if best is None:
                     best = (labelled[k][1], costs[k], labelled[k][0])
@@ -292,11 +294,11 @@ class PathSearch:
         others: list[np.ndarray] = []
         if alternatives > 0 and waypoints.shape[0] > 2:
             taken = (best[0], waypoints) if bent is None else (best[0], bent[0], waypoints)
-            for k in order:
+            for k in order:             # the next ones not checked yet, none equal to a winner
                 if len(others) >= alternatives or out_of_time() or costs[k] > BENT_WITHIN * predicted:
                     break
                 w = labelled[k][1]
-                if w.shape[0] <= 2 or any(w.shape == t.shape and np.array_equal(w, t) for t in taken):
+                if w.shape[0] <= 2 or int(k) in tried or any(w.shape == t.shape and np.array_equal(w, t) for t in taken):
                     continue
                 checked += 1
                 if self.free(w, humans, inflation):
