@@ -44,7 +44,8 @@ class ReplanOptions:
     shipped 2.5 m and why: ``PlanningParameters``); still_gap (m): unless everyone stands still farther than this
     from the reach (``PlanningParameters``); trust_tolerance (m), trust_span (s): where the forecast has held that
     well over that long (``shared.planning.trust``), the straight line takes the fold's place where predicted faster
-    (0: never);
+    (0: never); goal_stay (s): a new goal's leg is chosen with the people assumed to stay at least this long
+    (``Replanner.goal_waited``; 0: patience plus the time held, as every other decision);
     judge: what a decision's trajectories are predicted by, "cost" (the time cost's model,
     ``shared.planning.time_cost``) or "scaling" (a forward run of the scaling layer itself against the same
     forecast, ``shared.planning.executed``: slower, for a bound or a cell with the budget for it)."""
@@ -62,6 +63,7 @@ class ReplanOptions:
     worth_waiting: float | None = PlanningParameters.worth_waiting
     trust_tolerance: float = PlanningParameters.trust_tolerance
     trust_span: float = PlanningParameters.trust_span
+    goal_stay: float = PlanningParameters.goal_stay
     slow_excess: float = PlanningParameters.slow_excess
     action_budget: float | None = None
     posture_gap: float | None = PlanningParameters.posture_gap

@@ -149,6 +149,11 @@ class Replanner:
         """How long (s) a prediction assumes the people present stay: patience + the time already held."""
         return self.options.patience + max(0.0, waited)
 
+    def goal_waited(self, waited: float) -> float:
+        """The `waited` a new goal's decisions take (``plan_goal``): the people assumed to stay at least
+        options.goal_stay, however short the robot has been held (``stay(goal_waited(w)) >= goal_stay``)."""
+        return max(max(0.0, waited), self.options.goal_stay - self.options.patience)
+
     def predicted_time(self, trajectory: Trajectory, s_from: float, humans: HumanCapsules | None,
                        waited: float = 0.0) -> float:
         """Time (s) from s_from to the end of the trajectory under the SSM (shared.planning.time_cost), the people
@@ -191,15 +196,18 @@ class Replanner:
         where a search would decide but the direct line is predicted slower than nominal by no more than
         ``worth_waiting`` (None: whatever it is predicted), the direct line (or the fold) is returned at once and
         ``search_deferred`` says so: the robot leaves on it and the search runs on the way (``PlanningLoop``,
-        action 'search', ``on_search``), so nobody waits at the goal for a search that seldom pays."""
+        action 'search', ``on_search``), so nobody waits at the goal for a search that seldom pays. The search and
+        whether it (or the prepared plan) beats the line or the fold are judged with the people assumed to stay
+        at least ``goal_stay`` (``goal_waited``): the robot commits to a whole leg."""
         q_start, q_goal = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
         self.took_prepared = self.search_deferred = self.goal_searched = self.took_fold = False
+        staying = self.goal_waited(waited)       # the whole leg ahead: the people assumed to stay goal_stay
         if not self.collision.motion_free(q_start, q_goal)[0]:
-            ready = self._still_good(prepared, q_start, q_goal, humans, waited, np.inf, version)
+            ready = self._still_good(prepared, q_start, q_goal, humans, staying, np.inf, version)
             if ready is not None:
                 return ready
             self.goal_searched = True
-            return self.plan_fresh(q_start, q_goal, humans, version, waited)
+            return self.plan_fresh(q_start, q_goal, humans, version, staying)
         direct = straight_line_trajectory(q_start, q_goal, self.limits.velocity, self.limits.acceleration,
                                           version=version)
         if humans is None or humans.count == 0:
@@ -213,22 +221,24 @@ class Replanner:
             if posture_time <= direct_time:
                 direct, direct_time = posture, posture_time
         self.took_fold = direct is posture           # (what the goal's detail says where it is not searched)
+        if staying != waited:       # the line against the fold as every decision (the bet on a walker's course) ...
+            direct_time = self.predicted_time(direct, 0.0, humans, staying)    # ... the search against them: goal_stay
         if direct_time <= direct.duration + self.options.worth_searching:
             return direct                   # the people hardly slow it: a search would cost more than it saves
         # a searched leg must beat it as a replan must beat the trajectory it would replace (min_gain, or
         # min_saving seconds): a forecast's error is no reason to leave the line or the fold
         beat = (1.0 - required_gain(direct_time, self.options.min_gain, self.options.min_saving)) * direct_time
-        ready = self._still_good(prepared, q_start, q_goal, humans, waited, beat, version)
+        ready = self._still_good(prepared, q_start, q_goal, humans, staying, beat, version)
         if ready is not None:
             return ready
         if leaving and (self.options.worth_waiting is None or direct_time <= direct.duration + self.options.worth_waiting):
             self.search_deferred = True
             return direct
         try:
-            searched = self.plan_fresh(q_start, q_goal, humans, version, waited)
+            searched = self.plan_fresh(q_start, q_goal, humans, version, staying)
         except (PlanningError, TimingError):
             return direct
-        self.goal_searched = self.predicted_time(searched, 0.0, humans, waited) < beat
+        self.goal_searched = self.predicted_time(searched, 0.0, humans, staying) < beat
         return searched if self.goal_searched else direct
 
     def default_leg(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,

@@ -384,6 +384,23 @@ def test_a_person_blocking_every_way_is_waited_for_and_a_robot_in_reach_is_not_r
     assert replanner.on_horizon(OLD, 0.0, Q_GOAL, touching, speed_now=0.0) is None
 
 
+def test_a_new_goal_is_chosen_with_the_people_staying_for_the_leg():
+    """A person reaching over the path, at rest: with a patience of 1 s alone they are predicted gone early in
+    the leg and the direct line is kept; a new goal's decision has them stay goal_stay (6 s shipped) however
+    short the robot has been held, and goes round them. Later decisions keep the patience."""
+    only_patience = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(posture_gap=None, patience=1.0,
+                                                                            goal_stay=0.0))
+    direct = only_patience.plan_goal(Q_START, Q_GOAL, STANDING, 3)
+    assert not only_patience.goal_searched and np.allclose(direct.sample(1.0)[0], OLD.sample(1.0)[0])
+    for_the_leg = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(posture_gap=None, patience=1.0))
+    assert for_the_leg.stay(for_the_leg.goal_waited(0.0)) == pytest.approx(6.0)
+    assert for_the_leg.stay(for_the_leg.goal_waited(7.0)) == pytest.approx(8.0)     # held longer: longer still
+    chosen = for_the_leg.plan_goal(Q_START, Q_GOAL, STANDING, 4)
+    assert for_the_leg.goal_searched and not np.allclose(chosen.sample(1.0)[0], OLD.sample(1.0)[0])
+    assert for_the_leg.predicted_time(chosen, 0.0, STANDING, 5.0) < for_the_leg.predicted_time(OLD, 0.0, STANDING, 5.0)
+    assert_trajectory_feasible(chosen, STANDING)
+
+
 def test_a_new_goal_takes_the_direct_line_unless_the_searched_path_is_predicted_faster():
     """The paper's planner (no posture; the shipped folded leg in the direct line's place: below)."""
     replanner = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(posture_gap=None))
@@ -400,7 +417,7 @@ def test_a_new_goal_takes_the_direct_line_unless_the_searched_path_is_predicted_
     assert_trajectory_feasible(chosen, STANDING)
     # leaving (the planning loop leaves at once and searches on the way) where the direct line is predicted no more
     # than worth_waiting slower than nominal: the direct line, no search, and it says the search was left
-    excess = stays.predicted_time(OLD, 0.0, STANDING) - OLD.duration
+    excess = stays.predicted_time(OLD, 0.0, STANDING, stays.goal_waited(0.0)) - OLD.duration
     leaves = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=5.0, posture_gap=None,
                                                                      worth_waiting=excess + 0.1))
     at_once = leaves.plan_goal(Q_START, Q_GOAL, STANDING, 8, leaving=True)
@@ -492,12 +509,20 @@ def test_a_path_predicted_slow_ahead_of_a_robot_at_speed_is_replanned_by_the_pla
     while they stand in its way. The longer they stand, the longer the prediction has them stay; once the
     rest of the path is predicted more than slow_excess over its nominal time, the planning layer asks
     itself for a replan (on_slow) and takes the merge round them, which is faster against the person as
-    they really stay, too. (The paper's planner: the shipped one's folded leg already clears this person.)"""
+    they really stay, too. (The paper's planner, whose goal has the person stay only its patience: the shipped
+    one's folded leg already clears this person, and its goal's stay, goal_stay, already goes round them.)"""
     phases = paper_phases(6.0)
     replanner = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=1)), PAPER_SSM,
-                          options=ReplanOptions(seed=2, posture_gap=None))
+                          options=ReplanOptions(seed=2, posture_gap=None, goal_stay=0.0))
     plan = replanner.plan_goal(Q_GOAL, Q_START, phases.at(19.16), 9)
     standing = phases.at(19.3)
+    round_them = Replanner(CM, JointPlanner(CM, PlannerOptions(seed=1)), PAPER_SSM,
+                           options=ReplanOptions(seed=2, posture_gap=None))
+    planned = round_them.plan_goal(Q_GOAL, Q_START, phases.at(19.16), 9)
+    assert round_them.goal_searched       # goal_stay: however long they stand, not slower (patience only: it grows)
+    assert round_them.predicted_time(planned, 0.0, standing, 10.0) == pytest.approx(
+        round_them.predicted_time(planned, 0.0, standing, 0.0), abs=0.05)
+    assert replanner.predicted_time(plan, 0.0, standing, 10.0) > replanner.predicted_time(plan, 0.0, standing, 0.0) + 5
 
     def speed(s):                 # the robot at its nominal speed there
         return float(np.abs(plan.sample(s)[1]).max())
