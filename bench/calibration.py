@@ -2,9 +2,10 @@
 test: it prints figures). For seeded scenarios, at a few moments each, the legs a planner would choose between
 (the straight line, the fixed folded path of ``evidence.fixed_path``, and the path search's winner, each timed as
 the planner times it) are predicted by the cost (``SsmTimeCost.trajectory_time``, the people tracked at that
-moment, forecast as the planner forecasts them, staying as long as the planner has them stay: ``patience`` plus
-how long its presence clocks, ``shared.planning.presence.Presence``, say they have stayed by that moment, the
-scenario replayed from its start; ``--stay S`` for a fixed stay instead) and then executed by the product's own
+moment, forecast as the planner forecasts them, staying as long as the planner has a new goal's leg have them
+stay: ``patience`` plus how long its presence clocks, ``shared.planning.presence.Presence``, say they have stayed by
+that moment, the scenario replayed from its start, and at least ``goal_stay`` (``Replanner.goal_waited``); ``--stay
+S`` for a fixed stay instead) and then executed by the product's own
 ``ScalingLayer`` against the scripted people as they really move, until the leg's end. Per kind: the prediction's
 error (predicted / executed - 1: its median, the median and p95 of its size), and how often the candidate
 predicted fastest is the one executed fastest (a cost that misranks shows there), with what choosing by the
@@ -80,8 +81,9 @@ def main() -> int:
     parser.add_argument("--kinds", default="crossing,random_walk,standing,two_humans")
     parser.add_argument("--moments", type=int, default=3, help="moments per scenario a leg starts at")
     parser.add_argument("--stay", type=float, default=None,
-                        help="s the prediction has the people stay (default: as the planner has them stay, its "
-                             "patience plus how long they have stayed by then; inf: for good)")
+                        help="s the prediction has the people stay (default: as the planner has them stay for a new "
+                             "goal's leg, its patience plus how long they have stayed by then, at least its goal_stay; "
+                             "inf: for good)")
     parser.add_argument("--truth", action="store_true",
                         help="predict with the people's own future (the timeline's error alone, no forecast's)")
     parser.add_argument("--judge", choices=("cost", "scaling"), default="cost",
@@ -102,8 +104,8 @@ def main() -> int:
     if args.truth:       # the future over the longest leg counted (after its horizon a forecast holds its last frame)
         options = foresight_options(options)
         options = replace(options, cost=replace(options.cost, extrapolation=LONGEST))
-    if args.stay is not None:
-        options = replace(options, patience=args.stay)
+    if args.stay is not None:          # exactly S: no goal_stay above it
+        options = replace(options, patience=args.stay, goal_stay=0.0)
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=1)), config.ssm, options=options,
                           scaling=config.scaling)
     fixed = FixedPath(collision)
@@ -120,7 +122,8 @@ def main() -> int:
                 human = replanner.cost.forecaster = Foresight(human)
             stayed = presence_waited(human, moments, config.scaling.period) if clocks else [0.0] * len(moments)
             waits += stayed
-            for t0, waited in zip(moments, stayed):
+            for t0, held in zip(moments, stayed):
+                waited = replanner.goal_waited(held)         # a new goal's leg, as plan_goal has the people stay
                 for a, b in ((Q_START, Q_GOAL), (Q_GOAL, Q_START)):
                     people = human.at(t0)
                     legs = {"straight": straight_line_trajectory(a, b, lim.velocity, lim.acceleration),
@@ -163,10 +166,12 @@ def main() -> int:
         for err, seed, t0, way, name, said, took in sorted(legs_said, key=lambda r: -abs(r[0]))[:args.worst]:
             print(f"  worst: seed {seed} from {t0:.1f} s, the leg {way}, {name}: predicted {said:.2f} s, "
                   f"executed {took:.2f} s ({err:+.3f})", flush=True)
-    stay = "the planner's: patience + the presence clocks" if clocks else replanner.stay(0.0)
+    stay = "the planner's for a new goal: patience + the presence clocks, at least goal_stay" if clocks \
+        else replanner.stay(0.0)
     if clocks:
         print(f"the people's stay: patience {replanner.stay(0.0):.2f} s plus the presence clocks' count at each "
-              f"moment (median {np.median(waits):.2f} s, max {max(waits):.2f} s)")
+              f"moment (median {np.median(waits):.2f} s, max {max(waits):.2f} s), at least the goal's stay "
+              f"{replanner.options.goal_stay:.2f} s")
     print(json.dumps({"bench": "calibration", "seeds": args.seeds, "moments": args.moments, "stay_s": stay,
                       "truth": args.truth, "judge": args.judge, "kinds": summary}))
     return 0

@@ -33,10 +33,11 @@ trust_tolerance (m), trust_span (s): where the planning layer's forecast has hel
 (every snapshot of the people moved on by the forecast lands within trust_tolerance of where they are:
 ``shared.planning.trust``), a new goal's leg is the straight line instead of the fold where the cost predicts it
 faster; elsewhere the fold, which pays wherever people turn out to be. 0: never trusted.
-goal_stay (s): a new goal's leg is chosen (the line or the fold, or a searched leg, ``Replanner.plan_goal``) with
-the people present assumed to stay at least this long, not only patience + the time held: a robot leaving a goal
-commits to a whole leg, and someone standing by its way now is there for most of it (the keep-or-replace rule
-on the way keeps the patience: waiting there is ski rental). 6 s shipped: side by side on two sets of 48 seeds a
+goal_stay (s): at a new goal, the search and whether its leg (or the one prepared on the way) beats the line or
+the fold (``Replanner.plan_goal``, and the same decision made on the way, ``Replanner.on_search``) assume the people
+present stay at least this long, not only patience + the time held (the line against the fold keeps the
+patience): a robot leaving a goal commits to a whole leg, and someone standing by its way now is there for most
+of it (every keep-or-replace on the way keeps the patience: waiting there is ski rental). 6 s shipped: side by side on two sets of 48 seeds a
 kind, the paper's kind gained 2.9 % and 3.3 % (30 and 38 better, none worse), the other kinds within 0.4 %;
 3 s gave half that, 10 s and for good the same as 6 (docs/measurements.md, session 74). 0: patience + held only.
 """
