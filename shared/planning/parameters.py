@@ -37,9 +37,10 @@ goal_stay (s): at a new goal, the search and whether its leg (or the one prepare
 the fold (``Replanner.plan_goal``, and the same decision made on the way, ``Replanner.on_search``) assume the people
 present stay at least this long, not only patience + the time held (the line against the fold keeps the
 patience): a robot leaving a goal commits to a whole leg, and someone standing by its way now is there for most
-of it (every keep-or-replace on the way keeps the patience: waiting there is ski rental). 6 s shipped: side by side on two sets of 48 seeds a
-kind, the paper's kind gained 2.9 % and 3.3 % (30 and 38 better, none worse), the other kinds within 0.4 %;
-3 s gave half that, 10 s and for good the same as 6 (docs/measurements.md, session 74). 0: patience + held only.
+of it (every keep-or-replace on the way keeps the patience: waiting there is ski rental). 6 s shipped: side by
+side on two sets of 48 seeds a kind, the paper's kind gained 2.9 % and 3.3 % (30 and 38 better, none worse), the
+other kinds within 0.4 %; 3 s gave half that, 10 s and for good the same as 6 (docs/measurements.md, session 74).
+0: patience + held only.
 """
 
 from __future__ import annotations
