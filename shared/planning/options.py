@@ -44,8 +44,9 @@ class ReplanOptions:
     shipped 2.5 m and why: ``PlanningParameters``); still_gap (m): unless everyone stands still farther than this
     from the reach (``PlanningParameters``); trust_tolerance (m), trust_span (s): where the forecast has held that
     well over that long (``shared.planning.trust``), the straight line takes the fold's place where predicted faster
-    (0: never); goal_stay (s): a new goal's leg is chosen with the people assumed to stay at least this long
-    (``Replanner.goal_waited``; 0: patience plus the time held, as every other decision);
+    (0: never); goal_stay (s): a new goal's search, and whether its leg beats the line or the fold, assume the
+    people stay at least this long (``Replanner.goal_waited``; 0: patience plus the time held, as every other
+    decision);
     judge: what a decision's trajectories are predicted by, "cost" (the time cost's model,
     ``shared.planning.time_cost``) or "scaling" (a forward run of the scaling layer itself against the same
     forecast, ``shared.planning.executed``: slower, for a bound or a cell with the budget for it)."""
