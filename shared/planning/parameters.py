@@ -34,10 +34,11 @@ trust_tolerance (m), trust_span (s): where the planning layer's forecast has hel
 ``shared.planning.trust``), a new goal's leg is the straight line instead of the fold where the cost predicts it
 faster; elsewhere the fold, which pays wherever people turn out to be. 0: never trusted.
 goal_stay (s): at a new goal, the search and whether its leg (or the one prepared on the way) beats the line or
-the fold (``Replanner.plan_goal``, and the same decision made on the way, ``Replanner.on_search``) assume the people
-present stay at least this long, not only patience + the time held (the line against the fold keeps the
-patience): a robot leaving a goal commits to a whole leg, and someone standing by its way now is there for most
-of it (every keep-or-replace on the way keeps the patience: waiting there is ski rental). 6 s shipped: side by
+the fold (``Replanner.plan_goal``) assume the people present stay at least this long, not only patience + the
+time held (the line against the fold keeps the patience, and so does the goal's search run on the way,
+``Replanner.on_search``: with the goal's stay there too the standing person's kind lost 1.8 %): a robot leaving a
+goal commits to a whole leg, and someone standing by its way now is there for most of it (every keep-or-replace
+on the way keeps the patience: waiting there is ski rental). 6 s shipped: side by
 side on two sets of 48 seeds a kind, the paper's kind gained 2.9 % and 3.3 % (30 and 38 better, none worse), the
 other kinds within 0.4 %; 3 s gave half that, 10 s and for good the same as 6 (docs/measurements.md, session 74).
 0: patience + held only.

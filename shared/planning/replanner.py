@@ -397,16 +397,16 @@ class Replanner:
         still predicted faster than the leg from here. Else ReplanFailed saying why. Why not a search of the
         merge's own, judged as a replan: the turn onto a way round costs the robot that has left some of the
         saving, and a person standing beside the path was then passed on the fold (5.54 s) where the goal's search
-        went round (4.30 s; docs/measurements.md, session 63). The goal's part has the people stay as ``plan_goal``
-        has them stay (``goal_waited``); the merge from where the robot is, as every replan."""
+        went round (4.30 s; docs/measurements.md, session 63). Unlike ``plan_goal`` it has the people stay the
+        patience plus the time held, not ``goal_stay``: with the goal's stay here too the standing person's kind lost
+        1.8 % (docs/measurements.md, session 74)."""
         started = time.perf_counter()
-        staying = self.goal_waited(waited)
         try:
-            waypoints = self.path(old.positions[0], q_goal, humans, staying)
-            searched = self.candidates.from_rest(waypoints, humans, old.version + 1, staying)
+            waypoints = self.path(old.positions[0], q_goal, humans, waited)
+            searched = self.candidates.from_rest(waypoints, humans, old.version + 1, waited)
         except (PlanningError, TimingError) as exc:
             raise ReplanFailed(f"the new goal's search, on the way: {type(exc).__name__}: {exc}") from None
-        leg_time, searched_time = (self.predicted_time(t, 0.0, humans, staying) for t in (old, searched))
+        leg_time, searched_time = (self.predicted_time(t, 0.0, humans, waited) for t in (old, searched))
         need = required_gain(leg_time, self.options.min_gain, self.options.min_saving)
         if searched_time >= (1.0 - need) * leg_time:
             raise ReplanFailed(f"the new goal's search, on the way, kept the old trajectory: the new one (searched "

@@ -452,13 +452,6 @@ def test_a_goal_left_at_once_takes_on_the_way_the_leg_its_search_from_rest_would
     refused = r"the new one \(searched from the leg's start\) predicted \d\.\d\d s, not \d+ % faster than the old"
     with pytest.raises(ReplanFailed, match=refused):
         stays.on_search(leg, 0.02, Q_GOAL, ARM_ACROSS)
-    # decided as the goal decides: with a patience of 1 s the person is predicted gone early in the leg, and only
-    # the goal's stay (goal_stay) takes the way round, on the way as at the goal
-    briefly = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=1.0, posture_gap=None, goal_stay=0.0))
-    with pytest.raises(ReplanFailed, match=refused):
-        briefly.on_search(leg, 0.02, Q_GOAL, STANDING)
-    for_the_leg = Replanner(CM, PLANNER, PAPER_SSM, options=ReplanOptions(patience=1.0, posture_gap=None))
-    assert for_the_leg.on_search(leg, 0.02, Q_GOAL, STANDING).reason == "search"
 
 
 def test_a_search_starts_from_the_paths_the_last_ones_found_to_the_same_goal():
