@@ -178,7 +178,12 @@ class Replanner:
     def plan_fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
                    waited: float = 0.0) -> Trajectory:
         """A rest-to-rest trajectory to a new goal on the searched path (raises PlanningError or TimingError)."""
-        return self.candidates.from_rest(self.path(q_start, q_goal, humans, waited), humans, version, waited)
+        return self._fresh(q_start, q_goal, humans, version, waited)[0]
+
+    def _fresh(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
+               waited: float) -> tuple[Trajectory, float]:
+        """``plan_fresh`` and its prediction (s), made once (``Candidates.timed_best`` of the one route)."""
+        return self.candidates.timed_best([self.path(q_start, q_goal, humans, waited)], humans, version, waited)
 
     def plan_goal(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None, version: int,
                   waited: float = 0.0, prepared: PreparedPlan | None = None, leaving: bool = False,
@@ -235,10 +240,10 @@ class Replanner:
             self.search_deferred = True
             return direct
         try:
-            searched = self.plan_fresh(q_start, q_goal, humans, version, staying)
+            searched, searched_time = self._fresh(q_start, q_goal, humans, version, staying)
         except (PlanningError, TimingError):
             return direct
-        self.goal_searched = self.predicted_time(searched, 0.0, humans, staying) < beat
+        self.goal_searched = searched_time < beat
         return searched if self.goal_searched else direct
 
     def default_leg(self, q_start: np.ndarray, q_goal: np.ndarray, humans: HumanCapsules | None,
@@ -403,10 +408,10 @@ class Replanner:
         started = time.perf_counter()
         try:
             waypoints = self.path(old.positions[0], q_goal, humans, waited)
-            searched = self.candidates.from_rest(waypoints, humans, old.version + 1, waited)
+            searched_time = self.candidates.timed_best([waypoints], humans, old.version + 1, waited)[1]
         except (PlanningError, TimingError) as exc:
             raise ReplanFailed(f"the new goal's search, on the way: {type(exc).__name__}: {exc}") from None
-        leg_time, searched_time = (self.predicted_time(t, 0.0, humans, waited) for t in (old, searched))
+        leg_time = self.predicted_time(old, 0.0, humans, waited)
         need = required_gain(leg_time, self.options.min_gain, self.options.min_saving)
         if searched_time >= (1.0 - need) * leg_time:
             raise ReplanFailed(f"the new goal's search, on the way, kept the old trajectory: the new one (searched "
