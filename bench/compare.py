@@ -28,7 +28,9 @@ researcher's predictor, ``shared.planning.forecast.load_forecaster``); the JSON 
 scale_only and full under the paper's formula (the measured human speed held: ``SsmParameters.paper_formula``;
 the planning layer as shipped, so the pair isolates the model of the person), judged like every run by the
 shipped model's monitor: "scale_only/scale_only_paper" and "full/full_paper" are what the shipped model of a
-person who may speed up costs, and the *_paper violations what the formula lets through. --fixed-path adds the
+person who may speed up costs, the *_paper violations what the formula lets through, and
+"full_paper/scale_only_paper" the planning layer's own gain under that formula (with --fixed-path too,
+fixed_path_paper and "full_paper/fixed_path_paper": the goals under the paper's formula). --fixed-path adds the
 strongest simple baseline (``evidence.fixed_path``): the scaling layer on one fixed path, the shuttle with the
 elbow folded over the middle of the sweep, no planning; "full/fixed_path" says whether the planning layer earns its
 place, "won_back_fixed_path" how much of the room that path alone uses.
@@ -66,7 +68,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from evidence.scenarios import SCENARIO_KINDS, kinds_problem  # noqa: E402
-from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES  # noqa: E402
+from evidence.strategies import BASELINES, BOUNDS, PAPER, PAPER_BASELINES, STRATEGIES  # noqa: E402
 from evidence.summary import aggregate, columns, per_kind, ratios, wide_rows, won_back  # noqa: E402
 from evidence.sweep import ScenarioSpec, strategies_for  # noqa: E402
 from shared.planning.forecast import forecaster_problem  # noqa: E402
@@ -165,7 +167,7 @@ def main() -> int:
     if args.forecaster is not None and (problem := forecaster_problem(args.forecaster)):
         parser.error(f"--forecaster: {problem}")
     run = (STRATEGIES + (BASELINES if args.fixed_path else ()) + tuple(b for b in BOUNDS if getattr(args, b))
-           + (PAPER if args.paper else ()))
+           + (PAPER if args.paper else ()) + (PAPER_BASELINES if args.paper and args.fixed_path else ()))
     specs = [ScenarioSpec(kinds[k % len(kinds)], args.seed + k, args.duration, strategy, forecaster=args.forecaster)
              for k in range(args.scenarios) for strategy in run]
     started = time.perf_counter()

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from evidence.stats import SAME, PairedRatio, paired_ratio
-from evidence.strategies import BASELINES, BOUNDS, PAPER, STRATEGIES
+from evidence.strategies import BASELINES, BOUNDS, PAPER, PAPER_BASELINES, STRATEGIES
 
 
 def wide_rows(records: list[dict]) -> list[dict]:
@@ -60,12 +60,15 @@ def aggregate(rows: list[dict], horizon: float) -> dict:
 PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"), ("full", "foresight"),
          ("oracle", "scale_only"), ("full", "oracle"), ("scale_only", "scale_only_paper"), ("full", "full_paper"),
          ("full_paper", "zones"), ("fixed_path", "scale_only"), ("full", "fixed_path"),
-         ("clairvoyant", "scale_only"), ("full", "clairvoyant"))
+         ("clairvoyant", "scale_only"), ("full", "clairvoyant"),
+         # the planning layer under the paper's formula, against that formula's own baselines
+         ("full_paper", "scale_only_paper"), ("fixed_path_paper", "scale_only_paper"),
+         ("full_paper", "fixed_path_paper"))
 
 
 def columns(rows: list[dict]) -> tuple[str, ...]:
     """The strategies (and bounds) these rows were run with, in the table's order."""
-    return tuple(s for s in STRATEGIES + BASELINES + BOUNDS + PAPER if rows and s in rows[0])
+    return tuple(s for s in STRATEGIES + BASELINES + BOUNDS + PAPER + PAPER_BASELINES if rows and s in rows[0])
 
 
 def won_back(per_strategy: dict, empty: float, strategy: str = "full") -> float | None:

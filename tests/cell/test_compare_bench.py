@@ -63,17 +63,22 @@ def test_the_paper_formula_runs_beside_the_shipped_model_on_the_same_scenarios(t
     assert set(result["kinds"]["paper"]) == {"zones", "scale_only", "full", "scale_only_paper", "full_paper"}
     assert {"scale_only/scale_only_paper", "full/full_paper", "full_paper/zones"} <= set(result["ratios"]["overall"])
     assert "won_back_scale_only_paper" not in result and "won_back_full_paper" not in result
+    assert "full_paper/scale_only_paper" in result["ratios"]["overall"]
+    assert "full_paper/fixed_path_paper" not in result["ratios"]["overall"]          # not without --fixed-path
     assert result["strategies"]["full_paper"]["violations"] >= 0
 
 
 def test_the_fixed_path_baseline_runs_beside_the_strategies_with_its_ratios(tmp_path):
     """--fixed-path: the scaling layer on one fixed folded path, its column, full/fixed_path and its won-back
-    share, on the same scenarios."""
+    share, on the same scenarios; with --paper too, the same under the paper's formula (fixed_path_paper) and the
+    planning layer's ratios to it under that formula."""
     done = run("--scenarios", "2", "--kinds", "two_humans", "--duration", "2.0", "--workers", "1", "--fixed-path",
-               tmp_path=tmp_path)
+               "--paper", tmp_path=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads(done.stdout.strip().splitlines()[-1])
-    assert set(result["kinds"]["two_humans"]) == {"zones", "scale_only", "full", "fixed_path"}
-    assert {"fixed_path/scale_only", "full/fixed_path"} <= set(result["ratios"]["overall"])
+    assert set(result["kinds"]["two_humans"]) == {"zones", "scale_only", "full", "fixed_path", "scale_only_paper",
+                                                  "full_paper", "fixed_path_paper"}
+    assert {"fixed_path/scale_only", "full/fixed_path", "full_paper/fixed_path_paper",
+            "fixed_path_paper/scale_only_paper", "full_paper/scale_only_paper"} <= set(result["ratios"]["overall"])
     assert set(result["won_back_fixed_path"]) == {"two_humans", "overall"}
     assert result["strategies"]["fixed_path"]["violations"] == 0

@@ -304,3 +304,19 @@ def test_a_walker_seen_at_t0_is_bet_on_and_a_wanderer_at_rest_is_not(strategies)
     assert walker.goals[0].detail == "the straight line" and walker.leg_ends()[0] < fold.leg_ends()[0] - 0.15
     wanderer = strategies.run("full", "random_walk", 5079, 3.0)
     assert wanderer.goals[0].detail == "the folded leg"
+
+
+def test_the_fixed_path_under_the_papers_formula_is_the_same_fold_with_that_formulas_scaling_layer(strategies):
+    """fixed_path_paper (``bench/compare.py --paper --fixed-path``): the same folded shuttle, its scaling layer on
+    the paper's formula. With nobody there it commands what fixed_path commands; beside a person standing in the
+    path (seed 1) that formula lets the fold pass where the shipped model holds it back, and the fold beats the
+    straight shuttle under it too: the baseline full_paper is held against."""
+    from evidence.scenarios import EmptyCell
+
+    shipped, paper = strategies._run("fixed_path", EmptyCell(), 3.0), strategies._run("fixed_path_paper", EmptyCell(), 3.0)
+    assert len(shipped.records) == len(paper.records)
+    assert all(np.allclose(a.step.q_command, b.step.q_command) for a, b in zip(shipped.records, paper.records))
+    held = strategies.run("fixed_path", "standing", 1, 6.0).progress
+    passed = strategies.run("fixed_path_paper", "standing", 1, 6.0).progress
+    straight = strategies.run("scale_only_paper", "standing", 1, 6.0).progress
+    assert passed > held + 0.5 and passed > straight + 0.5, (held, passed, straight)
