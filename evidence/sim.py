@@ -24,6 +24,7 @@ zone-based baseline (evidence.zones). Same core code as the services: ScalingLay
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -154,7 +155,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
                 beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
                 charge_planning: bool | float = False, monitor: SafetyMonitor | None = None,
-                leg_path=None) -> SimResult:
+                leg_path=None, veto: Callable[[int, ReplanEvent], bool] | None = None) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
     replanner: the planning layer (None: scaling only, straight shuttles), run by the planner service's
@@ -165,7 +166,11 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     simulated clock: True its measured wall time, a number that many seconds per path search (repeatable
     whatever the machine's load). monitor: the judge's monitor (default: a SafetyMonitor of this robot;
     pass one to reuse it across runs). leg_path(start, goal, version) -> Trajectory: the fixed path of each leg where
-    no planning layer plans it (default: the straight line, rest to rest)."""
+    no planning layer plans it (default: the straight line, rest to rest). veto(n, event) -> bool: the planning
+    layer's n-th replan it means to take (1, 2, ...: every action but a goal's plan, in the order they come; event:
+    when, which action as its reason, its detail) is dropped where it says True, logged as refused ("vetoed: ..."), and the robot
+    keeps what it follows: the run without that one decision (``bench/decision_value.py``; the simulation is
+    deterministic, so the runs agree until then)."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
     if replanner is None or not beta_replans:
         layer.params = replace(layer.params, await_plan=0.0)   # nobody answers a replan request: never await one
@@ -194,6 +199,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     pending_leg = loop is not None    # a shuttle ended (or the run began): the next one waits for its plan
     busy_until = -1.0                 # charge_planning: the planner is computing until then
     waiting: tuple | None = None      # (ready at, PlanningOutcome, compute ms)
+    replans_meant = 0                 # the replans the planning layer meant to take so far (veto's count)
 
     def log_replan(event: ReplanEvent) -> None:
         result.replans.append(event)
@@ -216,7 +222,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     def planning_turn(t: float, k: int, humans) -> None:
         """One turn of the planner's loop on what the scaler last reported; its result is taken at once, or
         when its charged time has passed."""
-        nonlocal busy_until, waiting
+        nonlocal busy_until, waiting, replans_meant
         inputs = planning_inputs(goal=ends[(leg + 1) % 2], new_goal=pending_leg, q=q_now, humans=humans,
                                  human_sample=k, report=report,
                                  followed=None if report is None else handed.get(report.version),
@@ -231,6 +237,11 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             busy_until = t + (elapsed if charge_planning is True else outcome.searches * float(charge_planning))
         if outcome.action == "prepare":           # the next leg's plan, kept by the loop: nothing to take now
             return
+        if outcome.result is not None and outcome.action != "goal" and veto is not None:
+            replans_meant += 1
+            if veto(replans_meant, ReplanEvent(t, outcome.action, True, elapsed * 1e3, outcome.result.detail)):
+                log_replan(ReplanEvent(t, outcome.action, False, elapsed * 1e3, f"vetoed: {outcome.result.detail}"))
+                return
         if outcome.result is None:
             log_replan(ReplanEvent(t, outcome.action, False, elapsed * 1e3, outcome.refused or ""))
         elif charge_planning:

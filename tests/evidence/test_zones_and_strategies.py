@@ -320,3 +320,24 @@ def test_the_fixed_path_under_the_papers_formula_is_the_same_fold_with_that_form
     passed = strategies.run("fixed_path_paper", "standing", 1, 6.0).progress
     straight = strategies.run("scale_only_paper", "standing", 1, 6.0).progress
     assert passed > held + 0.5 and passed > straight + 0.5, (held, passed, straight)
+
+
+def test_a_replan_vetoed_is_dropped_and_the_run_is_the_same_until_then(strategies):
+    """run_shuttle's veto (bench/decision_value.py): a veto that only looks changes nothing; a replan vetoed is
+    logged as refused ("vetoed: ...") and not followed, every record before it the same; the run goes on and
+    decides again. Two people, seed 4000: a beta replan from rest at 4.37 s."""
+    plain = strategies.run("full", "two_humans", 4000, 12.0)
+    seen = []
+    looked = strategies.run("full", "two_humans", 4000, 12.0, veto=lambda n, event: seen.append((n, event)) or False)
+    assert [r.step.q_command.tolist() for r in looked.records] == [r.step.q_command.tolist() for r in plain.records]
+    assert seen and [n for n, _ in seen] == list(range(1, len(seen) + 1))
+    first = seen[0][1]
+    assert first.reason == "beta" and "from rest" in first.detail
+    dropped = strategies.run("full", "two_humans", 4000, 12.0, veto=lambda n, event: n == 1)
+    vetoed = [e for e in dropped.replans if e.detail.startswith("vetoed: ")]
+    assert len(vetoed) == 1 and not vetoed[0].ok and vetoed[0].t == first.t
+    before = [r for r in dropped.records if r.t <= first.t]
+    assert all(np.allclose(a.step.q_command, b.step.q_command) for a, b in zip(before, plain.records))
+    later = [r for r in dropped.records if r.t > first.t + 0.2]
+    assert any(not np.allclose(a.step.q_command, b.step.q_command)
+               for a, b in zip(later, [r for r in plain.records if r.t > first.t + 0.2]))

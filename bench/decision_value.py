@@ -1,0 +1,132 @@
+"""What each replan the planning layer took was worth, by running the scenario again without it (issue 38; not a
+test: it prints figures).
+
+The simulation is deterministic: the same (kind, seed) runs the same until the moment a decision is changed. For
+every replan the full strategy takes (a beta, slow, horizon or search replan: every action but a new goal's leg),
+the scenario is run once more with that one replan dropped (``run_shuttle``'s ``veto``: the robot keeps what it
+follows, as if the replan had been refused) and everything after it decided again. Its value is the shuttles the
+run made with it minus the shuttles made without it: positive, the replan paid; negative, refusing it would have
+been better. Where a decision's predicted saving ("predicted A s instead of B s") is large and its value is not,
+the prediction is what misleads it (the forecast of the people, or the cost's timeline: ``bench/calibration.py``).
+One more run drops every replan: what the replans together are worth against none.
+
+Per kind and per decision (beta and slow from rest or merged, horizon, search): how many were taken, their summed
+and mean value (shuttles in the scenario's time), how many paid (> +0.01) and cost (< -0.01), and the mean
+predicted saving (s) of those that paid and of those that cost. --list prints every decision.
+
+    python bench/decision_value.py [--kinds two_humans,random_walk,crossing,standing,paper] [--seeds 24]
+                                   [--seed 4000] [--duration 12] [--paper-formula] [--list] [--workers 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from collections import defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from evidence.scenarios import add_scenario_arguments, scenario_arguments  # noqa: E402
+
+PAID = 0.01            # shuttles: a value above this paid, below minus this cost
+PREDICTED = re.compile(r"predicted (\d+\.\d+) s instead of (\d+\.\d+) s")
+
+_STRATEGIES: dict = {}
+
+
+def decision_kind(action: str, detail: str) -> str:
+    """The row a taken replan counts in: its action, beta and slow split by whether the plan starts from rest."""
+    if action in ("beta", "slow"):
+        return f"{action} {'from rest' if 'from rest' in detail else 'merged'}"
+    return action
+
+
+def predicted_saving(detail: str) -> float | None:
+    """The seconds the decision's own prediction said it saves (old minus new), from its detail; None if it says
+    none."""
+    found = PREDICTED.search(detail)
+    return None if found is None else float(found.group(2)) - float(found.group(1))
+
+
+def one(job: tuple[str, int, float, str]) -> dict:
+    """One scenario: the full run, then the run without each of its replans, then without any."""
+    kind, seed, duration, strategy = job
+    from evidence.strategies import Strategies
+
+    strategies = _STRATEGIES.setdefault(strategy, Strategies())
+    meant = []
+    base = strategies.run(strategy, kind, seed, duration, veto=lambda n, event: meant.append(event) or False)
+    decisions = []
+    for n, event in enumerate(meant, start=1):
+        without = strategies.run(strategy, kind, seed, duration, veto=lambda m, _, n=n: m == n)
+        decisions.append({"t": round(event.t, 2), "action": event.reason, "detail": event.detail,
+                          "value": round(base.progress - without.progress, 4)})
+    none = strategies.run(strategy, kind, seed, duration, veto=lambda n, event: True) if meant else base
+    return {"kind": kind, "seed": seed, "shuttles": base.progress, "without_any": none.progress,
+            "violations": base.violations, "decisions": decisions}
+
+
+def table(scenarios: list[dict]) -> dict:
+    """Per decision kind: count, summed and mean value, how many paid and cost, the mean predicted saving of each."""
+    rows: dict = defaultdict(list)
+    for scenario in scenarios:
+        for d in scenario["decisions"]:
+            rows[decision_kind(d["action"], d["detail"])].append(d)
+    out = {}
+    for name, ds in sorted(rows.items()):
+        values = [d["value"] for d in ds]
+        paid = [d for d in ds if d["value"] > PAID]
+        cost = [d for d in ds if d["value"] < -PAID]
+
+        def saving(group: list[dict]) -> float | None:
+            said = [s for s in (predicted_saving(d["detail"]) for d in group) if s is not None]
+            return round(sum(said) / len(said), 3) if said else None
+
+        out[name] = {"taken": len(ds), "value": round(sum(values), 3), "mean": round(sum(values) / len(ds), 4),
+                     "paid": len(paid), "cost": len(cost), "saving_paid": saving(paid), "saving_cost": saving(cost)}
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_scenario_arguments(parser, "two_humans,random_walk,crossing,standing,paper", 24, 4000)
+    parser.add_argument("--paper-formula", action="store_true",
+                        help="the planning layer under the paper's formula (full_paper) instead of the shipped model")
+    parser.add_argument("--list", action="store_true", help="print every decision with its value")
+    args = parser.parse_args()
+    kinds = scenario_arguments(parser, args)
+    strategy = "full_paper" if args.paper_formula else "full"
+    jobs = [(k, s, args.duration, strategy) for k in kinds for s in range(args.seed, args.seed + args.seeds)]
+    with ProcessPoolExecutor(args.workers) as pool:
+        scenarios = list(pool.map(one, jobs))
+    out = {"bench": "decision_value", "strategy": strategy, "seeds": args.seeds, "seed": args.seed,
+           "duration": args.duration, "violations": sum(s["violations"] for s in scenarios), "kinds": {}}
+    print(f"{strategy}: each replan taken, run again without it; value = shuttles with it - without it "
+          f"({args.seeds} scenarios a kind from seed {args.seed}, {args.duration:g} s)")
+    for kind in kinds:
+        mine = [s for s in scenarios if s["kind"] == kind]
+        shuttles, without = sum(s["shuttles"] for s in mine), sum(s["without_any"] for s in mine)
+        rows = table(mine)
+        out["kinds"][kind] = {"shuttles": round(shuttles, 3), "without_any": round(without, 3), "decisions": rows}
+        print(f"{kind}: {shuttles:.2f} shuttles, {without:.2f} without any replan "
+              f"({shuttles / without:.3f}x)" if without else f"{kind}: no shuttles")
+        for name, r in rows.items():
+            print(f"  {name:<16} taken {r['taken']:3d}  value {r['value']:+7.3f} (mean {r['mean']:+.3f})  "
+                  f"paid {r['paid']:3d}, cost {r['cost']:3d}  predicted saving: paid {r['saving_paid']} s, "
+                  f"cost {r['saving_cost']} s")
+        if args.list:
+            for s in mine:
+                for d in s["decisions"]:
+                    print(f"    seed {s['seed']} {d['t']:6.2f} s {d['action']:<8} {d['value']:+.3f}  {d['detail']}")
+    print(f"violations: {out['violations']}")
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
