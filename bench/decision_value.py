@@ -8,7 +8,11 @@ follows, as if the replan had been refused) and everything after it decided agai
 run made with it minus the shuttles made without it: positive, the replan paid; negative, refusing it would have
 been better. Where a decision's predicted saving ("predicted A s instead of B s") is large and its value is not,
 the prediction is what misleads it (the forecast of the people, or the cost's timeline: ``bench/calibration.py``).
-One more run drops every replan: what the replans together are worth against none.
+One more run drops every replan: what the replans together are worth against none. The value is counted at
+the scenario's end (its shuttles, the last leg's covered share among them): a detour taken in the last second or
+so has not yet paid where the end cuts it off (the paper's kind at 12 s: its phase-4 replans at 11.0-11.2 s cost
+-2.6 shuttles over 48 seeds; at the paper's own 24 s the same replans are worth +1.7 over 24), so judge late
+decisions with a longer --duration.
 
 Per kind and per decision (beta and slow from rest or merged, horizon, search): how many were taken, their summed
 and mean value (shuttles in the scenario's time), how many paid (> +0.01) and cost (< -0.01), and the mean
