@@ -168,9 +168,9 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     pass one to reuse it across runs). leg_path(start, goal, version) -> Trajectory: the fixed path of each leg where
     no planning layer plans it (default: the straight line, rest to rest). veto(n, event) -> bool: the planning
     layer's n-th replan it means to take (1, 2, ...: every action but a goal's plan, in the order they come; event:
-    when, which action as its reason, its detail) is dropped where it says True, logged as refused ("vetoed: ..."), and the robot
-    keeps what it follows: the run without that one decision (``bench/decision_value.py``; the simulation is
-    deterministic, so the runs agree until then)."""
+    when, which action as its reason, its detail) is dropped where it says True, logged as refused ("vetoed:
+    ..."), and the robot keeps what it follows: the run without that one decision (``bench/decision_value.py``;
+    the simulation is deterministic, so the runs agree until then)."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
     if replanner is None or not beta_replans:
         layer.params = replace(layer.params, await_plan=0.0)   # nobody answers a replan request: never await one
