@@ -119,6 +119,9 @@ class SimResult:
         }
 
 
+Veto = Callable[[int, ReplanEvent], bool]     # run_shuttle's veto: (the n-th replan meant, its event) -> drop it
+
+
 class CommandJudge:
     """The judging half of a run: every commanded state against the ISO limit. The conservative end-point
     bound first (fast); where it comes near, the independent monitor's rule (shared.safety.monitor's
@@ -155,7 +158,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
                 beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
                 charge_planning: bool | float = False, monitor: SafetyMonitor | None = None,
-                leg_path=None, veto: Callable[[int, ReplanEvent], bool] | None = None) -> SimResult:
+                leg_path=None, veto: Veto | None = None) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
     replanner: the planning layer (None: scaling only, straight shuttles), run by the planner service's

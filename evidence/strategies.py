@@ -34,7 +34,7 @@ from evidence.clairvoyant import SEARCHES, Choice, EpisodeRuns, LegSequence, Sha
 from evidence.fixed_path import FixedPath
 from evidence.foresight import ORACLE_SEARCH, Foresight, foresight_options, oracle_options
 from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
-from evidence.sim import SimResult, run_shuttle
+from evidence.sim import SimResult, Veto, run_shuttle
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
 from shared.config import CellConfig
 from shared.core.trajectory import straight_line_trajectory
@@ -93,7 +93,7 @@ class Strategies:
         self.shaped = ShapedLegs(self.collision)
         self.usable_shapes = [k for k in range(len(self.shaped.shapes)) if self.shaped.usable(k, (Q_START, Q_GOAL))]
 
-    def run(self, strategy: str, kind: str, seed: int, duration: float, veto=None) -> SimResult:
+    def run(self, strategy: str, kind: str, seed: int, duration: float, veto: Veto | None = None) -> SimResult:
         """One strategy on one seeded scenario. veto: the planning layer's replans to drop (``run_shuttle``'s;
         full and full_paper)."""
         return self._run(strategy, make_scenario(kind, seed, duration), duration, veto)
@@ -129,7 +129,7 @@ class Strategies:
         people cost a strategy is measured against it (bench/compare.py: the share of it won back)."""
         return self._run("scale_only", EmptyCell(), duration)
 
-    def _run(self, strategy: str, human, duration: float, veto=None) -> SimResult:
+    def _run(self, strategy: str, human, duration: float, veto: Veto | None = None) -> SimResult:
         """One strategy with these people (anything with ``at(t)`` and ``phase(t)``, as run_shuttle takes);
         veto as in ``run``."""
         cfg = self.config
