@@ -31,7 +31,7 @@ import numpy as np
 
 from evidence.scenarios import ScriptedHuman
 from shared.config import CellConfig
-from shared.core.trajectory import straight_line_trajectory
+from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.planning.decision import HoldClock
 from shared.planning.inputs import planning_inputs
 from shared.planning.loop import PlanningLoop, PlanningOutcome
@@ -120,6 +120,8 @@ class SimResult:
 
 
 Veto = Callable[[int, ReplanEvent], bool]     # run_shuttle's veto: (the n-th replan meant, its event) -> drop it
+# run_shuttle's goal_leg: (the n-th new goal's leg from rest, its event, the planner's leg) -> another leg, or None
+GoalLeg = Callable[[int, ReplanEvent, Trajectory], "Trajectory | None"]
 
 
 class CommandJudge:
@@ -158,7 +160,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
                 beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
                 charge_planning: bool | float = False, monitor: SafetyMonitor | None = None,
-                leg_path=None, veto: Veto | None = None) -> SimResult:
+                leg_path=None, veto: Veto | None = None, goal_leg: GoalLeg | None = None) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
     replanner: the planning layer (None: scaling only, straight shuttles), run by the planner service's
@@ -173,7 +175,10 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     layer's n-th replan it means to take (1, 2, ...: every action but a goal's plan, in the order they come; event:
     when, which action as its reason, its detail) is dropped where it says True, logged as refused ("vetoed:
     ..."), and the robot keeps what it follows: the run without that one decision (``bench/decision_value.py``;
-    the simulation is deterministic, so the runs agree until then)."""
+    the simulation is deterministic, so the runs agree until then). goal_leg(n, event, leg) -> Trajectory | None:
+    the n-th new goal's leg from rest the planning layer chose (1, 2, ...) is replaced by the trajectory it
+    returns (the same version, from the same start to the same goal: the fold, the line), the goal's detail
+    prefixed "replaced: "; everything after it is decided again, the goal's search on the way among it."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
     if replanner is None or not beta_replans:
         layer.params = replace(layer.params, await_plan=0.0)   # nobody answers a replan request: never await one
@@ -203,6 +208,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     busy_until = -1.0                 # charge_planning: the planner is computing until then
     waiting: tuple | None = None      # (ready at, PlanningOutcome, compute ms)
     replans_meant = 0                 # the replans the planning layer meant to take so far (veto's count)
+    goals_meant = 0                   # the new goals' legs from rest it chose so far (goal_leg's count)
 
     def log_replan(event: ReplanEvent) -> None:
         result.replans.append(event)
@@ -225,7 +231,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     def planning_turn(t: float, k: int, humans) -> None:
         """One turn of the planner's loop on what the scaler last reported; its result is taken at once, or
         when its charged time has passed."""
-        nonlocal busy_until, waiting, replans_meant
+        nonlocal busy_until, waiting, replans_meant, goals_meant
         inputs = planning_inputs(goal=ends[(leg + 1) % 2], new_goal=pending_leg, q=q_now, humans=humans,
                                  human_sample=k, report=report,
                                  followed=None if report is None else handed.get(report.version),
@@ -245,6 +251,13 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             if veto(replans_meant, ReplanEvent(t, outcome.action, True, elapsed * 1e3, outcome.result.detail)):
                 log_replan(ReplanEvent(t, outcome.action, False, elapsed * 1e3, f"vetoed: {outcome.result.detail}"))
                 return
+        if outcome.result is not None and outcome.action == "goal" and outcome.result.from_rest \
+                and goal_leg is not None:
+            goals_meant += 1
+            chosen = outcome.result
+            other = goal_leg(goals_meant, ReplanEvent(t, "goal", True, elapsed * 1e3, chosen.detail), chosen.trajectory)
+            if other is not None:
+                outcome = replace(outcome, result=replace(chosen, trajectory=other, detail=f"replaced: {chosen.detail}"))
         if outcome.result is None:
             log_replan(ReplanEvent(t, outcome.action, False, elapsed * 1e3, outcome.refused or ""))
         elif charge_planning:

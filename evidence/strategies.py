@@ -34,7 +34,7 @@ from evidence.clairvoyant import SEARCHES, Choice, EpisodeRuns, LegSequence, Sha
 from evidence.fixed_path import FixedPath
 from evidence.foresight import ORACLE_SEARCH, Foresight, foresight_options, oracle_options
 from evidence.scenarios import Q_GOAL, Q_START, EmptyCell, make_scenario
-from evidence.sim import SimResult, Veto, run_shuttle
+from evidence.sim import GoalLeg, SimResult, Veto, run_shuttle
 from evidence.zones import SpeedZones, ZoneScalingLayer, fastest_point_speed
 from shared.config import CellConfig
 from shared.core.trajectory import straight_line_trajectory
@@ -93,10 +93,11 @@ class Strategies:
         self.shaped = ShapedLegs(self.collision)
         self.usable_shapes = [k for k in range(len(self.shaped.shapes)) if self.shaped.usable(k, (Q_START, Q_GOAL))]
 
-    def run(self, strategy: str, kind: str, seed: int, duration: float, veto: Veto | None = None) -> SimResult:
-        """One strategy on one seeded scenario. veto: the planning layer's replans to drop (``run_shuttle``'s;
-        full and full_paper)."""
-        return self._run(strategy, make_scenario(kind, seed, duration), duration, veto)
+    def run(self, strategy: str, kind: str, seed: int, duration: float, veto: Veto | None = None,
+            goal_leg: GoalLeg | None = None) -> SimResult:
+        """One strategy on one seeded scenario. veto, goal_leg: the planning layer's replans to drop and new goals'
+        legs to replace (``run_shuttle``'s; full and full_paper)."""
+        return self._run(strategy, make_scenario(kind, seed, duration), duration, veto, goal_leg)
 
     def clairvoyant(self, kind: str, seed: int, duration: float,
                     sizes: tuple[int, ...] = SEARCHES) -> tuple[dict[int, Choice], int]:
@@ -129,9 +130,10 @@ class Strategies:
         people cost a strategy is measured against it (bench/compare.py: the share of it won back)."""
         return self._run("scale_only", EmptyCell(), duration)
 
-    def _run(self, strategy: str, human, duration: float, veto: Veto | None = None) -> SimResult:
+    def _run(self, strategy: str, human, duration: float, veto: Veto | None = None,
+             goal_leg: GoalLeg | None = None) -> SimResult:
         """One strategy with these people (anything with ``at(t)`` and ``phase(t)``, as run_shuttle takes);
-        veto as in ``run``."""
+        veto and goal_leg as in ``run``."""
         cfg = self.config
         if strategy == "zones":
             layer = ZoneScalingLayer(self.robot, self.zones, cfg.ssm, cfg.scaling)
@@ -145,7 +147,7 @@ class Strategies:
                                leg_path=self.fixed_path.leg)
         if strategy == "full":
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
-                               charge_planning=CELL_BUDGET, monitor=self.monitor, veto=veto)
+                               charge_planning=CELL_BUDGET, monitor=self.monitor, veto=veto, goal_leg=goal_leg)
         if strategy == "clairvoyant":           # the largest search's sequence, run once more for its record
             best = self._clairvoyant(human, duration, SEARCHES)[0][max(SEARCHES)]
             return self.shaped_run(human, duration, LegSequence(self.shaped, best.shapes))
@@ -162,6 +164,7 @@ class Strategies:
             replanner = self.paper_replanner if strategy == "full_paper" else None
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, replanner=replanner,
                                charge_planning=CELL_BUDGET if replanner is not None else False, monitor=self.monitor,
-                               leg_path=self.fixed_path.leg if strategy in PAPER_BASELINES else None, veto=veto)
+                               leg_path=self.fixed_path.leg if strategy in PAPER_BASELINES else None, veto=veto,
+                               goal_leg=goal_leg)
         raise ValueError(f"unknown strategy {strategy!r}; known: "
                          f"{STRATEGIES + BOUNDS + PAPER + BASELINES + PAPER_BASELINES}")
