@@ -70,8 +70,8 @@ def goal_kind(detail: str) -> str:
 def alternatives(strategies, leg) -> dict:
     """The legs a new goal's leg is held against: the fold and the straight line from its start to its goal,
     numbered as it is; not the one it is (the same positions), nor a fold that cannot be timed."""
-    from shared.planning.timing import TimingError
     from shared.core.trajectory import straight_line_trajectory
+    from shared.planning.timing import TimingError
 
     start, goal, lim = leg.positions[0], leg.positions[-1], strategies.robot.limits
     others = {"line": straight_line_trajectory(start, goal, lim.velocity, lim.acceleration, version=leg.version)}

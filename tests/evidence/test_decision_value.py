@@ -37,3 +37,20 @@ def test_one_scenario_is_run_without_each_replan_and_without_all():
     only = got["decisions"][0]
     assert only["action"] == "beta" and "from rest" in only["detail"] and abs(only["value"]) > 0.01
     assert got["shuttles"] - got["without_any"] == pytest.approx(only["value"], abs=1e-3)
+    # each new goal's leg held against the fold and the line, but not against itself
+    assert got["goals"] and all(set(g["against"]) <= {"fold", "line"} and g["against"] for g in got["goals"])
+    assert all("fold" not in g["against"] for g in got["goals"] if g["detail"] == "the folded leg")
+    assert all("line" not in g["against"] for g in got["goals"] if g["detail"] == "the straight line")
+
+
+def test_the_goal_table_sums_each_chosen_legs_value_against_the_fold_and_the_line():
+    scenarios = [{"goals": [
+        {"detail": "the folded leg", "against": {"line": 0.2}},
+        {"detail": "the folded leg", "against": {"line": -0.05}},
+        {"detail": "the straight line", "against": {"fold": -0.3}},
+        {"detail": "searched from rest: predicted 3 s", "against": {"fold": 0.1, "line": 0.0}}]}]
+    rows = bench.goal_table(scenarios)
+    assert rows["the folded leg"]["chosen"] == 2 and rows["the folded leg"]["fold"]["held"] == 0
+    assert rows["the folded leg"]["line"] == {"held": 2, "value": 0.15, "paid": 1, "cost": 1}
+    assert rows["the straight line"]["fold"] == {"held": 1, "value": -0.3, "paid": 0, "cost": 1}
+    assert rows["searched from rest"]["line"] == {"held": 1, "value": 0.0, "paid": 0, "cost": 0}

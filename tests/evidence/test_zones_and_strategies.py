@@ -341,3 +341,29 @@ def test_a_replan_vetoed_is_dropped_and_the_run_is_the_same_until_then(strategie
     later = [r for r in dropped.records if r.t > first.t + 0.2]
     assert any(not np.allclose(a.step.q_command, b.step.q_command)
                for a, b in zip(later, [r for r in plain.records if r.t > first.t + 0.2]))
+
+
+def test_a_new_goals_leg_replaced_is_followed_and_the_run_is_the_same_until_then(strategies):
+    """run_shuttle's goal_leg (bench/decision_value.py): a hook that only looks changes nothing; the n-th goal's
+    leg from rest replaced by the straight line is the leg the robot follows from that goal on (its detail says so),
+    every record before it the same. Two people, seed 0: the second goal's leg is the folded one."""
+    from shared.core.trajectory import straight_line_trajectory
+
+    plain = strategies.run("full", "two_humans", 0, 12.0)
+    seen = []
+    looked = strategies.run("full", "two_humans", 0, 12.0, goal_leg=lambda n, event, leg: seen.append((n, event, leg)))
+    assert [r.step.q_command.tolist() for r in looked.records] == [r.step.q_command.tolist() for r in plain.records]
+    assert len(seen) >= 2 and [n for n, _, _ in seen] == list(range(1, len(seen) + 1))
+    n, event, leg = seen[1]
+    assert event.detail == "the folded leg"
+    lim = strategies.robot.limits
+    line = straight_line_trajectory(leg.positions[0], leg.positions[-1], lim.velocity, lim.acceleration,
+                                    version=leg.version)
+    replaced = strategies.run("full", "two_humans", 0, 12.0, goal_leg=lambda m, _, __: line if m == n else None)
+    goal = [g for g in replaced.goals if g.detail.startswith("replaced: ")]
+    assert len(goal) == 1 and goal[0].detail == f"replaced: {event.detail}" and goal[0].t >= event.t
+    before = [r for r in replaced.records if r.t <= event.t]
+    assert all(np.allclose(a.step.q_command, b.step.q_command) for a, b in zip(before, plain.records))
+    followed = [r for r in replaced.records if event.t < r.t <= event.t + 0.5 and r.step.trajectory_version == leg.version]
+    assert followed and all(np.allclose(r.step.q_command, line.sample(r.step.s)[0], atol=1e-6) for r in followed)
+    assert max(abs(r.step.q_command[2] - leg.positions[0][2]) for r in followed) < 1e-6      # the elbow not folded
