@@ -34,6 +34,7 @@ the fold and against the line and how many paid and cost against each. --list pr
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import re
 import sys
@@ -49,7 +50,6 @@ from evidence.scenarios import add_scenario_arguments, scenario_arguments  # noq
 PAID = 0.01            # shuttles: a value above this paid, below minus this cost
 PREDICTED = re.compile(r"predicted (\d+\.\d+) s instead of (\d+\.\d+) s")
 
-_STRATEGIES: dict = {}
 
 
 def decision_kind(action: str, detail: str) -> str:
@@ -87,13 +87,20 @@ def alternatives(strategies, leg) -> dict:
             if not (other.positions.shape == leg.positions.shape and (other.positions == leg.positions).all())}
 
 
+@functools.cache
+def made():
+    """This process's ``Strategies`` (the robot, collision model and planners), built on first use: one serves
+    full and full_paper."""
+    from evidence.strategies import Strategies
+
+    return Strategies()
+
+
 def one(job: tuple[str, int, float, str]) -> dict:
     """One scenario: the full run, then the run without each of its replans, then without any; then each new
     goal's leg replaced by the fold and by the line."""
     kind, seed, duration, strategy = job
-    from evidence.strategies import Strategies
-
-    strategies = _STRATEGIES.setdefault(strategy, Strategies())
+    strategies = made()
     meant, goals = [], []
     base = strategies.run(strategy, kind, seed, duration, veto=lambda n, event: meant.append(event) or False,
                           goal_leg=lambda n, event, leg: goals.append((event, leg)) and None)
