@@ -56,6 +56,7 @@ BOUNDS = ("foresight", "oracle", "clairvoyant")
 PAPER = ("scale_only_paper", "full_paper")
 BASELINES = ("fixed_path",)
 PAPER_BASELINES = ("fixed_path_paper",)     # the fixed path under the paper's formula (--paper --fixed-path)
+KNOWN = STRATEGIES + BASELINES + BOUNDS + PAPER + PAPER_BASELINES    # every name ``Strategies.run`` takes, in order
 
 
 class Strategies:
@@ -166,5 +167,4 @@ class Strategies:
                                charge_planning=CELL_BUDGET if replanner is not None else False, monitor=self.monitor,
                                leg_path=self.fixed_path.leg if strategy in PAPER_BASELINES else None, veto=veto,
                                goal_leg=goal_leg)
-        raise ValueError(f"unknown strategy {strategy!r}; known: "
-                         f"{STRATEGIES + BOUNDS + PAPER + BASELINES + PAPER_BASELINES}")
+        raise ValueError(f"unknown strategy {strategy!r}; known: {KNOWN}")

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from evidence.stats import SAME, PairedRatio, paired_ratio
-from evidence.strategies import BASELINES, BOUNDS, PAPER, PAPER_BASELINES, STRATEGIES
+from evidence.strategies import KNOWN
 
 
 def wide_rows(records: list[dict]) -> list[dict]:
@@ -68,7 +68,7 @@ PAIRS = (("full", "scale_only"), ("full", "zones"), ("foresight", "scale_only"),
 
 def columns(rows: list[dict]) -> tuple[str, ...]:
     """The strategies (and bounds) these rows were run with, in the table's order."""
-    return tuple(s for s in STRATEGIES + BASELINES + BOUNDS + PAPER + PAPER_BASELINES if rows and s in rows[0])
+    return tuple(s for s in KNOWN if rows and s in rows[0])
 
 
 def won_back(per_strategy: dict, empty: float, strategy: str = "full") -> float | None:

@@ -92,11 +92,11 @@ def check_grid(grid: Grid) -> None:
     import math
 
     from evidence.scenarios import kinds_problem
-    from evidence.strategies import BASELINES, BOUNDS, PAPER, PAPER_BASELINES, STRATEGIES
+    from evidence.strategies import KNOWN
     from evidence.sweep import config_of
     from shared.core.errors import ConfigError
 
-    known = STRATEGIES + BASELINES + BOUNDS + PAPER + PAPER_BASELINES
+    known = KNOWN
     if not grid.strategies or set(grid.strategies) - set(known):
         raise GridError(f"strategies: unknown or none {sorted(set(grid.strategies) - set(known))}; known: "
                         f"{', '.join(known)}")
