@@ -23,7 +23,10 @@ Placements (shoulders 1.35 m high, facing the robot across its sweep; ``evidence
   the table's edge, beside the end of the sweep the robot starts from; the real_around scenario kind draws these).
 
     python bench/real_people.py [--sim] [--paper-formula] [--placements table_edge,step_back,X:YAW]
-                                [--recordings DIR] [--only NAME ...] [--out DIR]
+                                [--recordings DIR] [--only NAME ...] [--out DIR] [--every N]
+
+``--every 2`` keeps every second frame of each recording: the same people as a 15 Hz camera would see them
+(``hrc human from-keypoints --every``), sent at that rate; the tracker's window and dropout bound follow it.
 
 Each processes run takes the recording's length plus about 15 s to start and stop the cell; the 24 runs of
 both placements about 20 minutes on this 2-core machine.
@@ -47,11 +50,13 @@ from shared.core.errors import ConfigError  # noqa: E402
 HRC = [sys.executable, "-m", "tools.cli"]
 
 
-def convert(recording: Path, placement: str, out: Path) -> Path:
-    """The recording as a motion file at the placement (the product's reader; raises CalledProcessError)."""
-    motion = out / f"{recording.stem}-{placement.replace(':', '_')}.json"
+def convert(recording: Path, placement: str, out: Path, every: int = 1) -> Path:
+    """The recording as a motion file at the placement, every `every`-th frame kept (a tracker at 1/every the
+    rate; the product's reader; raises CalledProcessError)."""
+    motion = out / f"{recording.stem}-{placement.replace(':', '_')}{'' if every == 1 else f'-every{every}'}.json"
     subprocess.run(HRC + ["human", "from-keypoints", str(recording), str(motion), "--format", "assembly",
-                          *placement_named(placement).options()], check=True, cwd=ROOT, capture_output=True, text=True)
+                          *placement_named(placement).options(), "--every", str(every)],
+                   check=True, cwd=ROOT, capture_output=True, text=True)
     return motion
 
 
@@ -168,7 +173,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--recordings", type=Path, default=RECORDINGS, help="the folder of *.txt recordings")
     parser.add_argument("--only", nargs="*", default=None, help="recording names (without .txt) to run, not all")
     parser.add_argument("--out", type=Path, default=None, help="where each run's report goes (default: a temporary folder)")
+    parser.add_argument("--every", type=int, default=1, metavar="N",
+                        help="keep every N-th frame of each recording: the same people as a tracker at 1/N their "
+                             "30 Hz sees them (2: a 15 Hz camera; hrc human from-keypoints --every)")
     args = parser.parse_args(argv)
+    if args.every < 1:
+        parser.error(f"--every: expected a whole number >= 1, got {args.every}")
     placements = [p.strip() for p in args.placements.split(",") if p.strip()]
     if not placements:
         parser.error(f"--placements: none; known: {', '.join(PLACEMENTS)}, or X:YAW")
@@ -195,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     for placement in placements:
         for recording in recordings:
             try:
-                motion = convert(recording, placement, out)
+                motion = convert(recording, placement, out, args.every)
             except subprocess.CalledProcessError as exc:
                 r = row(recording.stem, placement, {"error": f"conversion: {exc.stderr.strip()[-300:]}"})
             else:
@@ -219,6 +229,7 @@ def main(argv: list[str] | None = None) -> int:
               f"no shuttle done: {', '.join(m['held']) or 'none'}")
     print(f"reports in {out}")
     print(json.dumps({"rows": rows, "means": summary, "sim": args.sim, "paper_formula": args.paper_formula,
+                      "every": args.every,
                       "config": None if args.config is None else str(args.config)}))
     return 0 if all(r["error"] is None for r in rows) else 1
 

@@ -52,6 +52,16 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
 def cell_options(p: argparse.ArgumentParser) -> None:
     """The options of every command that talks to a running cell."""
     p.add_argument("--connect", default=None, metavar="ENDPOINT",
@@ -187,6 +197,9 @@ def _add_human(sub) -> None:
                         help="rotation about the vertical axis into the robot base frame (degrees)")
     fromkp.add_argument("--translate", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "Z"),
                         help="then this translation (m, robot base frame)")
+    fromkp.add_argument("--every", type=_positive_int, default=1, metavar="N",
+                        help="keep every N-th frame, at its own time: the same person as a tracker at 1/N the "
+                             "rate sees them (a 30 Hz recording with --every 2: a 15 Hz camera; default 1)")
 
 
 def _add_view(sub) -> None:

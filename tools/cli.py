@@ -347,7 +347,7 @@ def _from_keypoints(args: argparse.Namespace) -> int:
     transform = FrameTransform(UNITS[args.units], args.y_up, math.radians(args.yaw), tuple(args.translate),
                                camera=args.camera or assembly)
     frames, dropouts = convert(args.input, args.output, transform, args.format,   # ConfigError: exit 2 (main)
-                               args.rate or ASSEMBLY_RATE)
+                               args.rate or ASSEMBLY_RATE, every=args.every)
     print(f"hrc human from-keypoints: {frames} frames ({dropouts} dropouts) written to {args.output}")
     return 0
 

@@ -195,15 +195,19 @@ def motion_csv(doc: dict) -> str:
 
 
 def convert(src: Path, dst: Path, transform: FrameTransform, fmt: str = "keypoints",
-            rate: float = ASSEMBLY_RATE) -> tuple[int, int]:
+            rate: float = ASSEMBLY_RATE, every: int = 1) -> tuple[int, int]:
     """Read keypoints from src (fmt 'keypoints': the CSV above; 'assembly': the human-assembly rows at
-    `rate` Hz), write the motion to dst (.csv or .json by extension); (frames, dropouts)."""
+    `rate` Hz), write the motion to dst (.csv or .json by extension); (frames, dropouts). every: keep the first
+    frame and every every-th after it, each at its own time: the same person as a tracker at 1/every the rate
+    would see them (a 30 Hz recording, every 2: a 15 Hz camera), to measure the cell with a slower tracker."""
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise ConfigError(f"every: expected a whole number >= 1, got {every!r}")
     try:
         text = Path(src).read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{src}: cannot read: {exc}") from None
     frames = read_assembly(text, str(src), rate) if fmt == "assembly" else read_keypoints(text, str(src))
-    doc, dropouts = to_motion(frames, transform)
+    doc, dropouts = to_motion(frames[::every], transform)
     body = motion_csv(doc) if Path(dst).suffix.lower() == ".csv" else json.dumps(doc, indent=None)
     Path(dst).write_text(body)
     return len(doc["frames"]), dropouts

@@ -26,6 +26,9 @@ def test_bad_arguments_are_refused_with_the_reason(capsys, tmp_path):
         bench.main(["--recordings", str(tmp_path)])
     assert exit_.value.code == 2 and "no recordings" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exit_:
+        bench.main(["--every", "0"])
+    assert exit_.value.code == 2 and "--every: expected a whole number >= 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
         bench.main(["--recordings", str(FIXTURE), "--only", "nobody"])
     assert exit_.value.code == 2 and "named ['nobody']" in capsys.readouterr().err
 
@@ -63,6 +66,20 @@ def test_a_placement_anywhere_is_the_one_the_simulation_kinds_use(capsys, tmp_pa
     placed = placed_motion(FIXTURE / "task1_human1_trial1_first300.txt", Placement(-0.3, math.radians(40.0)))
     for t in (0.0, 3.3):
         assert np.allclose(written.at(t).segments, placed.at(t).segments, atol=2e-5)
+
+
+def test_every_other_frame_is_a_15_hz_camera_of_the_same_person(tmp_path):
+    """--every 2: the product's reader keeps every second frame, each at its own time (hrc human from-keypoints
+    --every), into a file of its own beside the full-rate one."""
+    from shared.tracking.motion import RecordedMotion
+
+    bench = load_bench("real_people")
+    recording = FIXTURE / "task1_human1_trial1_first300.txt"
+    full, half = bench.convert(recording, "step_back", tmp_path), bench.convert(recording, "step_back", tmp_path, 2)
+    assert half.name == "task1_human1_trial1_first300-step_back-every2.json" and full != half
+    a, b = RecordedMotion.load(full), RecordedMotion.load(half)
+    assert len(b.frames) == 150 and b.rate == pytest.approx(15.0) and b.duration == pytest.approx(298 / 30)
+    assert np.allclose(b.frames[5].segments, a.frames[10].segments)
 
 
 def test_a_run_without_a_summary_is_a_row_with_its_error_and_the_table_goes_on():

@@ -148,6 +148,12 @@ def test_hrc_converts_keypoints_and_runs_the_demo_on_them(tmp_path, capsys):
     src.write_text("\n".join(rows) + "\n")
     motion = tmp_path / "walk.json"
     assert main(["human", "from-keypoints", str(src), str(motion), "--units", "mm"]) == 0
+    for bad_every in ("0", "2.5", "x"):                   # a tracker at 1/N the rate: N a whole number >= 1
+        with pytest.raises(SystemExit) as exit_:
+            main(["human", "from-keypoints", str(src), str(tmp_path / "every.json"), "--every", bad_every])
+        assert exit_.value.code == 2 and "--every" in capsys.readouterr().err
+    assert main(["human", "from-keypoints", str(src), str(tmp_path / "every.json"), "--units", "mm", "--every", "3"]) == 0
+    assert len(json.loads((tmp_path / "every.json").read_text())["frames"]) == 14     # frames 0, 3, ..., 39
     out = tmp_path / "report"
     assert main(["demo", "--sim", "--human", str(motion), "--quiet", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())

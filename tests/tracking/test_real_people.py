@@ -34,6 +34,26 @@ def test_a_recording_becomes_seven_capsules_a_frame_in_front_of_the_robot(tmp_pa
     assert -1.1 < torso[0, 0] < -0.7 and l_hand[0, 0] > torso[0, 0] and l_hand[0, 1] > 0   # left is +y
 
 
+def test_every_other_frame_is_the_same_person_as_a_15_hz_camera_sees_them(tmp_path):
+    """--every 2: the first frame and every second after it, each at its own time, so the motion runs as long and
+    its rate is halved; the tracker then measures 15 Hz and stretches its window to it, and its dropout bound to
+    the ceiling (100 ms: 1.5 intervals, not 2.5; a slower source is stale sooner, T_r covering its age)."""
+    full, half = tmp_path / "full.json", tmp_path / "half.json"
+    convert(DATA, full, PLACEMENT, "assembly", 30.0)
+    assert convert(DATA, half, PLACEMENT, "assembly", 30.0, every=2) == (150, 0)
+    a, b = RecordedMotion.load(full), RecordedMotion.load(half)
+    assert b.rate == pytest.approx(15.0) and b.frames[1].t == pytest.approx(2 / 30)
+    assert np.allclose(b.frames[7].segments, a.frames[14].segments)
+    tracker = HumanTracker()
+    for frame in b.frames[:6]:
+        out = tracker.update(frame.segments, frame.radii, frame.t, frame.t)
+    assert tracker.interval == pytest.approx(1 / 15) and tracker.dropout == stale_bound(0.05, 1 / 15) == 0.1
+    assert out.velocity_known.all()                  # four frames within 3.5 intervals: known from the fourth
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ConfigError, match="every: expected a whole number >= 1"):
+            convert(DATA, half, PLACEMENT, "assembly", 30.0, every=bad)
+
+
 def test_a_keypoint_openpose_missed_makes_a_dropout_frame_and_a_broken_row_names_its_line():
     rows = DATA.read_text().splitlines()[:3]
     cells = rows[1].split()
