@@ -91,19 +91,28 @@ def main(argv: list[str] | None = None) -> int:
     parser = service_parser("tracker_ingest", __doc__, config=False)
     parser.add_argument("--dropout", type=float, default=0.05, help="no sample for this long: invalid (s)")
     parser.add_argument("--window", type=float, default=0.04, help="velocity fit window (s)")
+    parser.add_argument("--source-rate", type=float, default=None, metavar="HZ",
+                        help="the source's nominal frame rate, where known (a 15 Hz camera: 15): its sample interval "
+                             "until one is measured, so its second frame is not taken for a lost person")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
     if not (0 < args.dropout <= 1.0 and 0 < args.window <= 1.0):
         print("tracker_ingest: error: --dropout and --window must be in (0, 1] s", file=sys.stderr)
+        return 2
+    if args.source_rate is not None and not 1.0 <= args.source_rate <= 1000.0:
+        print("tracker_ingest: error: --source-rate must be within [1, 1000] Hz", file=sys.stderr)
         return 2
     opened = open_service("tracker_ingest", args)
     if opened is None:
         return 2
     _, shell = opened
     HumanTracker.warm_up()           # compile before the first sample, not at it
-    service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=args.window, dropout=args.dropout)))
+    interval = 0.0 if args.source_rate is None else 1.0 / args.source_rate
+    service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=args.window, dropout=args.dropout,
+                                                                  source_interval=interval)))
+    declared = "" if args.source_rate is None else f", a source at {args.source_rate:g} Hz declared"
     return serve(shell, f"tracker_ingest: least-squares velocity over {args.window * 1000:.0f} ms, dropout "
-                        f"{args.dropout * 1000:.0f} ms, keys {shell.keys.prefix}/",
+                        f"{args.dropout * 1000:.0f} ms{declared}, keys {shell.keys.prefix}/",
                  service.watch)
 
 if __name__ == "__main__":

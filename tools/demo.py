@@ -59,6 +59,17 @@ def reexec_in_namespace(argv: list[str], pass_fds: tuple[int, ...] = ()) -> int 
 NO_BETA_ARGS = {"planner": ["--no-beta"], "scaler": ["--no-await"]}
 
 
+def service_args(no_beta: bool, rate: float | None) -> dict[str, list[str]]:
+    """Each service's extra arguments for this run: the paper's ablation (--no-beta), and the person feed's frame
+    rate declared to tracker_ingest (rate, Hz: a recorded motion's own; None: the scripted person, whose 120 Hz
+    needs no declaring; outside the service's 1-1000 Hz not declared either), so a camera's second frame is not
+    taken for a lost person."""
+    args = {name: list(extra) for name, extra in (NO_BETA_ARGS if no_beta else {}).items()}
+    if rate is not None and 1.0 <= rate <= 1000.0:
+        args["tracker_ingest"] = ["--source-rate", repr(float(rate))]
+    return args
+
+
 def start_feed(cell: CellProcesses, human_file: Path | None, phase_length: float, stats: Path):
     """The person feed's process (tools.feed), connected and ready to start; its Popen."""
     motion = ["--human", str(human_file)] if human_file is not None else ["--phase-length", repr(phase_length)]
@@ -100,8 +111,9 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     served 3D viewer (tools.view.ViewServer) to log every message into as it arrives."""
     interface, channel = choose_bus()
     keys = KeySpace(PREFIX)
+    human = RecordedMotion.load(human_file) if human_file is not None else paper_phases(phase_length)
     cell = CellProcesses(out / "logs", PREFIX, interface, channel, config_path, seed,
-                         extra_args=NO_BETA_ARGS if no_beta else {})
+                         extra_args=service_args(no_beta, human.rate if human_file is not None else None))
     say = (lambda *a: None) if quiet else (lambda text: print(text, flush=True))
     say(f"hrc demo: starting the cell (emulator + 5 services, CAN {interface}{' ' + channel if channel else ''}, "
         f"Zenoh {cell.endpoint}); logs in {out / 'logs'}")
@@ -110,7 +122,6 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     recorder = None
     stats = out / "logs" / "human_feed.json"
     machine = out / "logs" / "stall_witness.json"
-    human = RecordedMotion.load(human_file) if human_file is not None else paper_phases(phase_length)
     try:
         started = time.monotonic()
         cell.start(session)

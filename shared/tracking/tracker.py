@@ -19,6 +19,7 @@ Times in seconds (the tracker's sample time for the fit, the arrival time for th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numba
@@ -49,12 +50,20 @@ class TrackerParameters:
     """window (s): the velocity fit's span, at the least; min_samples: the fit needs this many clean samples;
     at a source's rate the window stretches to hold them (``HumanTracker.window``). max_speed (m/s): a step
     faster than this between two samples is a glitch. dropout (s): no sample for this long (at the least:
-    ``stale_bound``) and the track is invalid."""
+    ``stale_bound``) and the track is invalid. source_interval (s): the source's nominal sample interval where it
+    is declared (a camera's 1 / frame rate; 0: not declared), taken as the measured one until the first interval
+    is measured: a 15 Hz camera's second frame comes 67 ms after its first, past the 50 ms a source of unknown
+    rate gets, and its track would be declared lost at the start of every run with the person in view."""
 
     window: float = 0.04
     min_samples: int = 4
     max_speed: float = 4.0
     dropout: float = 0.05
+    source_interval: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.source_interval) and self.source_interval >= 0.0):
+            raise ValueError(f"source_interval must be a finite number of seconds >= 0, not {self.source_interval!r}")
 
 
 @numba.njit(cache=True)
@@ -117,7 +126,8 @@ class HumanTracker:
         self._ghost: tuple[np.ndarray, np.ndarray] | None = None   # (segments, radii) before the last step
         self._intervals = np.zeros(RATE_SAMPLES)                    # the last sample intervals (s), a ring
         self._interval_count = 0
-        self.interval = 0.0          # s: the median of the last RATE_SAMPLES sample intervals (0: not known yet)
+        # s: the median of the last RATE_SAMPLES sample intervals (before the first: the declared one, 0 if none)
+        self.interval = self.params.source_interval
         self.glitches = 0
 
     @staticmethod

@@ -339,6 +339,25 @@ def test_tracker_ingest_publishes_each_sample_with_velocities_and_announces_a_dr
     assert shell.bad_messages == 1
 
 
+def test_tracker_ingest_declares_its_sources_rate_until_it_measures_one(capsys):
+    """--source-rate 15: the first state says 67 ms (the scaler's stale bound, 100 ms), and the track is not lost
+    before the camera's second frame; a rate outside 1-1000 Hz is refused before anything starts."""
+    from services.tracker_ingest import main
+
+    shell = FakeShell("tracker_ingest")
+    service = TrackerIngest(shell, HumanTracker(TrackerParameters(source_interval=1 / 15)))
+    t0 = time.monotonic()
+    shell.deliver(shell.keys.human_raw, HumanRaw(source="camera", sample_time=t0, radii=np.array([0.2]),
+                                                 segments=np.array([[[-2.0, 0.0, 0.9], [-2.0, 0.0, 1.5]]])))
+    (state,) = shell.published(shell.keys.human_state, HumanState)
+    assert state.sample_interval == pytest.approx(1 / 15) and state.valid
+    service.check(t0 + 0.067)                    # the second frame is due: still tracking
+    assert [e.event for e in shell.published(shell.keys.safety_events, SafetyEvent)] == ["tracker_ok"]
+    for bad in ("0", "-15", "nan", "5000"):
+        assert main(["--source-rate", bad]) == 2
+        assert "--source-rate must be within [1, 1000] Hz" in capsys.readouterr().err
+
+
 def test_the_dropout_watch_sleeps_until_the_bound_would_pass_and_repeats_the_invalid_state_while_silent():
     assert next_check(10.0, 10.03) == pytest.approx(0.03 + LATE)    # valid: just after the bound would pass
     assert next_check(10.0, 9.99) == INVALID_PERIOD        # invalid: the invalid state again every period

@@ -114,3 +114,16 @@ def test_a_stopped_feed_says_it_did_not_finish():
     feed.running = False
     feed.run()
     assert not feed.finished and feed.sent == 0
+
+
+def test_hrc_demo_declares_a_recorded_motions_rate_to_the_tracker():
+    """`hrc demo --human FILE` sends the file at its own rate and tells tracker_ingest that rate (its second frame
+    is then no lost person); the scripted person (None) and a rate the service refuses declare nothing."""
+    from tools.demo import NO_BETA_ARGS, service_args
+
+    assert service_args(False, 15.0) == {"tracker_ingest": ["--source-rate", "15.0"]}
+    assert service_args(False, None) == {} and service_args(False, 0.5) == {} and service_args(False, 2000.0) == {}
+    both = service_args(True, 30.0)
+    assert both == {**NO_BETA_ARGS, "tracker_ingest": ["--source-rate", "30.0"]}
+    both["planner"].append("--x")                              # a copy: the shared table stays as it is
+    assert NO_BETA_ARGS["planner"] == ["--no-beta"]

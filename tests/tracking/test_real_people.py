@@ -11,7 +11,7 @@ from shared.core.humans import HumanCapsules
 from shared.safety.monitor import Backlog, HumanHistory
 from shared.tracking.keypoints import FrameTransform, convert, read_assembly, to_motion
 from shared.tracking.motion import RecordedMotion
-from shared.tracking.tracker import HumanTracker, stale_bound
+from shared.tracking.tracker import HumanTracker, TrackerParameters, stale_bound
 from tests.util import ROOT
 
 DATA = ROOT / "tests" / "data" / "human-assembly" / "task1_human1_trial1_first300.txt"
@@ -91,6 +91,25 @@ def test_the_tracker_measures_a_camera_rate_and_scales_its_window_and_dropout():
     for k in range(20):
         fast.update(seg, np.array([0.1]), k / 240, k / 240)
     assert fast.dropout == 0.05 and fast.window == 0.04
+
+
+def test_a_declared_camera_rate_holds_the_track_between_its_first_two_frames():
+    """A 15 Hz camera's second frame comes 67 ms after its first. Before any interval is measured a source gets
+    the configured 50 ms: its track is lost at 50 ms with the person in view. With the rate declared
+    (source_interval) the first frame's bound is the 15 Hz one (100 ms), the state's interval says so (the
+    scaler's stale bound follows it), and from the second frame the measured interval replaces the declared."""
+    seg = np.array([[[0.0, 0.0, 1.0], [0.0, 0.0, 1.5]]])
+    unknown, declared = HumanTracker(), HumanTracker(TrackerParameters(source_interval=1 / 15))
+    for tracker in (unknown, declared):
+        tracker.update(seg, np.array([0.1]), 0.0, 0.0)
+    assert not unknown.valid(0.067) and unknown.interval == 0.0
+    assert declared.valid(0.067) and declared.dropout == stale_bound(0.05, 1 / 15) == 0.1
+    assert not declared.valid(0.101)                           # a silent camera is still lost, at its own bound
+    declared.update(seg, np.array([0.1]), 0.05, 0.05)          # it runs at 20 Hz: measured, not declared
+    assert declared.interval == pytest.approx(0.05)
+    for bad in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="source_interval"):
+            TrackerParameters(source_interval=bad)
 
 
 def test_a_person_state_shorter_than_a_joint_period_is_checked_too():
