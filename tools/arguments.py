@@ -125,6 +125,9 @@ def _add_up_down(sub) -> None:
                                                         "else udp_multicast in a namespace)")
     upp.add_argument("--port", type=int, default=7447, help="first of six loopback ports (default 7447)")
     upp.add_argument("--prefix", default="hrc/cell1")
+    upp.add_argument("--source-rate", type=float, default=None, metavar="HZ",
+                     help="the people tracker's frame rate, where known (a 15 Hz camera: 15): tracker_ingest takes it "
+                          "as the sample interval until it has measured one")
     upp.add_argument("--ros2", action="store_true",
                      help="also run the ROS 2 bridge: the cell as ROS 2 topics over rmw_zenoh, goals and people from "
                           "ROS 2 (the configuration's ros2 section; docs/ros2.md)")

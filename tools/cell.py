@@ -78,15 +78,16 @@ def cell_endpoint(prefix: str) -> str:
     return f"tcp/127.0.0.1:{port_file.read_text().strip() if port_file.exists() else 7447}"
 
 
-def up(prefix: str, interface: str, port: int, optional: tuple[str, ...] = ()) -> int:
-    """Start the cell (with the optional programs named: ros2_bridge); returns the PID of supervisord (which is
-    also the namespace holder)."""
+def up(prefix: str, interface: str, port: int, optional: tuple[str, ...] = (),
+       extra: dict[str, list[str]] | None = None) -> int:
+    """Start the cell (with the optional programs named: ros2_bridge; each program's extra arguments by name);
+    returns the PID of supervisord (which is also the namespace holder)."""
     if cell_pid(prefix) is not None:
         raise RuntimeError(f"a cell with prefix {prefix} is already up (pid {cell_pid(prefix)})")
     run = run_dir(prefix)
     run.mkdir(parents=True, exist_ok=True)
     conf = conf_path(prefix)
-    conf.write_text(supervisord_conf(optional))
+    conf.write_text(supervisord_conf(optional, extra))
     env = dict(os.environ, HRC_RUN=str(run), HRC_PYTHON=sys.executable, HRC_CAN=interface, HRC_PREFIX=prefix,
                PYTHONPATH=str(ROOT), **{f"HRC_PORT{k if k else ''}": str(port + k) for k in range(6)})
     supervisord = [sys.executable, "-c", "from supervisor.supervisord import main; main()", "-c", str(conf)]

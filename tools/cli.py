@@ -190,8 +190,12 @@ def cmd_up(args: argparse.Namespace) -> int:
     if not 1024 <= args.port <= 65530:
         print(f"hrc up: error: --port must be in 1024..65530, got {args.port}", file=sys.stderr)
         return 2
+    if args.source_rate is not None and not 1.0 <= args.source_rate <= 1000.0:
+        print(f"hrc up: error: --source-rate must be within [1, 1000] Hz, got {args.source_rate}", file=sys.stderr)
+        return 2
+    extra = {} if args.source_rate is None else {"tracker_ingest": ["--source-rate", repr(args.source_rate)]}
     try:
-        pid = up(args.prefix, interface, args.port, ("ros2_bridge",) if args.ros2 else ())
+        pid = up(args.prefix, interface, args.port, ("ros2_bridge",) if args.ros2 else (), extra)
     except RuntimeError as exc:
         print(f"hrc up: error: {exc}", file=sys.stderr)
         return 1

@@ -95,15 +95,17 @@ def _port(k: int) -> str:
     return f"%(ENV_HRC_PORT{k if k else ''})s"
 
 
-def supervisord_conf(optional: tuple[str, ...] = ()) -> str:
+def supervisord_conf(optional: tuple[str, ...] = (), extra: dict[str, list[str]] | None = None) -> str:
     """supervisord's configuration of the whole cell (the values come from HRC_* environment variables), with
-    the optional programs named in `optional` (ros2_bridge)."""
+    the optional programs named in `optional` (ros2_bridge) and each program's extra arguments (`extra`, by
+    name: ``hrc up --source-rate`` gives tracker_ingest its camera's rate)."""
     sections = [_HEADER]
     zenoh = [p for p in PROGRAMS if p.on_zenoh]
     for program in (p for p in PROGRAMS if not p.optional or p.name in optional):
         port = _port(zenoh.index(program)) if program.on_zenoh else ""
         argv = program.argv(interface="%(ENV_HRC_CAN)s", prefix="%(ENV_HRC_PREFIX)s",
-                            listen=f"tcp/127.0.0.1:{port}", connect=f"tcp/127.0.0.1:{_port(0)}")
+                            listen=f"tcp/127.0.0.1:{port}", connect=f"tcp/127.0.0.1:{_port(0)}",
+                            extra=(extra or {}).get(program.name, []))
         nice = f"nice -n {program.niceness} " if program.niceness else ""
         sections.append(f"""
 [program:{program.name}]

@@ -109,3 +109,18 @@ def test_the_shipped_supervisord_conf_is_the_program_table():
         assert (f"[program:{program.name}]" in shipped and f"-m {program.module} " in shipped) != program.optional
 
 
+
+
+def test_hrc_up_gives_the_tracker_its_cameras_rate(capsys):
+    """hrc up --source-rate 15: tracker_ingest's command line in the supervised cell says so, no other program's;
+    a rate outside 1-1000 Hz is refused before anything starts."""
+    from tools.cli import main
+
+    conf = supervisord_conf((), {"tracker_ingest": ["--source-rate", "15.0"]})
+    sections = {s.split("]")[0]: s for s in conf.split("[program:")[1:]}
+    assert "-m services.tracker_ingest " in sections["tracker_ingest"]
+    assert sections["tracker_ingest"].split("\n")[1].endswith("--source-rate 15.0")
+    assert sum("--source-rate" in s for s in sections.values()) == 1
+    for bad in ("0", "nan", "2000"):
+        assert main(["up", "--source-rate", bad, "--prefix", "hrc/never"]) == 2
+        assert "--source-rate must be within [1, 1000] Hz" in capsys.readouterr().err
