@@ -21,7 +21,7 @@ import time
 from services.common import ServiceShell, open_service, prepare_loop_thread, serve, service_parser, setup_logging
 from shared.core.humans import HumanCapsules
 from shared.scheduling import sleep_until
-from shared.tracking.tracker import HumanTracker, TrackerParameters
+from shared.tracking.tracker import SOURCE_RATES, HumanTracker, TrackerParameters, declarable
 from shared.wire.convert import humans_to_msg
 from shared.wire.messages import HumanRaw, HumanState, SafetyEvent, encode
 
@@ -99,8 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     if not (0 < args.dropout <= 1.0 and 0 < args.window <= 1.0):
         print("tracker_ingest: error: --dropout and --window must be in (0, 1] s", file=sys.stderr)
         return 2
-    if args.source_rate is not None and not 1.0 <= args.source_rate <= 1000.0:
-        print("tracker_ingest: error: --source-rate must be within [1, 1000] Hz", file=sys.stderr)
+    if args.source_rate is not None and not declarable(args.source_rate):
+        print(f"tracker_ingest: error: --source-rate must be within [{SOURCE_RATES[0]:g}, {SOURCE_RATES[1]:g}] Hz",
+              file=sys.stderr)
         return 2
     opened = open_service("tracker_ingest", args)
     if opened is None:

@@ -190,8 +190,11 @@ def cmd_up(args: argparse.Namespace) -> int:
     if not 1024 <= args.port <= 65530:
         print(f"hrc up: error: --port must be in 1024..65530, got {args.port}", file=sys.stderr)
         return 2
-    if args.source_rate is not None and not 1.0 <= args.source_rate <= 1000.0:
-        print(f"hrc up: error: --source-rate must be within [1, 1000] Hz, got {args.source_rate}", file=sys.stderr)
+    from shared.tracking.tracker import SOURCE_RATES, declarable
+
+    if args.source_rate is not None and not declarable(args.source_rate):
+        print(f"hrc up: error: --source-rate must be within [{SOURCE_RATES[0]:g}, {SOURCE_RATES[1]:g}] Hz, got "
+              f"{args.source_rate}", file=sys.stderr)
         return 2
     extra = {} if args.source_rate is None else {"tracker_ingest": ["--source-rate", repr(args.source_rate)]}
     try:

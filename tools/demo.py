@@ -62,10 +62,12 @@ NO_BETA_ARGS = {"planner": ["--no-beta"], "scaler": ["--no-await"]}
 def service_args(no_beta: bool, rate: float | None) -> dict[str, list[str]]:
     """Each service's extra arguments for this run: the paper's ablation (--no-beta), and the person feed's frame
     rate declared to tracker_ingest (rate, Hz: a recorded motion's own; None: the scripted person, whose 120 Hz
-    needs no declaring; outside the service's 1-1000 Hz not declared either), so a camera's second frame is not
+    needs no declaring; a rate the service refuses, ``declarable``, not declared either), so a camera's second frame is not
     taken for a lost person."""
+    from shared.tracking.tracker import declarable
+
     args = {name: list(extra) for name, extra in (NO_BETA_ARGS if no_beta else {}).items()}
-    if rate is not None and 1.0 <= rate <= 1000.0:
+    if rate is not None and declarable(rate):
         args["tracker_ingest"] = ["--source-rate", repr(float(rate))]
     return args
 

@@ -45,6 +45,14 @@ def stale_bound(configured: float, interval: float) -> float:
     return max(configured, min(STALE_INTERVALS * interval, STALE_CEILING))
 
 
+SOURCE_RATES = (1.0, 1000.0)   # Hz: the rates a source may be declared at (tracker_ingest --source-rate, hrc up)
+
+
+def declarable(rate: float) -> bool:
+    """Whether `rate` (Hz) is a source rate that can be declared: within SOURCE_RATES (NaN is not)."""
+    return SOURCE_RATES[0] <= rate <= SOURCE_RATES[1]
+
+
 @dataclass(frozen=True)
 class TrackerParameters:
     """window (s): the velocity fit's span, at the least; min_samples: the fit needs this many clean samples;
