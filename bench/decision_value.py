@@ -51,7 +51,6 @@ PAID = 0.01            # shuttles: a value above this paid, below minus this cos
 PREDICTED = re.compile(r"predicted (\d+\.\d+) s instead of (\d+\.\d+) s")
 
 
-
 def decision_kind(action: str, detail: str) -> str:
     """The row a taken replan counts in: its action, beta and slow split by whether the plan starts from rest."""
     if action in ("beta", "slow"):

@@ -185,6 +185,7 @@ def _session(args: argparse.Namespace):
 def cmd_up(args: argparse.Namespace) -> int:
 
     from tools.cell import choose_bus, run_dir, up
+    from tools.programs import source_rate_args
 
     interface = args.interface or choose_bus()[0]
     if not 1024 <= args.port <= 65530:
@@ -196,9 +197,9 @@ def cmd_up(args: argparse.Namespace) -> int:
         print(f"hrc up: error: --source-rate must be within [{SOURCE_RATES[0]:g}, {SOURCE_RATES[1]:g}] Hz, got "
               f"{args.source_rate}", file=sys.stderr)
         return 2
-    extra = {} if args.source_rate is None else {"tracker_ingest": ["--source-rate", repr(args.source_rate)]}
     try:
-        pid = up(args.prefix, interface, args.port, ("ros2_bridge",) if args.ros2 else (), extra)
+        pid = up(args.prefix, interface, args.port, ("ros2_bridge",) if args.ros2 else (),
+                 source_rate_args(args.source_rate))
     except RuntimeError as exc:
         print(f"hrc up: error: {exc}", file=sys.stderr)
         return 1

@@ -34,6 +34,7 @@ from tools.actors import Recorder, Shuttle
 from tools.cell import choose_bus
 from tools.feed import READY
 from tools.launch import CellProcesses, LaunchError, free_port
+from tools.programs import source_rate_args
 from tools.report import Recording, write_report
 from tools.stalls import READY as WITNESS_READY
 from tools.stalls import in_run
@@ -62,14 +63,10 @@ NO_BETA_ARGS = {"planner": ["--no-beta"], "scaler": ["--no-await"]}
 def service_args(no_beta: bool, rate: float | None) -> dict[str, list[str]]:
     """Each service's extra arguments for this run: the paper's ablation (--no-beta), and the person feed's frame
     rate declared to tracker_ingest (rate, Hz: a recorded motion's own; None: the scripted person, whose 120 Hz
-    needs no declaring; a rate the service refuses, ``declarable``, not declared either), so a camera's second frame is not
-    taken for a lost person."""
-    from shared.tracking.tracker import declarable
-
-    args = {name: list(extra) for name, extra in (NO_BETA_ARGS if no_beta else {}).items()}
-    if rate is not None and declarable(rate):
-        args["tracker_ingest"] = ["--source-rate", repr(float(rate))]
-    return args
+    needs no declaring; a rate the service refuses not declared either: ``tools.programs.source_rate_args``), so
+    a camera's second frame is not taken for a lost person."""
+    return {**{name: list(extra) for name, extra in (NO_BETA_ARGS if no_beta else {}).items()},
+            **source_rate_args(rate)}
 
 
 def start_feed(cell: CellProcesses, human_file: Path | None, phase_length: float, stats: Path):

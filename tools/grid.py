@@ -96,10 +96,9 @@ def check_grid(grid: Grid) -> None:
     from evidence.sweep import config_of
     from shared.core.errors import ConfigError
 
-    known = KNOWN
-    if not grid.strategies or set(grid.strategies) - set(known):
-        raise GridError(f"strategies: unknown or none {sorted(set(grid.strategies) - set(known))}; known: "
-                        f"{', '.join(known)}")
+    if not grid.strategies or set(grid.strategies) - set(KNOWN):
+        raise GridError(f"strategies: unknown or none {sorted(set(grid.strategies) - set(KNOWN))}; known: "
+                        f"{', '.join(KNOWN)}")
     if problem := kinds_problem(grid.kinds):
         raise GridError(f"kinds: {problem}")
     if grid.scenarios < 1 or not (grid.duration > 0 and math.isfinite(grid.duration)):

@@ -95,6 +95,15 @@ def _port(k: int) -> str:
     return f"%(ENV_HRC_PORT{k if k else ''})s"
 
 
+def source_rate_args(rate: float | None) -> dict[str, list[str]]:
+    """The extra arguments that declare a people tracker's frame rate (Hz) to tracker_ingest (``hrc up --source-rate``,
+    ``hrc demo --human FILE``): none where there is no rate or one the service would refuse
+    (``shared.tracking.tracker.declarable``)."""
+    from shared.tracking.tracker import declarable  # here, not at import: the program table loads nothing compiled
+
+    return {"tracker_ingest": ["--source-rate", repr(float(rate))]} if rate is not None and declarable(rate) else {}
+
+
 def supervisord_conf(optional: tuple[str, ...] = (), extra: dict[str, list[str]] | None = None) -> str:
     """supervisord's configuration of the whole cell (the values come from HRC_* environment variables), with
     the optional programs named in `optional` (ros2_bridge) and each program's extra arguments (`extra`, by
