@@ -444,8 +444,14 @@ def system_goal(cell: Cell) -> dict:
 def system_stale_humans(cell: Cell) -> dict:
     feed = human_feed(cell)
     _wait(lambda: cell.latest().enabled, 5.0)
+    # a plan from rest only from where the robot stands: the last scenario's goal counted as reached 5 mrad
+    # short, and on a loaded machine a plan from there was refused (1 mrad from the command at most)
+    _wait(lambda: np.abs(cell.latest().qd).max() < 1e-3, 5.0)
     traj = _publish_trajectory(cell, Q0, 2)                    # back to the start, a long motion
-    time.sleep(traj.duration * 0.4)
+    # mid-motion, at speed: 40 % of the leg's nominal time after its publication, and not before the robot
+    # moves (on a slow machine the first commands came late and a fixed sleep found it still at rest)
+    started = _wait(lambda: np.abs(cell.latest().qd).max() > 0.3, traj.duration)
+    time.sleep(max(0.0, traj.duration * 0.4 - (started or 0.0)))
     moving = float(np.abs(cell.latest().qd).max())
     feed.running = False                                       # the tracker goes silent
     seen = _wait(lambda: np.abs(cell.latest().qd).max() < 1e-3, 2.0)
