@@ -202,20 +202,59 @@ def standing_in_path(rng: np.random.Generator, duration: float) -> ScriptedHuman
                           Keyframe(arrive + duration, x, y, reach, IN_PATH, label, lean)])
 
 
-def random_walk(rng: np.random.Generator, duration: float) -> ScriptedHuman:
-    """A person wandering around the robot's working side: random stops 0.8 to 2.5 m from its axis, at
-    most 1.6 m/s, sometimes reaching towards the path."""
+def _stops(rng: np.random.Generator, duration: float) -> list[tuple[float, float, float, float]]:
+    """A wanderer's stops (x, y, reach, lean): 0.8 to 2.5 m from the robot's axis on its working side, reaching
+    towards the path (at random) from those within 1.4 m."""
     points = []
     for _ in range(int(duration / 1.5) + 2):
         r, angle = float(rng.uniform(0.8, 2.5)), float(rng.uniform(0.55 * np.pi, 1.45 * np.pi))
         reach = float(rng.uniform(0.0, 1.0)) if r < 1.4 else 0.0
         points.append((r * np.cos(angle), r * np.sin(angle), reach, 0.5 * reach))
-    return _walk(points, "random walk", speed=float(rng.uniform(0.6, WALK_SPEED)), pause=float(rng.uniform(0, 1)))
+    return points
+
+
+def _wander(rng: np.random.Generator, duration: float) -> tuple[list[tuple[float, float, float, float]], float, float]:
+    """A wanderer's stops, speed (m/s) and pause at each stop (s), drawn in this order."""
+    points = _stops(rng, duration)
+    return points, float(rng.uniform(0.6, WALK_SPEED)), float(rng.uniform(0, 1))
+
+
+def random_walk(rng: np.random.Generator, duration: float) -> ScriptedHuman:
+    """A person wandering around the robot's working side: random stops 0.8 to 2.5 m from its axis, at
+    most 1.6 m/s, sometimes reaching towards the path."""
+    points, speed, pause = _wander(rng, duration)
+    return _walk(points, "random walk", speed=speed, pause=pause)
 
 
 def two_humans(rng: np.random.Generator, duration: float) -> Crowd:
     """One crossing, one wandering."""
     return Crowd([crossing(rng, duration), random_walk(rng, duration)])
+
+
+WANDERING_KINDS = ("random_walk", "two_humans")     # the kinds whose people's future is drawn as they go
+
+
+def other_futures(kind: str, seed: int, duration: float, t0: float, rng: np.random.Generator, count: int) -> list:
+    """`count` other futures of the wandering scenario (kind, seed) from t0 (s): the same people up to the end of
+    the wanderer's present step (the stop they walk to or pause at at t0, and their pause there), then new stops
+    drawn as the scenario draws its own (the same speed and pause; a crosser's walk, which repeats, as it is).
+    Each is a future the scenario could have had, as likely as its own, given the past and more than a tracker
+    sees (that stop, the walk's speed and pause): the spread of what a robot then does over them is the part of
+    a prediction's error that no forecast of the people can take away (``bench/calibration.py --futures``)."""
+    if kind not in WANDERING_KINDS:
+        raise ValueError(f"no other futures for {kind!r}: its people's future is fixed by its start; "
+                         f"wandering kinds: {', '.join(WANDERING_KINDS)}")
+    drawn = np.random.default_rng(seed)
+    crosser = crossing(drawn, duration) if kind == "two_humans" else None
+    points, speed, pause = _wander(drawn, duration)
+    own = _walk(points, "random walk", speed=speed, pause=pause).keyframes
+    leaving = [frame.t for frame in (own[1::2] if pause > 0 else own)]      # s: when each stop is left
+    present = next((k for k, t in enumerate(leaving) if t >= t0), len(points) - 1)
+    futures = []
+    for _ in range(count):
+        walker = _walk(points[:present + 1] + _stops(rng, duration), "random walk", speed=speed, pause=pause)
+        futures.append(walker if crosser is None else Crowd([crosser, walker]))
+    return futures
 
 
 PAPER_SPREAD = 0.05      # the paper's experiment as a distribution: each seed's phase period within +-5 %

@@ -29,8 +29,35 @@ def test_with_the_future_known_the_forward_run_predicts_the_execution(monkeypatc
     assert sum(line.startswith("  worst: seed 1 from 0.0 s") for line in out.splitlines()) == 2, out
 
 
+def test_other_futures_say_what_no_forecast_can_predict_in_the_wandering_kinds_only(monkeypatch, capsys):
+    code, out = run(monkeypatch, capsys, "--seeds", "1", "--seed", "1000", "--kinds", "random_walk,crossing",
+                    "--moments", "1", "--futures", "3")
+    assert code == 0
+    figures = json.loads(out.strip().splitlines()[-1])
+    walk, crossing = figures["kinds"]["random_walk"], figures["kinds"]["crossing"]
+    assert figures["futures"] == 3 and "unforeseeable" not in crossing, figures
+    floor = walk["unforeseeable"]
+    assert floor["legs"] == walk["finished"] > 0, floor
+    for tolerance in ("within_5pc", "within_15pc"):
+        held_out, in_sample = floor[tolerance]
+        assert 0.0 <= held_out <= 1.0 and 0.25 <= in_sample <= 1.0, floor     # one of four is always within
+    assert floor["within_5pc"][1] <= floor["within_15pc"][1], floor
+    assert 0.0 <= floor["ranked_right"] <= 1.0 and floor["loss_s"] >= 0.0, floor
+    assert "other futures of its people" in out
+
+
+def test_a_leg_is_judged_against_its_own_future_which_the_prediction_never_saw():
+    bench = load_bench("calibration")
+    same = bench.unforeseeable([10.0, 10.0, 10.0], 10.0)
+    assert same["least_error"] == 0.0 and same[0.05] == (True, 1.0) and same[0.15] == (True, 1.0)
+    apart = bench.unforeseeable([10.0, 10.0, 10.0], 20.0)           # the own future slower than every other
+    assert apart["least_error"] == pytest.approx(-0.5) and apart[0.15] == (False, 0.75)
+    summary = bench.floor_summary([same, apart])
+    assert summary["within_5pc"] == [0.5, 0.875] and summary["legs"] == 2
+
+
 @pytest.mark.parametrize("args", [("--worst", "-1"), ("--truth", "--stay", "2"), ("--kinds", "moon"),
-                                  ("--judge", "oracle")])
+                                  ("--judge", "oracle"), ("--futures", "-2")])
 def test_bad_arguments_are_refused_with_exit_2(monkeypatch, capsys, args):
     with pytest.raises(SystemExit) as stop:
         run(monkeypatch, capsys, *args)
