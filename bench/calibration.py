@@ -48,8 +48,7 @@ sys.path.insert(0, str(ROOT))
 from evidence.fixed_path import FixedPath  # noqa: E402
 from evidence.foresight import Foresight, foresight_options  # noqa: E402
 from evidence.prediction import best_within, least_relative_error  # noqa: E402
-from evidence.scenarios import (Q_GOAL, Q_START, WANDERING_KINDS, kinds_problem, make_scenario,  # noqa: E402
-                                other_futures)
+from evidence.scenarios import Q_GOAL, Q_START, WANDERING_KINDS, kinds_problem, make_scenario, other_futures  # noqa: E402
 from shared.config import CellConfig  # noqa: E402
 from shared.core.trajectory import Trajectory, straight_line_trajectory  # noqa: E402
 from shared.planning.collision import CollisionModel  # noqa: E402
