@@ -2,7 +2,9 @@
 
 Every raw sample (<prefix>/human/raw, HumanRaw: capsules from motion capture at up to 240 Hz, a camera
 skeleton tracker at 15-60 Hz, the CLI or a replay) is filtered and published at once as HumanState on
-<prefix>/human/state, stamped with its arrival time (the scaler measures the data's age from it) and the
+<prefix>/human/state, stamped with its capture time on the cell's clock (``capture_stamp``: the sample's own
+time, or its arrival where that is earlier; the scaler measures the data's age from it, so a camera's latency
+counts; a sample captured more than 0.5 s ago is dropped as stale, and said so once a second) and the
 source's measured sample interval (the velocity window and the dropout bound scale with it:
 shared.tracking.tracker). A watch publishes an invalid state every 10 ms while no
 sample has arrived within the dropout bound, so a silent tracker is announced, not only noticed. While
@@ -21,11 +23,12 @@ import time
 from services.common import ServiceShell, open_service, prepare_loop_thread, serve, service_parser, setup_logging
 from shared.core.humans import HumanCapsules
 from shared.scheduling import sleep_until
-from shared.tracking.tracker import SOURCE_RATES, HumanTracker, TrackerParameters, declarable
+from shared.tracking.tracker import SOURCE_RATES, HumanTracker, TrackerParameters, capture_stamp, declarable
 from shared.wire.convert import humans_to_msg
 from shared.wire.messages import HumanRaw, HumanState, SafetyEvent, encode
 
 INVALID_PERIOD = 0.01       # s: how often the invalid state is repeated while no sample comes
+STALE_SAID_EVERY = 1.0      # s: how often dropped stale samples are said (a count since the last time)
 
 
 def next_check(now: float, valid_until: float, period: float = INVALID_PERIOD) -> float:
@@ -41,6 +44,7 @@ class TrackerIngest:
         self.lock = threading.Lock()
         self.seq = 0
         self.valid_before = False
+        self.stale, self.stale_said = 0, -float("inf")      # stale samples dropped since it was last said; when
         self.state_pub = shell.session.declare_publisher(shell.keys.human_state)
         self.event_pub = shell.session.declare_publisher(shell.keys.safety_events)
         shell.subscribe(shell.keys.human_raw, HumanRaw, self.on_raw)
@@ -55,10 +59,23 @@ class TrackerIngest:
 
     def on_raw(self, msg: HumanRaw) -> None:
         arrival = time.monotonic()
+        captured = capture_stamp(msg.sample_time, arrival)
+        if captured is None:
+            self._drop_stale(msg, arrival)
+            return
         with self.lock:
             humans = self.tracker.update(msg.segments, msg.radii, msg.sample_time, arrival)
             if humans is not None:
-                self._publish(humans_to_msg(humans, True, arrival))
+                self._publish(humans_to_msg(humans, True, captured))
+
+    def _drop_stale(self, msg: HumanRaw, arrival: float) -> None:
+        """A sample captured too long ago: not the person of now. Counted, and said at most once a second."""
+        self.stale += 1
+        if arrival - self.stale_said >= STALE_SAID_EVERY:
+            self.shell.log.warning("%d human sample(s) from %r dropped as stale: the last captured %.3f s before it "
+                                   "arrived (a sample's time is its capture on the cell's CLOCK_MONOTONIC)",
+                                   self.stale, msg.source, arrival - msg.sample_time)
+            self.stale, self.stale_said = 0, arrival
 
     def check(self, now: float) -> None:
         with self.lock:

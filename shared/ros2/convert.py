@@ -21,6 +21,7 @@ from shared.core.geometry import capsule_frames
 from shared.core.humans import HumanCapsules
 from shared.ros2.types import msg_class
 from shared.tracking.keypoints import body_capsules
+from shared.tracking.tracker import OLDEST_SAMPLE
 
 JOINT_STATE, TF, MARKERS = "sensor_msgs/msg/JointState", "tf2_msgs/msg/TFMessage", "visualization_msgs/msg/MarkerArray"
 FLOAT64, BOOL, STRING = "std_msgs/msg/Float64", "std_msgs/msg/Bool", "std_msgs/msg/String"
@@ -31,7 +32,7 @@ ADD, DELETEALL = 0, 3
 LEVELS = {"info": 0, "warning": 1, "stop": 2}     # diagnostic_msgs/DiagnosticStatus OK, WARN, ERROR
 MAX_CAPSULES = 64
 BASE_FRAMES = ("world", "")    # the frames people may come in: the robot base, the root of the bridge's /tf
-MAX_SAMPLE_AGE = 0.5           # s: a sample stamped longer ago than this is stale, never the person of now
+MAX_SAMPLE_AGE = OLDEST_SAMPLE   # s: a sample stamped longer ago than this is stale (tracker_ingest's rule too)
 CELL_SIZE = 10.0               # m: a keypoint farther than this from the robot base is not a person in the cell
 PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)   # the view's colours of both kinds
 ROBOT_MARKER_PERIOD = 0.05   # s between two robot capsule MarkerArrays (20 Hz), live and in a bag

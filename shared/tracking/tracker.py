@@ -14,7 +14,8 @@ tuning beyond the window. Robustness:
 * a change in the number of capsules restarts the filter the same way;
 * samples that arrive out of order (older than the last) are dropped;
 * no sample for longer than dropout: the track is invalid (the scaler then stops the robot).
-Times in seconds (the tracker's sample time for the fit, the arrival time for the dropout), m, m/s.
+Times in seconds (the tracker's sample time for the fit, the arrival time for the dropout; the capture time,
+``capture_stamp``, for the data's age), m, m/s.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ STALE_INTERVALS = 2.5      # a source's data is stale after this many of its own
                            # one lost frame (a gap of two intervals, and some jitter) is not a lost person
 STALE_CEILING = 0.1        # s: ... but never later than this by the source's rate alone
 RATE_SAMPLES = 16          # intervals the measured sample interval is the median of
+OLDEST_SAMPLE = 0.5        # s: a sample captured longer ago than this is stale, never the person of now
 
 
 def stale_bound(configured: float, interval: float) -> float:
@@ -43,6 +45,19 @@ def stale_bound(configured: float, interval: float) -> float:
     reaction time covers the age is checked against T_r (the report's reaction_time_covers_p99 adds the
     interval to the measured chain)."""
     return max(configured, min(STALE_INTERVALS * interval, STALE_CEILING))
+
+
+def capture_stamp(sample_time: float, arrival: float, oldest: float = OLDEST_SAMPLE) -> float | None:
+    """When a sample was captured, on the cell's clock (s): its sample_time (a source's capture time on the cell's
+    CLOCK_MONOTONIC, as the ROS 2 bridge gives it from a camera frame's header and the tools' feeds from their
+    schedule), so that the data's age counts the source's own latency: ISO/TS 15066's T_r runs from the detection
+    of the person, and a camera pipeline's 50-150 ms from capture to skeleton is part of it. The arrival where the
+    stamp is ahead of it (a clock that is not the cell's, or none: the arrival stands for the capture); None for a
+    sample captured more than `oldest` s before it arrived (stale: it is dropped, never taken for the person of
+    now). NaN counts as stale."""
+    if sample_time > arrival:
+        return arrival
+    return sample_time if arrival - sample_time <= oldest else None
 
 
 SOURCE_RATES = (1.0, 1000.0)   # Hz: the rates a source may be declared at (tracker_ingest --source-rate, hrc up)

@@ -64,7 +64,8 @@ Q = Spec("farray", (DOF,))
 
 @dataclass(frozen=True)
 class HumanRaw(Message):
-    """Raw human pose from a tracker: M capsules (end points in the robot base frame, m; radii, m)."""
+    """Raw human pose from a tracker: M capsules (end points in the robot base frame, m; radii, m), captured at
+    sample_time (s, the cell's CLOCK_MONOTONIC: the data's age counts from it)."""
 
     KIND: ClassVar[str] = "human_raw"
     SPEC: ClassVar[dict[str, Spec]] = {"source": S, "sample_time": F, "segments": Spec("farray", (-1, 2, 3)),
@@ -81,7 +82,8 @@ class HumanRaw(Message):
 @dataclass(frozen=True)
 class HumanState(Message):
     """Filtered human state: capsules, end-point velocities (m/s), whether each velocity is known,
-    whether the track is valid, the monotonic time the underlying sample arrived (s), and the tracker's
+    whether the track is valid, the monotonic time the underlying sample was captured (s; its arrival at the
+    tracker where its own time is not earlier: ``shared.tracking.tracker.capture_stamp``), and the tracker's
     measured interval between samples (s; 0 while not known): the source's rate, from which the age at
     which the data counts as stale is derived (shared.tracking.tracker.stale_bound)."""
 

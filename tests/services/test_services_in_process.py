@@ -320,7 +320,8 @@ def test_tracker_ingest_publishes_each_sample_with_velocities_and_announces_a_dr
     shell = FakeShell("tracker_ingest")
     service = TrackerIngest(shell, HumanTracker(TrackerParameters(window=0.04, dropout=0.05)))
     keys = shell.keys
-    t0 = time.monotonic()
+    HumanTracker.warm_up()                  # as the service does before its first sample: a compile at the first
+    t0 = time.monotonic()                   # (numba's cache cold) took 0.5 s, and the samples after it were stale
     for k in range(10):                     # one capsule walking at 1 m/s along x
         x = -2.0 + 0.01 * k
         shell.deliver(keys.human_raw, HumanRaw(source="test", sample_time=t0 + 0.01 * k,
@@ -337,6 +338,43 @@ def test_tracker_ingest_publishes_each_sample_with_velocities_and_announces_a_dr
     assert event.event == "tracker_dropout" and event.severity == "stop"
     shell.deliver(keys.human_raw, b"\x80")  # an empty map: not a message
     assert shell.bad_messages == 1
+
+
+def test_a_state_is_stamped_with_its_capture_so_a_cameras_latency_counts_in_the_datas_age(caplog):
+    """A sample captured 60 ms before it reached tracker_ingest (a camera pipeline's latency) is stamped with its
+    capture: at the scaler's next tick its age is past the 50 ms bound and the robot stops, where by its arrival
+    it would be 10 ms old and the robot would go on towards a person 60 ms further on than it knows. A stamp ahead
+    of the arrival (another clock) counts as captured on arrival; one 0.6 s old is dropped as stale and said."""
+    ingest_shell = FakeShell("tracker_ingest")
+    ingest = TrackerIngest(ingest_shell, HumanTracker(TrackerParameters()))
+    seg = np.array([[[-2.0, 0.0, 0.9], [-2.0, 0.0, 1.5]]])
+    HumanTracker.warm_up()
+    arrived = time.monotonic()
+    ingest_shell.deliver(ingest_shell.keys.human_raw, HumanRaw(source="camera", sample_time=arrived - 0.06,
+                                                               segments=seg, radii=np.array([0.2])))
+    after = time.monotonic()
+    (state,) = ingest_shell.published(ingest_shell.keys.human_state, HumanState)
+    assert state.sample_stamp == pytest.approx(arrived - 0.06, abs=1e-9)
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    shell.deliver(keys.human_state, state)
+    scaler.tick(after + 0.01)
+    assert shell.published(keys.scaler_status, ScalerStatus)[-1].status == "stale_human_data"
+    ahead = time.monotonic() + 5.0
+    ingest_shell.deliver(ingest_shell.keys.human_raw, HumanRaw(source="camera", sample_time=ahead, segments=seg,
+                                                               radii=np.array([0.2])))
+    newest = ingest_shell.published(ingest_shell.keys.human_state, HumanState)[-1]
+    assert after <= newest.sample_stamp <= time.monotonic()
+    late_shell = FakeShell("tracker_ingest")
+    late = TrackerIngest(late_shell, HumanTracker(TrackerParameters()))
+    with caplog.at_level(logging.WARNING):
+        for _ in range(2):
+            late_shell.deliver(late_shell.keys.human_raw, HumanRaw(source="late", sample_time=time.monotonic() - 0.6,
+                                                                   segments=seg, radii=np.array([0.2])))
+    assert not late_shell.published(late_shell.keys.human_state, HumanState)                # dropped, both
+    assert caplog.text.count("dropped as stale") == 1 and "1 human sample(s) from 'late'" in caplog.text
+    assert late.stale == 1 and ingest.stale == 0                # the second one waits for the next second's word
 
 
 def test_tracker_ingest_declares_its_sources_rate_until_it_measures_one(capsys):

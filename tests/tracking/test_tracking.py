@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from shared.tracking.tracker import HumanTracker, TrackerParameters
+from shared.tracking.tracker import OLDEST_SAMPLE, HumanTracker, TrackerParameters, capture_stamp
 
 DT = 1 / 240
 
@@ -90,3 +90,14 @@ def test_a_window_longer_than_the_buffer_keeps_every_sample_and_fits_exactly():
     assert tracker.samples == 121
     assert np.allclose(h.velocities[0], v, atol=1e-9)
     assert np.allclose(h.segments[0, 0], [0.3, 0.1, 1.0] + v * 299 * DT, atol=1e-9)
+
+
+def test_a_sample_is_stamped_with_its_capture_on_the_cells_clock():
+    """The data's age counts from the capture (a camera's latency is part of T_r): the sample's own time; the
+    arrival where that is ahead of it (no capture after its arrival); stale (None) past OLDEST_SAMPLE, and NaN."""
+    assert capture_stamp(9.94, 10.0) == 9.94
+    assert capture_stamp(10.0, 10.0) == 10.0
+    assert capture_stamp(12.0, 10.0) == 10.0                   # another clock, or one running ahead
+    assert capture_stamp(10.0 - OLDEST_SAMPLE, 10.0) == 10.0 - OLDEST_SAMPLE
+    assert capture_stamp(9.4, 10.0) is None and capture_stamp(float("nan"), 10.0) is None
+    assert capture_stamp(9.8, 10.0, oldest=0.1) is None
