@@ -23,6 +23,7 @@ from shared.core.errors import MessageError
 from shared.core.humans import HumanCapsules
 from shared.robot.poses import leg_fraction
 from shared.safety.latency import DelayHistogram
+from shared.tracking.tracker import OLDEST_SAMPLE
 from shared.wire.convert import humans_to_msg
 from shared.wire.keys import KeySpace
 from shared.wire.messages import (
@@ -168,15 +169,20 @@ class HumanFeed(threading.Thread):
     sending the ones it missed in a burst (a burst looks to the tracker like a glitch). ``fault`` may be
     changed at any time (FeedFault). speed: the motion played that many times faster (``hrc human replay
     --speed``). until: the motion's last second to send (None: until ``running`` is cleared); ``finished``
-    then says the feed ended by itself.
+    then says the feed ended by itself. latency (s): each sample goes out that long after its capture and is
+    stamped with the capture, as a camera pipeline delivers its skeletons (RealSense and OpenPose: 50-150 ms);
+    the cell counts it in the data's age (``shared.tracking.tracker.capture_stamp``).
 
     tracked=True stands in for the tracker instead (a cell without tracker_ingest): each sample goes out as a
     valid HumanState with the capsules' own velocities, on the key the scaler reads."""
 
     def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo",
                  rate: float | None = None, tracked: bool = False, speed: float = 1.0,
-                 until: float | None = None) -> None:
+                 until: float | None = None, latency: float = 0.0) -> None:
         super().__init__(daemon=True, name="human-feed")
+        if not 0.0 <= latency <= OLDEST_SAMPLE:
+            raise ValueError(f"latency: from 0 to {OLDEST_SAMPLE} s (a sample older than that is stale), got {latency}")
+        self.latency = float(latency)
         self.tracked = tracked
         self.pub = session.declare_publisher(keys.human_state if tracked else keys.human_raw)
         self.human, self.t0, self.source, self.running = human, t0, source, True
@@ -205,18 +211,19 @@ class HumanFeed(threading.Thread):
     def figures(self) -> dict:
         """What the feed did: its rate (Hz), samples sent and skipped, and how late it woke."""
         return {"rate_hz": round(self.rate, 3), "skipped": self.skipped, "sent": self.sent,
-                **self.lateness_figures()}
+                "latency_ms": round(1e3 * self.latency, 1), **self.lateness_figures()}
 
     def run(self) -> None:
         schedule, k = self.schedule, 0
         while self.running and not schedule.done(k):
-            due = self.t0 + schedule.offset(k) / self.speed
-            time.sleep(max(0.0, due - time.monotonic()))
+            due = self.t0 + schedule.offset(k) / self.speed          # its capture; it goes out `latency` later
+            time.sleep(max(0.0, due + self.latency - time.monotonic()))
             woke = time.monotonic()
-            if self.latest_at is None or woke - due > self.lateness.largest:
+            late = woke - due - self.latency
+            if self.latest_at is None or late > self.lateness.largest:
                 self.latest_at = due - self.t0
-            self.lateness.add(woke - due)                     # before a skip moves `due` on
-            newest = schedule.newest((woke - self.t0) * self.speed)
+            self.lateness.add(late)                           # before a skip moves `due` on
+            newest = schedule.newest((woke - self.latency - self.t0) * self.speed)
             if newest > k:                                    # late: the samples missed are gone
                 self.skipped += newest - k
                 k = newest

@@ -52,6 +52,20 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def sample_latency(text: str) -> float:
+    """A source's latency (s) from capture to the cell: 0 up to OLDEST_SAMPLE (a sample older is stale)."""
+    from shared.tracking.tracker import OLDEST_SAMPLE
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not 0.0 <= value <= OLDEST_SAMPLE:
+        raise argparse.ArgumentTypeError(f"expected 0 to {OLDEST_SAMPLE} s (a sample older than that is stale and "
+                                         f"dropped), got {text!r}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -91,6 +105,9 @@ def _add_demo(sub) -> None:
                            "docs/human-motion.md) in place of the paper's phases")
     demo.add_argument("--phase-length", type=_positive_float, default=6.0, metavar="SECONDS",
                       help="length of each of the four human phases (default 6)")
+    demo.add_argument("--latency", type=sample_latency, default=0.0, metavar="SECONDS",
+                      help="the person feed's latency: each sample reaches the cell this long after its capture and "
+                           "is stamped with it, as a camera pipeline delivers skeletons (processes only; default 0)")
     demo.add_argument("--config", type=Path, default=None, metavar="FILE",
                       help="cell configuration YAML (default: built-in, same as deploy/cell.yaml)")
     demo.add_argument("--paper-formula", action="store_true",

@@ -75,7 +75,7 @@ def _demo_processes(args: argparse.Namespace) -> int:
             return code
         try:
             summary = demo.run(args.out, args.duration, args.phase_length, args.config, args.seed, args.no_beta,
-                               args.quiet, default_robot(), config, args.human, args.view_fd)
+                               args.quiet, default_robot(), config, args.human, args.view_fd, args.latency)
         except RuntimeError as exc:
             print(f"hrc demo: error: {exc}", file=sys.stderr)
             return 1
@@ -101,6 +101,8 @@ def _demo_processes(args: argparse.Namespace) -> int:
 def _demo_sim(args: argparse.Namespace, human) -> int:
     if args.view:
         raise UsageError("--view needs the processes (without --sim); a --sim run is its summary only")
+    if args.latency:
+        raise UsageError("--latency needs the processes (without --sim): the simulation takes each person as captured")
     from evidence.scenarios import Q_GOAL, Q_START, paper_phases
     from evidence.sim import run_shuttle
     from shared.config import load_config

@@ -69,11 +69,12 @@ def service_args(no_beta: bool, rate: float | None) -> dict[str, list[str]]:
             **source_rate_args(rate)}
 
 
-def start_feed(cell: CellProcesses, human_file: Path | None, phase_length: float, stats: Path):
-    """The person feed's process (tools.feed), connected and ready to start; its Popen."""
+def start_feed(cell: CellProcesses, human_file: Path | None, phase_length: float, stats: Path, latency: float = 0.0):
+    """The person feed's process (tools.feed), connected and ready to start; its Popen. latency: s from each
+    sample's capture to its sending."""
     motion = ["--human", str(human_file)] if human_file is not None else ["--phase-length", repr(phase_length)]
     return cell.spawn_helper("human_feed", ["tools.feed", "--connect", cell.endpoint, "--prefix", cell.prefix,
-                                            "--stats", str(stats), *motion], READY)
+                                            "--stats", str(stats), "--latency", repr(latency), *motion], READY)
 
 
 def start_witness(cell: CellProcesses, stats: Path):
@@ -104,10 +105,12 @@ def feed_figures(stats: Path) -> dict:
 
 
 def run(out: Path, duration: float, phase_length: float, config_path: Path | None, seed: int, no_beta: bool,
-        quiet: bool, robot, config, human_file: Path | None = None, view_fd: int | None = None) -> dict:
+        quiet: bool, robot, config, human_file: Path | None = None, view_fd: int | None = None,
+        latency: float = 0.0) -> dict:
     """The experiment on the real processes; returns the summary (written to out/summary.json). human_file:
     a recorded motion (shared.tracking.motion.RecordedMotion) in place of the paper's phases; view_fd: a pipe to a
-    served 3D viewer (tools.view.ViewServer) to log every message into as it arrives."""
+    served 3D viewer (tools.view.ViewServer) to log every message into as it arrives; latency: s from each of the
+    person's samples' capture to the cell (a camera pipeline's)."""
     interface, channel = choose_bus()
     keys = KeySpace(PREFIX)
     human = RecordedMotion.load(human_file) if human_file is not None else paper_phases(phase_length)
@@ -125,7 +128,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
         started = time.monotonic()
         cell.start(session)
         start_witness(cell, machine)
-        feed = start_feed(cell, human_file, phase_length, stats)
+        feed = start_feed(cell, human_file, phase_length, stats, latency)
         what = f"the motion in {human_file}" if human_file is not None else "the paper's four phases"
         say(f"hrc demo: all services up in {time.monotonic() - started:.1f} s; {duration:.0f} s of {what}"
             f"{' (no beta replans)' if no_beta else ''}")

@@ -25,6 +25,8 @@ import signal
 import sys
 from pathlib import Path
 
+from tools.arguments import sample_latency
+
 READY = "human_feed: ready"
 
 
@@ -35,6 +37,8 @@ def arguments(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--human", type=Path, default=None, help="a motion file (default: the paper's phases)")
     parser.add_argument("--phase-length", type=float, default=6.0, help="s per phase of the paper's phases")
     parser.add_argument("--source", default="hrc demo", help="the source named in every sample")
+    parser.add_argument("--latency", type=sample_latency, default=0.0,
+                        help="s each sample goes out after its capture, stamped with the capture (a camera's latency)")
     parser.add_argument("--stats", type=Path, required=True, help="where the feed's figures go at the end")
     return parser.parse_args(argv)
 
@@ -71,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"human_feed: error: the start must be a monotonic time in s, not {line.strip()[:40]!r}",
                   file=sys.stderr)
             return 2
-        feed = HumanFeed(session, keys, human, t0, source=args.source)
+        feed = HumanFeed(session, keys, human, t0, source=args.source, latency=args.latency)
         signal.signal(signal.SIGTERM, lambda *_: setattr(feed, "running", False))
         human.at(0.0)                                 # its first evaluation before SCHED_FIFO, not under it
         scheduling = realtime("human_feed")

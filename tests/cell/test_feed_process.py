@@ -85,3 +85,10 @@ def test_a_start_that_is_not_a_time_is_refused(tmp_path):
         token.undeclare()
         session.close()
     assert proc.returncode == 2 and "'soon'" in err and "Traceback" not in err, err
+
+
+def test_a_latency_outside_what_the_cell_takes_is_refused_before_anything_starts(tmp_path):
+    proc = _feed(f"tcp/127.0.0.1:{free_port()}", tmp_path / "stats.json", "--latency", "0.7")
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and "--latency" in err and "stale" in err and "Traceback" not in err, err
+    assert READY not in out and not (tmp_path / "stats.json").exists()

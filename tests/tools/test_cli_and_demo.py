@@ -24,6 +24,9 @@ PAPER = load_config(Path(__file__).resolve().parents[2] / "deploy" / "cell-paper
     (["demo", "--duration", "soon"], "expected a number"),
     (["demo", "--config", "/nonexistent/cell.yaml"], "cannot read"),
     (["demo", "--no-planner"], "needs --sim"),
+    (["demo", "--latency", "0.6"], "stale"),
+    (["demo", "--latency", "-0.1"], "expected 0 to 0.5 s"),
+    (["demo", "--sim", "--latency", "0.05"], "--latency needs the processes"),
     (["fly"], "invalid choice"),
 ])
 def test_bad_arguments_exit_nonzero_with_a_clear_message(args, text):

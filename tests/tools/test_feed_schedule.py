@@ -127,3 +127,19 @@ def test_hrc_demo_declares_a_recorded_motions_rate_to_the_tracker():
     assert both == {**NO_BETA_ARGS, "tracker_ingest": ["--source-rate", "30.0"]}
     both["planner"].append("--x")                              # a copy: the shared table stays as it is
     assert NO_BETA_ARGS["planner"] == ["--no-beta"]
+
+
+def test_a_feed_with_latency_sends_each_sample_that_long_after_its_capture_stamped_with_the_capture():
+    motion = _motion([0.0, 0.05, 0.1, 0.15])
+    session = _Session()
+    t0 = time.monotonic() + 0.02
+    feed = HumanFeed(session, KeySpace("t/feed"), motion, t0, until=motion.duration, latency=0.08)
+    feed.run()
+    sent = session.publisher.sent
+    assert feed.finished and feed.skipped == 0 and feed.figures()["latency_ms"] == 80.0
+    assert [m.sample_time - t0 for _, m in sent] == pytest.approx([0.0, 0.05, 0.1, 0.15])   # stamped at capture
+    assert [float(m.segments[0, 0, 1]) for _, m in sent] == pytest.approx([0.0, 0.05, 0.1, 0.15])  # the person then
+    assert all(at >= m.sample_time + 0.08 - 1e-6 for at, m in sent)                         # sent 80 ms after it
+    for bad in (-0.01, 0.6, float("nan")):
+        with pytest.raises(ValueError, match="latency"):
+            HumanFeed(session, KeySpace("t/feed"), motion, t0, latency=bad)
