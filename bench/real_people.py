@@ -23,10 +23,12 @@ Placements (shoulders 1.35 m high, facing the robot across its sweep; ``evidence
   the table's edge, beside the end of the sweep the robot starts from; the real_around scenario kind draws these).
 
     python bench/real_people.py [--sim] [--paper-formula] [--placements table_edge,step_back,X:YAW]
-                                [--recordings DIR] [--only NAME ...] [--out DIR] [--every N]
+                                [--recordings DIR] [--only NAME ...] [--out DIR] [--every N] [--latency S]
 
 ``--every 2`` keeps every second frame of each recording: the same people as a 15 Hz camera would see them
 (``hrc human from-keypoints --every``), sent at that rate; the tracker's window and dropout bound follow it.
+``--latency S`` has each frame reach the cell S after its capture, stamped with it (``hrc demo --latency``): a
+camera pipeline's latency, which the cell counts in the data's age.
 
 Each processes run takes the recording's length plus about 15 s to start and stop the cell; the 24 runs of
 both placements about 20 minutes on this 2-core machine.
@@ -46,6 +48,7 @@ sys.path.insert(0, str(ROOT))
 
 from evidence.recorded import PLACEMENTS, RECORDINGS, placement_named  # noqa: E402  (the placements, one definition)
 from shared.core.errors import ConfigError  # noqa: E402
+from tools.arguments import sample_latency  # noqa: E402
 
 HRC = [sys.executable, "-m", "tools.cli"]
 
@@ -60,11 +63,13 @@ def convert(recording: Path, placement: str, out: Path, every: int = 1) -> Path:
     return motion
 
 
-def run(motion: Path, report: Path, sim: bool, paper: bool, config: Path | None = None) -> dict:
-    """One ``hrc demo --human`` run (with the cell configuration `config`, where given); its summary.json, or
-    {"error": ...} where the run gave none."""
+def run(motion: Path, report: Path, sim: bool, paper: bool, config: Path | None = None, latency: float = 0.0) -> dict:
+    """One ``hrc demo --human`` run (with the cell configuration `config`, where given; the person's samples
+    reaching the cell `latency` s after their capture); its summary.json, or {"error": ...} where the run gave
+    none."""
     cmd = HRC + ["demo", "--human", str(motion), "--out", str(report), "--quiet"]
     cmd += ["--sim"] if sim else []
+    cmd += ["--latency", repr(latency)] if latency else []
     cmd += ["--paper-formula"] if paper else []
     cmd += ["--config", str(config)] if config is not None else []
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
@@ -176,7 +181,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--every", type=int, default=1, metavar="N",
                         help="keep every N-th frame of each recording: the same people as a tracker at 1/N their "
                              "30 Hz sees them (2: a 15 Hz camera; hrc human from-keypoints --every)")
+    parser.add_argument("--latency", type=sample_latency, default=0.0, metavar="SECONDS",
+                        help="each sample reaches the cell this long after its capture, stamped with it (a camera "
+                             "pipeline's latency; hrc demo --latency; processes only)")
     args = parser.parse_args(argv)
+    if args.latency and args.sim:
+        parser.error("--latency needs the processes (without --sim)")
     if args.every < 1:
         parser.error(f"--every: expected a whole number >= 1, got {args.every}")
     placements = [p.strip() for p in args.placements.split(",") if p.strip()]
@@ -209,8 +219,10 @@ def main(argv: list[str] | None = None) -> int:
             except subprocess.CalledProcessError as exc:
                 r = row(recording.stem, placement, {"error": f"conversion: {exc.stderr.strip()[-300:]}"})
             else:
-                r = row(recording.stem, placement, run(motion, motion.with_suffix(""), args.sim,
-                                                       args.paper_formula, args.config))
+                report = motion.with_name(motion.stem + (f"-latency{round(args.latency * 1e3)}ms" if args.latency
+                                                         else ""))
+                r = row(recording.stem, placement, run(motion, report, args.sim, args.paper_formula, args.config,
+                                                       args.latency))
             rows.append(r)
             cells = [r["recording"], r["placement"]] + ([f"error: {r['error']}"] if r["error"] else
                      [_cell(r["shuttles_per_min"]), _cell(r["progress_per_min"]), _cell(r["stopped"], share=True)]
@@ -229,7 +241,7 @@ def main(argv: list[str] | None = None) -> int:
               f"no shuttle done: {', '.join(m['held']) or 'none'}")
     print(f"reports in {out}")
     print(json.dumps({"rows": rows, "means": summary, "sim": args.sim, "paper_formula": args.paper_formula,
-                      "every": args.every,
+                      "every": args.every, "latency_s": args.latency,
                       "config": None if args.config is None else str(args.config)}))
     return 0 if all(r["error"] is None for r in rows) else 1
 

@@ -4,6 +4,7 @@ one short recording in the simulation end to end (the figures themselves are the
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -31,6 +32,10 @@ def test_bad_arguments_are_refused_with_the_reason(capsys, tmp_path):
     with pytest.raises(SystemExit) as exit_:
         bench.main(["--recordings", str(FIXTURE), "--only", "nobody"])
     assert exit_.value.code == 2 and "named ['nobody']" in capsys.readouterr().err
+    for bad, said in ((["--latency", "0.9"], "stale"), (["--latency", "0.05", "--sim"], "needs the processes")):
+        with pytest.raises(SystemExit) as exit_:
+            bench.main(bad)
+        assert exit_.value.code == 2 and said in capsys.readouterr().err
 
 
 def test_a_recording_goes_through_the_simulation_and_its_row_comes_from_the_runs_summary(capsys, tmp_path):
@@ -124,3 +129,15 @@ def test_a_stale_command_says_how_many_commands_were_sent_meanwhile():
     assert bench.event_cell(bench.row("r", "table_edge", summary)) == \
         "robot_driver:stale_command (machine, 0 commands sent meanwhile)"
     assert bench.event_cell(bench.row("r", "table_edge", {"shuttles_per_min": 1.0})) == "-"
+
+
+def test_a_latency_goes_to_the_demo_of_each_run(monkeypatch, tmp_path):
+    bench = load_bench("real_people")
+    calls = []
+    monkeypatch.setattr(bench.subprocess, "run", lambda cmd, **_: calls.append(cmd) or SimpleNamespace(
+        returncode=1, stderr="no cell here", stdout=""))
+    said = bench.run(tmp_path / "motion.json", tmp_path / "report", False, False, None, 0.08)
+    assert said == {"error": "exit 1: no cell here"}
+    assert calls[0][calls[0].index("--latency") + 1] == "0.08" and "--sim" not in calls[0]
+    bench.run(tmp_path / "motion.json", tmp_path / "report", False, False)
+    assert "--latency" not in calls[1]
