@@ -69,6 +69,7 @@ class MonitorService:
         """The people and joint states that arrived since the last pass, into the history and the backlog."""
         for msg in self.humans_in.drain():
             self.humans.add(msg.sample_stamp, humans_from_msg(msg))
+            self.backlog.note_delay(msg.stamp - msg.sample_stamp)      # its capture to the tracker's publication
         for msg in self.joints_in.drain():
             self.backlog.add(msg.stamp, msg.q, msg.qd)
 
@@ -96,7 +97,7 @@ class MonitorService:
         self.unchecked_why.update(u.kind for u in unchecked)
         late = [u for u in unchecked if u.kind == "late"]
         lag = done - ready[0][0] if ready else 0.0          # the oldest state of this pass
-        behind = bool(late) or lag > BEHIND
+        behind = bool(late) or lag > BEHIND + self.backlog.delay       # not the people's own latency
         if behind and not self.behind:
             self._event("monitor_behind", "warning", f"the safety monitor runs {lag * 1e3:.0f} ms behind; "
                         f"{len(late)} joint states skipped unchecked" if late else

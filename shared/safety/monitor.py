@@ -42,6 +42,7 @@ from shared.core.humans import HumanCapsules
 from shared.robot.model import RobotModel
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import default_human_speed, velocity_limit
+from shared.tracking.tracker import OLDEST_SAMPLE
 
 
 def _capsule_placement(a: np.ndarray, b: np.ndarray) -> tuple[pin.SE3, float]:
@@ -412,6 +413,7 @@ class Unchecked(NamedTuple):
 
 
 AT_REST = 1e-4     # rad/s: every joint slower than this is at rest (0.1 mm/s at a metre: below the tolerance)
+DELAYS_KEPT = 64   # people samples whose way from capture to the tracker's publication the monitor's wait follows
 
 
 @dataclass
@@ -430,7 +432,9 @@ class Backlog:
     ``pair_age`` (the tracker was silent: the scaler had stopped the robot, and what the person did then is
     not known), or an invalid track; and when the monitor reaches it more than ``deadline`` seconds after
     it was measured (a monitor that fell that far behind skips ahead instead of reporting the past as if it
-    were now).
+    were now). The people's samples are stamped with their capture and reach the monitor ``delay`` later at
+    the most (a camera's latency, the tracker's hop: ``note_delay``), so the wait and the deadline are that
+    much longer: a state is never paired before the person of its moment can have come.
     """
 
     pair_wait: float = 0.1
@@ -438,6 +442,17 @@ class Backlog:
     deadline: float = 0.5
     _pending: list = field(default_factory=list)
     _previous: float = -np.inf           # when the last state taken (checked or not) was measured
+    _delays: deque = field(default_factory=lambda: deque(maxlen=DELAYS_KEPT))
+
+    def note_delay(self, delay: float) -> None:
+        """A people sample's way from its capture to its publication by the tracker (s)."""
+        if np.isfinite(delay):
+            self._delays.append(min(max(float(delay), 0.0), OLDEST_SAMPLE))
+
+    @property
+    def delay(self) -> float:
+        """s: the longest of the last DELAYS_KEPT samples' ways from capture to publication (0 before any)."""
+        return max(self._delays, default=0.0)
 
     def add(self, stamp: float, q: np.ndarray, qd: np.ndarray) -> None:
         self._pending.append((stamp, q, qd))
@@ -450,14 +465,14 @@ class Backlog:
         """(states to check now with their person, states that cannot be checked with the reason); the
         rest stay for a later pass. Both lists in measurement order."""
         ready, unchecked, keep = [], [], []
-        newest = history.newest
+        newest, delay = history.newest, self.delay
         for stamp, q, qd in sorted(self._pending, key=lambda item: item[0]):
             age = now - stamp
-            if age > self.deadline:
+            if age > self.deadline + delay:
                 unchecked.append(Unchecked(stamp, "late", f"reached {age * 1e3:.0f} ms after it was measured"))
                 continue
             at_rest = np.abs(qd).max() <= AT_REST
-            if not at_rest and (newest is None or newest <= stamp) and age < self.pair_wait:
+            if not at_rest and (newest is None or newest <= stamp) and age < self.pair_wait + delay:
                 keep.append((stamp, q, qd))                   # the person of its moment may still arrive
                 continue
             paired = history.pair_since(stamp, self._previous)

@@ -214,6 +214,41 @@ def test_a_state_is_checked_against_the_person_of_its_moment_or_counted_unchecke
     assert "after it was measured" in unchecked[0].reason and "ms old" in unchecked[1].reason and len(backlog) == 0
 
 
+def test_with_a_cameras_latency_a_state_waits_for_the_person_of_its_moment_that_long_longer():
+    """People samples stamped with their capture reach the monitor their latency later: a state measured at 1.00
+    s, with the person captured at 0.98 s and 1.03 s arriving 0.15 s after each, must not be paired at 1.11 s
+    with the person captured at 0.90 s alone (the plain wait, 0.1 s, is over); with the latency noted it waits,
+    and is paired with the people of its moment (0.98's, and 0.90's in force before) once the one captured after
+    it has come."""
+    from shared.safety.monitor import Backlog, HumanHistory
+    rng = np.random.default_rng(3)
+    early, moment, later = (_random_person(rng, 1) for _ in range(3))
+    q, moving = np.zeros(6), np.full(6, 0.5)
+    for noted in (False, True):
+        history, backlog = HumanHistory(), Backlog(pair_wait=0.1, pair_age=0.1, deadline=0.5)
+        history.add(0.90, early)
+        if noted:
+            for _ in range(3):
+                backlog.note_delay(0.15)
+            backlog.note_delay(float("nan"))                 # no figure: ignored
+        backlog.add(1.00, q, moving)
+        ready, _ = backlog.take(1.11, history)              # 0.98's person is not here yet (comes at 1.13)
+        if not noted:
+            assert [h is early for _, _, _, h in ready] == [True]       # paired with a person 0.1 s old
+            continue
+        assert ready == [] and backlog.delay == 0.15
+        history.add(0.98, moment)                           # arrived at 1.13
+        history.add(1.03, later)                            # arrived at 1.18: the pairing is final
+        ready, unchecked = backlog.take(1.18, history)
+        (_, _, _, people), = ready                           # the people in force since: 0.90's and 0.98's
+        assert unchecked == [] and people.count == early.count + moment.count
+        assert np.array_equal(people.segments[:moment.count], moment.segments)    # newest first, not 1.03's
+    capped = Backlog()
+    capped.note_delay(9.0)
+    capped.note_delay(-1.0)
+    assert capped.delay == 0.5                               # never past a stale sample's age
+
+
 def test_an_episode_of_a_robot_that_creeps_must_end_within_its_own_stopping_time():
     """The reaction window brakes over the T_s of the episode's first state (``MonitorResult.stop``): a robot
     that exceeds at a crawl (T_s 0.05 s) is late after T_r + 0.05 s, where one at full speed has 0.3 s."""

@@ -448,6 +448,22 @@ def test_the_monitor_checks_states_paired_with_people_and_counts_the_rest_unchec
     assert shell.published(keys.safety_events, SafetyEvent)[-1].event == "monitor_summary"
 
 
+def test_the_monitor_waits_for_the_people_as_long_as_their_samples_take_from_capture():
+    """A camera 150 ms behind (the tracker publishes each state 0.15 s after its capture): the monitor's backlog
+    waits that much longer for the person of a state's moment, and is not 'behind' for the camera's latency."""
+    shell = FakeShell("safety_monitor")
+    service = MonitorService(shell, SafetyMonitor(ROBOT, CONFIG.ssm))
+    now = time.monotonic()
+    shell.deliver(shell.keys.human_state, humans_to_msg(FAR, True, now - 0.2, stamp=now - 0.05))
+    shell.deliver(shell.keys.joint_state, JointState(q=Q_START, qd=np.full(6, 0.2), drive_state="running",
+                                                     enabled=True, fault=False, stamp=now - 0.13))
+    service.check_pass(now)                          # 130 ms after the state: its person may still come
+    assert service.backlog.delay == pytest.approx(0.15) and service.checks == 0 and len(service.backlog) == 1
+    shell.deliver(shell.keys.human_state, humans_to_msg(FAR, True, now - 0.12, stamp=now + 0.03))
+    service.check_pass(now + 0.04)
+    assert service.checks == 1 and service.unchecked == 0 and not service.behind
+
+
 def test_the_scaler_says_where_it_awaits_the_replan_it_asked_for_and_takes_the_plan_from_there():
     """With scaling.await_plan > 0 (0 shipped), a crawling robot that asks for a replan is stopped, and the status
     says where (stop_s): the planner's plan from rest there is taken at once. Before the request, and once the plan
