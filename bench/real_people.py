@@ -5,7 +5,8 @@ assembling LEGO at a table) are converted with the product's own reader (``hrc h
 --format assembly --translate X 0 1.1``) at each placement, and run through ``hrc demo --human`` on the real
 processes (every service over Zenoh, the emulated PRBT on CAN; the recording sent at its own 30 Hz), or in the
 simulation with ``--sim``. One row per run, from the run's own summary.json (docs/report-format.md): shuttles per
-minute (whole shuttles, and with the last leg's part counted), the stopped share, the violations counted by the
+minute (whole shuttles, and with the last leg's part counted), the stopped share, the share of control cycles with
+the people's data stale, the violations counted by the
 monitor, by the report's recount and by the independent judge (tools/judge.py), the states left unchecked, the
 tracker's dropouts and unknown velocities, the independent judge's speed-ups within T_r, the worst joint's drive
 lag p99, the machine's own stalls (the demo's FIFO 99 witness, ``tools.stalls``) and the events that were not info,
@@ -100,6 +101,8 @@ def row(recording: str, placement: str, summary: dict) -> dict:
             "shuttles_per_min": summary.get("shuttles_per_min"),
             "progress_per_min": progress_per_min(summary),
             "stopped": summary.get("stopped_fraction"),
+            # the people's data stale (its age from the capture past the bound: a camera's latency counts)
+            "stale_data": tracker.get("stale_share"),
             "violations": [summary.get("violations"), check.get("violations_recounted"), independent.get("violations")],
             "unchecked": check.get("unchecked"),
             "dropouts": tracker.get("dropouts"),
@@ -205,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out or Path(tempfile.mkdtemp(prefix="real-people-"))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
-    header = ["recording", "placement", "shuttles/min", "with the last leg's part", "stopped",
+    header = ["recording", "placement", "shuttles/min", "with the last leg's part", "stopped", "stale data",
               "violations (monitor / recount / independent)",
               "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups", "drive lag p99 ms",
               "machine stalls > 10 ms (count, longest ms)", "scaler silences (count, longest ms, joint states in it)",
@@ -225,7 +228,8 @@ def main(argv: list[str] | None = None) -> int:
                                                        args.latency))
             rows.append(r)
             cells = [r["recording"], r["placement"]] + ([f"error: {r['error']}"] if r["error"] else
-                     [_cell(r["shuttles_per_min"]), _cell(r["progress_per_min"]), _cell(r["stopped"], share=True)]
+                     [_cell(r["shuttles_per_min"]), _cell(r["progress_per_min"]), _cell(r["stopped"], share=True),
+                      _cell(r["stale_data"], share=True)]
                      + [_cell(r[k]) for k in ("violations", "unchecked", "dropouts")]
                      + [f"{_cell(r['velocity_unknown'][0], share=True)}, {_cell(r['velocity_unknown'][1])}"]
                      + [_cell(r[k]) for k in ("speedups", "drive_lag_p99_ms")]

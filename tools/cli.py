@@ -83,8 +83,10 @@ def _demo_processes(args: argparse.Namespace) -> int:
         if server is not None:
             server.stop()
     from tools import silences, stalls
+    from tools.report import stale_said
 
-    for line in (stalls.said(summary.get("machine") or {}), silences.said(summary.get("scaler_silences") or {})):
+    for line in (stalls.said(summary.get("machine") or {}), silences.said(summary.get("scaler_silences") or {}),
+                 stale_said(summary.get("tracker") or {})):
         if line is not None:
             print(f"hrc demo: {line}")
     accepted = sum(1 for e in summary["replans"] if e["ok"])

@@ -171,8 +171,13 @@ def monitor_summary(rec: Recording, series: dict[str, np.ndarray], violations: i
 
 def tracker_summary(rec: Recording) -> dict:
     """The people as tracker_ingest gave them: the source's measured sample interval (median, ms), the share
-    of valid states with some velocity unknown and the longest such run (ms), and the dropouts declared."""
+    of valid states with some velocity unknown and the longest such run (ms), the dropouts declared; each valid
+    state's way from its sample's capture to its publication (ms, p50 and p99: a camera's latency and the
+    tracker's hop, which the data's age counts), and the share of control cycles the scaler found the people's
+    data stale (its age from the capture past the stale bound)."""
     valid = [m for m in rec.human_states if m.valid]
+    capture = np.array([m.stamp - m.sample_stamp for m in valid])
+    stale = np.array([s.status == "stale_human_data" for s in rec.statuses], dtype=bool)
     intervals = np.array([m.sample_interval for m in valid if m.sample_interval > 0])
     unknown = np.array([not np.all(m.velocity_known) for m in valid], dtype=bool)
     stamps = np.array([m.sample_stamp for m in valid])
@@ -188,7 +193,25 @@ def tracker_summary(rec: Recording) -> dict:
             "sample_interval_ms": round(float(np.median(intervals)) * 1e3, 2) if intervals.size else None,
             "velocity_unknown_share": round(float(unknown.mean()), 4) if unknown.size else None,
             "velocity_unknown_longest_ms": round(longest * 1e3, 1),
-            "dropouts": sum(1 for e in rec.events if e.source == "tracker_ingest" and e.event == "tracker_dropout")}
+            "dropouts": sum(1 for e in rec.events if e.source == "tracker_ingest" and e.event == "tracker_dropout"),
+            "capture_to_state_ms": _percentiles(capture, 50, 99),
+            "stale_share": round(float(stale.mean()), 4) if stale.size else None}
+
+
+STALE_SAID = 0.01     # the share of control cycles with stale people data from which `hrc demo` says so
+
+
+def stale_said(tracker: dict) -> str | None:
+    """One line for the operator when the people's data was stale in STALE_SAID of the control cycles or more
+    (None otherwise): a source's latency counts in the data's age, and the bounds that cover it are named."""
+    share = tracker.get("stale_share")
+    if share is None or share < STALE_SAID:
+        return None
+    latency = (tracker.get("capture_to_state_ms") or {}).get("p99")
+    way = f" (from a sample's capture to the tracker's state: p99 {latency:.0f} ms)" if latency is not None else ""
+    return (f"the people's data was stale in {100 * share:.0f} % of the control cycles{way}: its age counts from the "
+            "capture, so a camera's latency counts; raise scaling.human_timeout and ssm.reaction_time to cover it "
+            "(docs/human-motion.md)")
 
 
 def drive_summary(rec: Recording) -> dict:

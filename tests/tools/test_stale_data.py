@@ -1,0 +1,41 @@
+"""What a run's report says of the people's data's age (tools.report): each state's way from its sample's capture
+to the tracker's publication, the share of control cycles the scaler found it stale, and the line `hrc demo` says
+when that share is not small."""
+
+import numpy as np
+import pytest
+
+from shared.core.humans import HumanCapsules
+from shared.wire.convert import humans_to_msg
+from shared.wire.messages import ScalerStatus
+from tools.report import Recording, stale_said, tracker_summary
+
+PERSON = HumanCapsules.from_arrays([[[-1.5, 0.0, 0.9], [-1.5, 0.0, 1.4]]], [0.2], np.zeros((1, 2, 3)), [True])
+
+
+def status(t: float, stale: bool) -> ScalerStatus:
+    return ScalerStatus(s=0.0, alpha=0.0, safe_alpha=0.0, beta=False, q_command=np.zeros(6), trajectory_version=1,
+                        status="stale_human_data" if stale else "running", method="none", min_separation=None,
+                        min_margin=None, compute_us=0.0, speed=0.0,
+                        held=False, pending=-1, received=1, stamp=t)
+
+
+def test_a_cameras_latency_and_the_stale_cycles_it_makes_are_reported_and_said():
+    rec = Recording(t0=100.0)
+    rec.human_states = [humans_to_msg(PERSON, True, 100.0 + k / 30, stamp=100.0 + k / 30 + 0.06)
+                        for k in range(30)]                             # 30 Hz, each 60 ms after its capture
+    rec.statuses = [status(100.0 + k * 0.01, stale=k % 5 < 2) for k in range(100)]     # 40 % of the cycles
+    tracker = tracker_summary(rec)
+    assert tracker["capture_to_state_ms"] == {"p50": pytest.approx(60.0), "p99": pytest.approx(60.0)}
+    assert tracker["stale_share"] == 0.4
+    line = stale_said(tracker)
+    assert "stale in 40 % of the control cycles" in line and "p99 60 ms" in line and "scaling.human_timeout" in line
+
+
+def test_nothing_is_said_of_fresh_data_nor_of_a_run_without_figures():
+    rec = Recording(t0=100.0)
+    rec.statuses = [status(100.0 + k * 0.01, stale=k == 0) for k in range(200)]          # 0.5 %: a moment
+    tracker = tracker_summary(rec)
+    assert tracker["stale_share"] == 0.005 and tracker["capture_to_state_ms"] == {"p50": None, "p99": None}
+    assert stale_said(tracker) is None and stale_said({}) is None
+    assert tracker_summary(Recording(t0=0.0))["stale_share"] is None
