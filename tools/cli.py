@@ -83,10 +83,10 @@ def _demo_processes(args: argparse.Namespace) -> int:
         if server is not None:
             server.stop()
     from tools import silences, stalls
-    from tools.report import stale_said
+    from tools.report import reaction_said, stale_said
 
     for line in (stalls.said(summary.get("machine") or {}), silences.said(summary.get("scaler_silences") or {}),
-                 stale_said(summary.get("tracker") or {})):
+                 stale_said(summary.get("tracker") or {}), reaction_said(summary)):
         if line is not None:
             print(f"hrc demo: {line}")
     accepted = sum(1 for e in summary["replans"] if e["ok"])

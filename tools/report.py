@@ -214,6 +214,19 @@ def stale_said(tracker: dict) -> str | None:
             "(docs/human-motion.md)")
 
 
+def reaction_said(summary: dict) -> str | None:
+    """One line for the operator when the measured reaction chain does not fit in T_r (the summary's
+    ``reaction_time_covers_p99`` false; None otherwise): from a sample's capture to the frame on CAN (p99), and the
+    wait for the source's next sample, against ssm.reaction_time."""
+    if summary.get("reaction_time_covers_p99") is not False:
+        return None
+    chain = ((summary.get("latency") or {}).get("sample_to_frame_ms") or {}).get("p99") or 0.0
+    interval = (summary.get("tracker") or {}).get("sample_interval_ms") or 0.0
+    return (f"the reaction chain, from a sample's capture to its frame on CAN (p99 {chain:.0f} ms) and the source's "
+            f"{interval:.0f} ms to its next sample, is longer than T_r ({1e3 * summary['reaction_time_s']:.0f} ms): "
+            "the SSM's distances assume a faster reaction; raise ssm.reaction_time to cover it")
+
+
 def drive_summary(rec: Recording) -> dict:
     """The drives as the robot driver reported them: the worst per-joint lag p99 (ms) over the reports, the
     largest following error (rad), the SYNCs some drive did not answer in time (all, and the most in one

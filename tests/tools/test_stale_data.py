@@ -8,7 +8,7 @@ import pytest
 from shared.core.humans import HumanCapsules
 from shared.wire.convert import humans_to_msg
 from shared.wire.messages import ScalerStatus
-from tools.report import Recording, stale_said, tracker_summary
+from tools.report import Recording, reaction_said, stale_said, tracker_summary
 
 PERSON = HumanCapsules.from_arrays([[[-1.5, 0.0, 0.9], [-1.5, 0.0, 1.4]]], [0.2], np.zeros((1, 2, 3)), [True])
 
@@ -39,3 +39,12 @@ def test_nothing_is_said_of_fresh_data_nor_of_a_run_without_figures():
     assert tracker["stale_share"] == 0.005 and tracker["capture_to_state_ms"] == {"p50": None, "p99": None}
     assert stale_said(tracker) is None and stale_said({}) is None
     assert tracker_summary(Recording(t0=0.0))["stale_share"] is None
+
+
+def test_a_reaction_chain_longer_than_t_r_is_said_with_its_parts():
+    summary = {"reaction_time_covers_p99": False, "reaction_time_s": 0.1,
+               "latency": {"sample_to_frame_ms": {"p50": 68.4, "p99": 72.5}}, "tracker": {"sample_interval_ms": 33.33}}
+    line = reaction_said(summary)
+    assert "p99 72 ms" in line and "33 ms to its next sample" in line and "T_r (100 ms)" in line
+    assert reaction_said({**summary, "reaction_time_covers_p99": True}) is None
+    assert reaction_said({"reaction_time_covers_p99": None}) is None            # not measured: nothing said
