@@ -3,7 +3,7 @@
 Every raw sample (<prefix>/human/raw, HumanRaw: capsules from motion capture at up to 240 Hz, a camera
 skeleton tracker at 15-60 Hz, the CLI or a replay) is filtered and published at once as HumanState on
 <prefix>/human/state, stamped with its capture time on the cell's clock (``capture_stamp``: the sample's own
-time, or its arrival where that is earlier; the scaler measures the data's age from it, so a camera's latency
+time, or its arrival where that time is ahead of it; the scaler measures the data's age from it, so a camera's latency
 counts; a sample captured more than 0.5 s ago is dropped as stale, and said so once a second) and the
 source's measured sample interval (the velocity window and the dropout bound scale with it:
 shared.tracking.tracker). A watch publishes an invalid state every 10 ms while no
@@ -44,7 +44,7 @@ class TrackerIngest:
         self.lock = threading.Lock()
         self.seq = 0
         self.valid_before = False
-        self.stale, self.stale_said = 0, -float("inf")      # stale samples dropped since it was last said; when
+        self.stale, self.stale_said = 0, -float("inf")      # stale samples dropped since last said, and when that was
         self.state_pub = shell.session.declare_publisher(shell.keys.human_state)
         self.event_pub = shell.session.declare_publisher(shell.keys.safety_events)
         shell.subscribe(shell.keys.human_raw, HumanRaw, self.on_raw)
