@@ -193,6 +193,9 @@ def _add_human(sub) -> None:
                                               "their own times; nothing during a dropout frame.")
     replay.add_argument("file", type=Path, help="a .csv or .json motion file")
     replay.add_argument("--speed", type=_positive_float, default=1.0, help="playback speed factor (default 1)")
+    replay.add_argument("--latency", type=sample_latency, default=0.0, metavar="SECONDS",
+                        help="each frame reaches the cell this long after its capture, stamped with it (a camera's "
+                             "latency, which the cell counts in the data's age; default 0)")
     cell_options(replay)
     fromkp = human_sub.add_parser("from-keypoints", help="3D body keypoints (CSV) to a motion file of capsules",
                                   description="Turn a CSV of 3D keypoints (t,person,keypoint,x,y,z: head, "

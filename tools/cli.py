@@ -316,7 +316,7 @@ def cmd_human(args: argparse.Namespace) -> int:
 
 
 def _feed(args: argparse.Namespace, what: str, human, rate: float | None = None, speed: float = 1.0,
-          until: float | None = None) -> int:
+          until: float | None = None, latency: float = 0.0) -> int:
     """Send `human` as raw tracker data once tracker_ingest is reachable (exit 1 if it is not), by the demo's own
     feed (tools.actors.HumanFeed: each sample at its time, a late one skipped, never a burst), in SCHED_FIFO
     below the safety chain where the machine allows it, as a camera outside the machine; then its figures."""
@@ -329,7 +329,7 @@ def _feed(args: argparse.Namespace, what: str, human, rate: float | None = None,
         human.at(0.0)                                 # its first evaluation before SCHED_FIFO, not under it
         scheduling = realtime("human_feed")
         feed = HumanFeed(session, keys, human, time.monotonic(), source=f"hrc {what}", rate=rate, speed=speed,
-                         until=until)
+                         until=until, latency=latency)
         print(f"hrc human {what}: sending at {feed.rate:.1f} Hz, {scheduling}", flush=True)
         try:
             feed.run()                                # this thread, to the motion's end
@@ -368,7 +368,8 @@ def _replay(args: argparse.Namespace) -> int:
     from shared.tracking.motion import RecordedMotion
 
     motion = RecordedMotion.load(args.file)      # ConfigError: a clear message and exit 2 (main)
-    return _feed(args, "replay", motion, speed=args.speed, until=motion.duration)   # a dropout: silence
+    return _feed(args, "replay", motion, speed=args.speed, until=motion.duration,   # a dropout: silence
+                 latency=args.latency)
 
 
 def _check_port(name: str, port: int) -> None:

@@ -123,6 +123,13 @@ def test_human_replay(cell, tmp_path):
     assert received["raw"][-1].segments[0, 0, 0] == pytest.approx(-1.41)     # the last frame always goes
     times = [m.sample_time for m in received["raw"]]
     assert np.diff(times) == pytest.approx(np.full(sent - 1, 0.01)) or skipped
+    received["raw"].clear()
+    out = hrc(port, "human", "replay", str(path), "--latency", "0.05")    # a camera 50 ms behind
+    assert out.returncode == 0, out.stderr
+    assert wait_for(lambda: len(received["raw"]) >= 5)
+    assert all(m.stamp - m.sample_time >= 0.05 - 1e-3 for m in received["raw"])   # sent 50 ms after its capture
+    out = hrc(port, "human", "replay", str(path), "--latency", "1")
+    assert out.returncode == 2 and "stale" in out.stderr
     path.write_text("t,ax\n1,2\n")
     out = hrc(port, "human", "replay", str(path))
     assert out.returncode == 2 and "line 1" in out.stderr and "Traceback" not in out.stderr
