@@ -91,7 +91,7 @@ class Driver:
             if msg.human_sample_stamp is not None:          # the end of a sample -> frame chain
                 elapsed = time.monotonic() - msg.human_sample_stamp
                 with self.latency_lock:
-                    self.latency.add(elapsed, elapsed - (msg.human_wait or 0.0))
+                    self.latency.add(elapsed, elapsed - (msg.human_wait or 0.0), msg.human_interval or 0.0)
 
     def on_request(self, msg: DriverRequest) -> None:
         log.info("request %s from %s", msg.action, msg.source)

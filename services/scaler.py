@@ -82,6 +82,7 @@ class Scaler:
         self.human_stamp = -np.inf         # monotonic time of the human sample
         self.human_published = -np.inf     # when tracker_ingest published its state (same host clock)
         self.stale_after = layer.params.human_timeout     # s: the data's age bound at the source's rate
+        self.human_interval = 0.0                         # s: the source's sample interval, as the tracker measured
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
         self.joint_arrived = -np.inf       # when the newest joint state reached this process (monotonic s)
@@ -120,6 +121,7 @@ class Scaler:
             self.human_stamp = newest.sample_stamp if newest.valid else -np.inf
             self.human_published = newest.stamp
             self.stale_after = stale_bound(self.layer.params.human_timeout, newest.sample_interval)
+            self.human_interval = newest.sample_interval
 
     def cover_drive_lag(self) -> None:
         """The scaling layer's margin for the drive lag measured: the configured drive_lag, the worst joint's
@@ -235,6 +237,7 @@ class Scaler:
                                              trajectory_version=step.trajectory_version, s=step.s,
                                              human_sample_stamp=stamp if fresh else None,
                                              human_wait=max(0.0, now - published) if fresh else None,
+                                             human_interval=self.human_interval if fresh else None,
                                              seq=self.seq, stamp=now)))
         self.status_pub.put(encode(status_from_step(step, self.received, self.seq, now)))
 

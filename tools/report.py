@@ -216,15 +216,18 @@ def stale_said(tracker: dict) -> str | None:
 
 def reaction_said(summary: dict) -> str | None:
     """One line for the operator when the measured reaction chain does not fit in T_r (the summary's
-    ``reaction_time_covers_p99`` false; None otherwise): from a sample's capture to the frame on CAN (p99), and the
-    wait for the source's next sample, against ssm.reaction_time."""
+    ``reaction_time_covers_p99`` false; None otherwise): from a sample's capture to the frame on CAN (p99), the
+    joints' lag behind it and the wait for the source's next sample, against ssm.reaction_time (the robot driver's
+    ``reaction_time_exceeded`` by the same sum)."""
     if summary.get("reaction_time_covers_p99") is not False:
         return None
     chain = ((summary.get("latency") or {}).get("sample_to_frame_ms") or {}).get("p99") or 0.0
+    lag = max((summary.get("drives") or {}).get("lag_p99_ms") or [0.0])
     interval = (summary.get("tracker") or {}).get("sample_interval_ms") or 0.0
-    return (f"the reaction chain, from a sample's capture to its frame on CAN (p99 {chain:.0f} ms) and the source's "
-            f"{interval:.0f} ms to its next sample, is longer than T_r ({1e3 * summary['reaction_time_s']:.0f} ms): "
-            "the SSM's distances assume a faster reaction; raise ssm.reaction_time to cover it")
+    return (f"the reaction chain, from a sample's capture to its frame on CAN (p99 {chain:.0f} ms), the joints' "
+            f"{lag:.0f} ms behind it and the source's {interval:.0f} ms to its next sample, is longer than T_r "
+            f"({1e3 * summary['reaction_time_s']:.0f} ms): the SSM's distances assume a faster reaction; raise "
+            "ssm.reaction_time to cover it")
 
 
 def drive_summary(rec: Recording) -> dict:
@@ -297,6 +300,8 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
     p99 = float(np.percentile(s2f, 99)) if s2f.size else None
     tracker = tracker_summary(rec)
     interval = (tracker["sample_interval_ms"] or 0.0) / 1e3
+    drives = drive_summary(rec)
+    lag = max(drives["lag_p99_ms"] or [0.0]) / 1e3           # the joints behind the frames (the worst joint's p99)
     summary = {
         "duration_s": round(duration, 3),
         "trace_s": round(trace, 3),
@@ -330,7 +335,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "latency": {"chains": int(s2f.size), "sample_to_frame_ms": _percentiles(s2f, 50, 99),
                     "processing_ms": _percentiles(proc, 50, 99)},
         "scaling_cycle": scaling_cycle(st),
-        "drives": drive_summary(rec),
+        "drives": drives,
         "scaler_silences": scaler_silences(stamps, np.array([s.compute_us for s in st]),
                                            np.array([j.stamp for j in rec.joint_states]), config.scaling.period,
                                            rec.t0)
@@ -345,7 +350,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "worst_late_excess_m_s": round(float(series["late_excess"].max()), 4) if series["late_excess"].size else 0.0,
         "reaction_time_s": config.ssm.reaction_time,
         # the chain from a sample to the frame on CAN, and the wait for the next sample at the source's rate
-        "reaction_time_covers_p99": None if p99 is None else bool(p99 + interval <= config.ssm.reaction_time),
+        "reaction_time_covers_p99": None if p99 is None else bool(p99 + lag + interval <= config.ssm.reaction_time),
         "events": sorted({f"{e.source}:{e.event}" for e in rec.events if e.severity != "info"}),
     }
     return summary, series

@@ -59,13 +59,18 @@ class LatencyMeter:
         self.min_samples = min_samples
         self._window: deque[float] = deque(maxlen=window)
         self._pending: list[tuple[float, float]] = []
+        self.interval = 0.0                  # s: the source's sample interval with the newest chain
         self.episode = Episode()
 
-    def add(self, sample_to_frame: float, processing: float) -> None:
-        """One chain: from the sample's arrival to its frame, and the processing part of that (s).
+    def add(self, sample_to_frame: float, processing: float, interval: float = 0.0) -> None:
+        """One chain: from the sample's capture to its frame, and the processing part of that (s); interval: the
+        source's sample interval then (s), the newest of which ``check`` adds (the wait for the next sample is
+        part of the reaction: a person's move is seen at the next frame at the latest).
         Non-finite or negative latencies (a clock mix-up) are not data and are ignored."""
         if not (np.isfinite(sample_to_frame) and np.isfinite(processing)) or sample_to_frame < 0:
             return
+        if np.isfinite(interval) and interval >= 0.0:
+            self.interval = float(interval)
         self._window.append(sample_to_frame)
         self._pending.append((sample_to_frame, processing))
 
@@ -82,13 +87,14 @@ class LatencyMeter:
         return float(np.percentile(np.fromiter(self._window, float), 99))
 
     def check(self, motion_lag: float = 0.0) -> LatencyCheck | None:
-        """A LatencyCheck when the verdict (sample -> frame p99 + motion_lag > T_r, or not) changes, else
-        None. motion_lag (s): how far the joints run behind the frames (the drive lag p99)."""
+        """A LatencyCheck when the verdict (sample -> frame p99 + motion_lag + the source's interval > T_r, or not)
+        changes, else None. motion_lag (s): how far the joints run behind the frames (the drive lag p99)."""
         p99 = self.p99()
         if p99 is None:
             return None
-        chain = p99 + max(motion_lag, 0.0)
-        parts = f"sample -> frame p99 {p99 * 1e3:.1f} ms + drive lag {motion_lag * 1e3:.1f} ms"
+        chain = p99 + max(motion_lag, 0.0) + self.interval
+        parts = (f"sample -> frame p99 {p99 * 1e3:.1f} ms + drive lag {motion_lag * 1e3:.1f} ms + the source's "
+                 f"interval {self.interval * 1e3:.1f} ms")
         return self.episode.verdict(
             chain > self.reaction_time, chain,
             ("reaction_time_exceeded", f"measured reaction chain {chain * 1e3:.1f} ms ({parts}) exceeds the configured "

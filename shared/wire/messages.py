@@ -156,19 +156,22 @@ class JointCommand(Message):
     For the end-to-end latency (a human sample entering tracker_ingest -> the target frame on CAN), the
     first command computed from a new human state carries that state's sample_stamp and how long it had
     been published by tracker_ingest when the tick took it (s: its way to the scaler and its wait for the
-    tick): the driver subtracts the wait to get the processing time.
-    Both are None on every other command."""
+    tick): the driver subtracts the wait to get the processing time; and the source's sample interval (s, as
+    the tracker measured it: the wait for the next sample, part of the reaction too). All are None on every
+    other command."""
 
     KIND: ClassVar[str] = "joint_command"
     SPEC: ClassVar[dict[str, Spec]] = {"q": Q, "qd": Q, "trajectory_version": Spec("int", minimum=-1),
                                        "s": F, "human_sample_stamp": Spec("float", optional=True),
-                                       "human_wait": Spec("float", optional=True, minimum=0.0)}
+                                       "human_wait": Spec("float", optional=True, minimum=0.0),
+                                       "human_interval": Spec("float", optional=True, minimum=0.0)}
     q: np.ndarray
     qd: np.ndarray
     trajectory_version: int
     s: float
     human_sample_stamp: float | None = None
     human_wait: float | None = None
+    human_interval: float | None = None
 
 
 @dataclass(frozen=True)

@@ -147,3 +147,22 @@ def test_two_delay_histograms_merged_are_one_histogram_of_both_and_other_bins_ar
     assert first.percentile(50) == both.percentile(50)
     with pytest.raises(ValueError, match="other bins"):
         first.absorb(DelayHistogram(resolution=0.002, limit=1.0))
+
+
+def test_the_whole_chain_counts_the_sources_interval_from_a_cameras_capture():
+    """A 30 Hz camera 60 ms behind: capture -> frame p99 72 ms and a drive lag of 10 ms are within T_r (82 ms), but
+    the person's move is seen at the next frame at the latest, 33 ms on: 115 ms, past T_r. The newest chain's
+    interval counts; a bad one is not data."""
+    meter = LatencyMeter(0.1, window=100, min_samples=10)
+    for _ in range(20):
+        meter.add(0.072, 0.002)
+    assert meter.check(motion_lag=0.010) is None
+    meter.add(0.072, 0.002, 1 / 30)
+    warning = meter.check(motion_lag=0.010)
+    assert warning.event == "reaction_time_exceeded" and warning.value == pytest.approx(0.072 + 0.010 + 1 / 30)
+    assert "the source's interval 33.3 ms" in warning.text
+    meter.add(0.072, 0.002, float("nan"))                           # kept: 33 ms
+    assert meter.interval == pytest.approx(1 / 30)
+    for _ in range(100):
+        meter.add(0.030, 0.002, 1 / 30)                              # the camera without its latency: 73 ms
+    assert meter.check(motion_lag=0.010).event == "reaction_time_ok"

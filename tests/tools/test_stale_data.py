@@ -43,8 +43,10 @@ def test_nothing_is_said_of_fresh_data_nor_of_a_run_without_figures():
 
 def test_a_reaction_chain_longer_than_t_r_is_said_with_its_parts():
     summary = {"reaction_time_covers_p99": False, "reaction_time_s": 0.1,
-               "latency": {"sample_to_frame_ms": {"p50": 68.4, "p99": 72.5}}, "tracker": {"sample_interval_ms": 33.33}}
+               "latency": {"sample_to_frame_ms": {"p50": 68.4, "p99": 72.5}}, "tracker": {"sample_interval_ms": 33.33},
+               "drives": {"lag_p99_ms": [10.03, 10.04, 9.8]}}
     line = reaction_said(summary)
-    assert "p99 72 ms" in line and "33 ms to its next sample" in line and "T_r (100 ms)" in line
+    assert "p99 72 ms" in line and "10 ms behind it" in line and "33 ms to its next sample" in line
+    assert "T_r (100 ms)" in line
     assert reaction_said({**summary, "reaction_time_covers_p99": True}) is None
     assert reaction_said({"reaction_time_covers_p99": None}) is None            # not measured: nothing said
