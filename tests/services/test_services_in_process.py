@@ -453,6 +453,7 @@ def test_the_monitor_waits_for_the_people_as_long_as_their_samples_take_from_cap
     waits that much longer for the person of a state's moment, and is not 'behind' for the camera's latency."""
     shell = FakeShell("safety_monitor")
     service = MonitorService(shell, SafetyMonitor(ROBOT, CONFIG.ssm))
+    service.monitor.check_batch(Q_START[None], np.full((1, 6), 0.2), [FAR])    # compiled before the clock starts
     now = time.monotonic()
     shell.deliver(shell.keys.human_state, humans_to_msg(FAR, True, now - 0.2, stamp=now - 0.05))
     shell.deliver(shell.keys.joint_state, JointState(q=Q_START, qd=np.full(6, 0.2), drive_state="running",
