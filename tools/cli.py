@@ -467,12 +467,24 @@ def _view_log(args: argparse.Namespace) -> int:
     return 0
 
 
+def people_said(state) -> str:
+    """`hrc status`'s line on the people (the newest HumanState, or None): the track, the source's rate and the
+    way from a sample's capture to the tracker's state (a camera's latency, which the data's age counts)."""
+    if state is None:
+        return "no human state"
+    if not state.valid:
+        return "track not valid (no sample within the stale bound): the robot is stopped"
+    rate = f"{1.0 / state.sample_interval:.1f} Hz" if state.sample_interval > 0 else "rate not yet measured"
+    return (f"{len(state.radii)} capsule(s), {rate}, {1e3 * max(state.stamp - state.sample_stamp, 0.0):.0f} ms from "
+            "capture to the tracker")
+
+
 def cmd_status(args: argparse.Namespace) -> int:
     import time
 
     from shared.core.errors import MessageError
     from shared.wire.keys import SERVICES
-    from shared.wire.messages import DriveLagReport, JointState, SafetyEvent, ScalerStatus, decode
+    from shared.wire.messages import DriveLagReport, HumanState, JointState, SafetyEvent, ScalerStatus, decode
 
     latest: dict = {}
 
@@ -491,7 +503,8 @@ def cmd_status(args: argparse.Namespace) -> int:
         subs = [session.declare_subscriber(keys.joint_state, keep(JointState)),
                 session.declare_subscriber(keys.scaler_status, keep(ScalerStatus)),
                 session.declare_subscriber(keys.safety_events, keep(SafetyEvent)),
-                session.declare_subscriber(keys.drive_lag, keep(DriveLagReport))]
+                session.declare_subscriber(keys.drive_lag, keep(DriveLagReport)),
+                session.declare_subscriber(keys.human_state, keep(HumanState))]
         deadline = time.monotonic() + args.timeout      # until every report has come once (the monitor's is 1 Hz)
         while len(latest) < len(subs) and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -512,6 +525,7 @@ def cmd_status(args: argparse.Namespace) -> int:
         st = latest.get(ScalerStatus)
         print("  scaler:   " + (f"alpha {st.alpha:.2f} (safe {st.safe_alpha:.2f}), beta {int(st.beta)}, trajectory "
                                  f"{st.trajectory_version}, s {st.s:.2f}, {st.status}" if st else "no status"))
+        print(f"  people:   {people_said(latest.get(HumanState))}")
         ev = latest.get(SafetyEvent)
         print(f"  monitor:  {ev.text if ev else 'no summary'}")
         for sub in subs:

@@ -94,7 +94,9 @@ def test_human_inject_once_and_moving(cell):
 
 def test_status_reports_what_the_cell_publishes(cell):
     port, _, session = cell
+    from shared.wire.messages import HumanState
     pub = session.declare_publisher(KEYS.joint_state)
+    people = session.declare_publisher(KEYS.human_state)
     proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "status", "--connect", f"tcp/127.0.0.1:{port}",
                              "--prefix", KEYS.prefix, "--timeout", "2"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
@@ -102,10 +104,15 @@ def test_status_reports_what_the_cell_publishes(cell):
     while time.monotonic() < end:
         pub.put(encode(JointState(q=np.zeros(6), qd=np.zeros(6), drive_state="running:operation_enabled",
                                   enabled=True, fault=False)))
+        now = time.monotonic()                   # a 30 Hz camera whose states reach the cell 60 ms after capture
+        people.put(encode(HumanState(segments=np.array([[[-1.0, 0, 0.9], [-1.0, 0, 1.5]]]), radii=np.array([0.17]),
+                                     velocities=np.zeros((1, 2, 3)), velocity_known=np.array([True]), valid=True,
+                                     sample_stamp=now - 0.06, sample_interval=1 / 30, stamp=now)))
         time.sleep(0.05)
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
     assert "planner up" in out and "scaler down" in out and "running:operation_enabled" in out
+    assert "people:   1 capsule(s), 30.0 Hz, 60 ms from capture to the tracker" in out, out
 
 
 def test_human_replay(cell, tmp_path):

@@ -50,3 +50,13 @@ def test_a_reaction_chain_longer_than_t_r_is_said_with_its_parts():
     assert "T_r (100 ms)" in line
     assert reaction_said({**summary, "reaction_time_covers_p99": True}) is None
     assert reaction_said({"reaction_time_covers_p99": None}) is None            # not measured: nothing said
+
+
+def test_hrc_status_says_the_peoples_track_rate_and_way_from_capture():
+    from tools.cli import people_said
+
+    state = humans_to_msg(PERSON, True, 100.0, stamp=100.045, sample_interval=1 / 15)
+    assert people_said(state) == "1 capsule(s), 15.0 Hz, 45 ms from capture to the tracker"
+    assert "rate not yet measured" in people_said(humans_to_msg(PERSON, True, 100.0, stamp=100.0))
+    assert "not valid" in people_said(humans_to_msg(HumanCapsules.empty(), False, 100.0, stamp=100.0))
+    assert people_said(None) == "no human state"
