@@ -81,7 +81,6 @@ class Scaler:
         self.humans = None                 # HumanCapsules, or None
         self.human_stamp = -np.inf         # monotonic time of the human sample
         self.human_published = -np.inf     # when tracker_ingest published its state (same host clock)
-        self.stale_after = layer.params.human_timeout     # s: the data's age bound at the source's rate
         self.human_interval = 0.0                         # s: the source's sample interval, as the tracker measured
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
@@ -110,6 +109,12 @@ class Scaler:
         shell.subscribe(keys.joint_state, JointState, self.on_joints)
         shell.subscribe(keys.trajectory, TrajectoryMsg, self.on_trajectory)
 
+    @property
+    def stale_after(self) -> float:
+        """s: the people's data's age bound at the source's rate (``stale_bound`` of human_timeout and the
+        newest state's interval)."""
+        return stale_bound(self.layer.params.human_timeout, self.human_interval)
+
     def take_humans(self) -> None:
         """The human states since the last tick, if any came: the people of all of them at once
         (``merge_human_states``: a state shorter than a period counts too), aged by the newest (an invalid
@@ -120,7 +125,6 @@ class Scaler:
             self.humans = merge_human_states(msgs)
             self.human_stamp = newest.sample_stamp if newest.valid else -np.inf
             self.human_published = newest.stamp
-            self.stale_after = stale_bound(self.layer.params.human_timeout, newest.sample_interval)
             self.human_interval = newest.sample_interval
 
     def cover_drive_lag(self) -> None:

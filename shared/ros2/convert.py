@@ -32,7 +32,6 @@ ADD, DELETEALL = 0, 3
 LEVELS = {"info": 0, "warning": 1, "stop": 2}     # diagnostic_msgs/DiagnosticStatus OK, WARN, ERROR
 MAX_CAPSULES = 64
 BASE_FRAMES = ("world", "")    # the frames people may come in: the robot base, the root of the bridge's /tf
-MAX_SAMPLE_AGE = OLDEST_SAMPLE   # s: a sample stamped longer ago than this is stale (tracker_ingest's rule too)
 CELL_SIZE = 10.0               # m: a keypoint farther than this from the robot base is not a person in the cell
 PEOPLE_RGBA, ROBOT_RGBA = (1.0, 0.55, 0.1, 0.7), (0.2, 0.5, 1.0, 0.5)   # the view's colours of both kinds
 ROBOT_MARKER_PERIOD = 0.05   # s between two robot capsule MarkerArrays (20 Hz), live and in a bag
@@ -191,13 +190,13 @@ def sample_age(stamps, wall_ns: int) -> float:
     """How old (s) a sample is at wall time `wall_ns` by the newest of its header stamps (builtin_interfaces/Time,
     the sender's wall clock): the age of the capture, so that the tracker's velocities and the data's age
     count from it, not from the arrival. 0 for unset stamps (all zero) or a stamp ahead of this clock (a host
-    whose clock runs ahead: the arrival stands for the capture); MessageError ("stale") past MAX_SAMPLE_AGE."""
+    whose clock runs ahead: the arrival stands for the capture); MessageError ("stale") past OLDEST_SAMPLE."""
     newest = max((int(t.sec) * 1_000_000_000 + int(t.nanosec) for t in stamps), default=0)
     if newest <= 0:
         return 0.0
     age = (wall_ns - newest) * 1e-9
-    if age > MAX_SAMPLE_AGE:
-        raise MessageError(f"people: stamped {age:.3f} s ago, more than {MAX_SAMPLE_AGE} s", "stale")
+    if age > OLDEST_SAMPLE:
+        raise MessageError(f"people: stamped {age:.3f} s ago, more than {OLDEST_SAMPLE} s", "stale")
     return max(age, 0.0)
 
 
