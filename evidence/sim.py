@@ -17,6 +17,11 @@ the planner's compute time (measured, or a fixed time per path search, which kee
 on the simulated clock before its result is used (the robot keeps executing the old trajectory meanwhile,
 and a new shuttle waits for its plan); without it, results are used in the cycle that asked for them.
 
+The layers are given the people as the cell gives them (``sensed``): a recorded motion's newest frame, aged from
+its capture, stale past the bound of the source's rate as the scaler service finds it, and with a `latency` (a
+camera pipeline's, ``hrc demo --sim --latency``) each sample that much later; the judge checks every command
+against the people of its moment, as the monitor pairs each joint state with the person captured then.
+
 The speed policy is a parameter: the scaling layer (default), or any ScalingLayer subclass such as the
 zone-based baseline (evidence.zones). Same core code as the services: ScalingLayer, PlanningLoop.
 """
@@ -42,8 +47,34 @@ from shared.safety.monitor import MonitorResult, ReactionWindow, SafetyMonitor
 from shared.safety.ssm import pair_ssm
 from shared.scaling.layer import ScalingInputs, ScalingLayer, ScalingStep, StepStatus
 from shared.scaling.report import ScalerReport
+from shared.tracking.tracker import stale_bound
 
 START_TOLERANCE = 1e-3   # rad: the simulated robot is exactly on its path (the scaler allows 0.02 for the drives)
+
+
+@dataclass(frozen=True)
+class Sensed:
+    """The people as the layers are given them at a moment: humans (None: no sample yet, or the tracker's
+    dropout), their age from the capture of the newest sample (s), the source's sample interval (s; 0: a
+    scripted person, a state at every moment) and the samples' way from capture to the cell (s, the latency)."""
+
+    humans: object
+    age: float
+    interval: float
+    delay: float = 0.0
+
+
+def sensed(human, t: float, latency: float = 0.0) -> Sensed:
+    """What the layers have of `human` at t (s) when each sample reaches the cell `latency` s after its capture
+    (``HumanFeed(latency=)`` on the processes): the state of t - latency, aged from its capture. A recorded
+    motion (``TrackedMotion``) gives its newest frame, so its age grows between frames as the scaler finds it; a
+    scripted person is captured at every moment. Before the first sample has come: nobody, infinitely old."""
+    then = t - latency
+    if then < 0.0:
+        return Sensed(None, float("inf"), 0.0, latency)
+    captured = getattr(human, "captured", None)
+    taken, interval = captured(then) if captured is not None else (then, 0.0)
+    return Sensed(human.at(then), t - taken, interval, latency)
 
 
 @dataclass
@@ -77,6 +108,11 @@ class SimResult:
     braking_cycles: int = 0
     beta_requests: int = 0
     progress: float = 0.0        # shuttles completed plus the fraction of the current leg covered
+    stale_cycles: int = 0        # cycles the scaling layer found the people's data stale (older than its bound)
+    latency: float = 0.0         # s: from each sample's capture to the cell (run_shuttle's latency)
+    sample_interval: float = 0.0  # s: the source's sample interval as last measured (0: a scripted person)
+    reaction_time: float = 0.0   # s: the configured T_r
+    period: float = 0.0          # s: the control period
 
     def leg_ends(self) -> list[float]:
         """When (s) each leg of the shuttle ended: the first record that counts it."""
@@ -116,7 +152,24 @@ class SimResult:
             "braking_cycles": self.braking_cycles,
             "compute_us": {"p50": round(float(np.percentile(compute, 50)), 1),
                            "p99": round(float(np.percentile(compute, 99)), 1)},
+            **self.reaction_figures(),
         }
+
+    def reaction_figures(self) -> dict:
+        """The people's data as the processes' report gives it (docs/report-format.md): the share of cycles it was
+        stale, a sample's way from its capture to the tracker's state (the latency) and to the command made on it
+        (that and at most a control period: the simulated drives follow each command at once, no drive lag), the
+        source's interval, and whether T_r covers the three: the same sum as ``reaction_time_covers_p99``."""
+        cycles = len(self.records)
+        chain = 1e3 * (self.latency + self.period)
+        return {"tracker": {"stale_share": round(self.stale_cycles / cycles, 4) if cycles else None,
+                            "capture_to_state_ms": {"p50": round(1e3 * self.latency, 1),
+                                                    "p99": round(1e3 * self.latency, 1)},
+                            "sample_interval_ms": round(1e3 * self.sample_interval, 2)},
+                "latency": {"sample_to_frame_ms": {"p50": round(chain, 1), "p99": round(chain, 1)}},
+                "reaction_time_s": self.reaction_time,
+                "reaction_time_covers_p99": self.latency + self.period + self.sample_interval
+                <= self.reaction_time + 1e-9}
 
 
 Veto = Callable[[int, ReplanEvent], bool]     # run_shuttle's veto: (the n-th replan meant, its event) -> drop it
@@ -160,7 +213,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                 duration: float, on_record=None, replanner: Replanner | None = None, beta_replans: bool = True,
                 beta_cooldown: float = 0.5, on_replan=None, layer: ScalingLayer | None = None,
                 charge_planning: bool | float = False, monitor: SafetyMonitor | None = None,
-                leg_path=None, veto: Veto | None = None, goal_leg: GoalLeg | None = None) -> SimResult:
+                leg_path=None, veto: Veto | None = None, goal_leg: GoalLeg | None = None,
+                latency: float = 0.0) -> SimResult:
     """Shuttle between q_a and q_b for `duration` simulated seconds next to a scripted human.
 
     replanner: the planning layer (None: scaling only, straight shuttles), run by the planner service's
@@ -178,7 +232,9 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     the simulation is deterministic, so the runs agree until then). goal_leg(n, event, leg) -> Trajectory | None:
     the n-th new goal's leg from rest the planning layer chose (1, 2, ...) is replaced by the trajectory it
     returns (the same version, from the same start to the same goal: the fold, the line), the goal's detail
-    prefixed "replaced: "; everything after it is decided again, the goal's search on the way among it."""
+    prefixed "replaced: "; everything after it is decided again, the goal's search on the way among it.
+    latency (s): each people sample reaches both layers that long after its capture (``sensed``); the judge
+    checks against the people of each moment."""
     layer = layer or ScalingLayer(robot, config.ssm, config.scaling)
     if replanner is None or not beta_replans:
         layer.params = replace(layer.params, await_plan=0.0)   # nobody answers a replan request: never await one
@@ -188,7 +244,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
     period = config.scaling.period
     lim = robot.limits
     ends = [np.asarray(q_a, dtype=float), np.asarray(q_b, dtype=float)]
-    result = SimResult()
+    result = SimResult(latency=latency, reaction_time=config.ssm.reaction_time, period=period)
     leg = 0
     if leg_path is None:
         def leg_path(start, goal, version):
@@ -274,15 +330,20 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             take(t, outcome, elapsed)
 
     if loop is not None:      # the first leg planned before the clock starts, as the fixed path's is made
-        planning_turn(0.0, 0, human.at(0.0))
+        planning_turn(0.0, 0, sensed(human, 0.0, latency).humans)
         take_ready(0.0)       # planned with no search charged: ready at the start
     for k in range(int(round(duration / period))):
         t = k * period
-        humans = human.at(t)
+        humans = human.at(t)                      # the people of this moment, the judge's
+        given = sensed(human, t, latency) if latency or hasattr(human, "captured") else Sensed(humans, 0.0, 0.0)
+        stale_after = stale_bound(layer.params.human_timeout, given.interval)
+        result.sample_interval = given.interval or result.sample_interval
         take_ready(t)
         if loop is not None and t >= busy_until:
-            planning_turn(t, k, humans)
-        step = layer.step(ScalingInputs(humans=humans))
+            planning_turn(t, k, given.humans)
+        step = layer.step(ScalingInputs(humans=given.humans, human_age=given.age, stale_after=stale_after,
+                                        human_delay=given.delay))
+        result.stale_cycles += step.status is StepStatus.STALE_HUMAN_DATA     # as the report counts the scaler's
         if step.beta and not (report is not None and report.beta):
             result.beta_requests += 1
         report, in_flight, q_now = ScalerReport.of_step(step), False, step.q_command
@@ -297,7 +358,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             else:
                 pending_leg = True          # a new goal: the planner takes a turn on it at once (when free)
                 if t >= busy_until:
-                    planning_turn(t, k, humans)
+                    planning_turn(t, k, given.humans)
         result.progress = result.shuttles + leg_fraction(step.q_command, ends[leg % 2], ends[(leg + 1) % 2])
         record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
         result.records.append(record)

@@ -90,7 +90,7 @@ class ZoneScalingLayer(ScalingLayer):
         q_nom, dq, _ = traj.sample(self.s)
         running = self.s < traj.duration
         separation, target = math.inf, 0.0
-        status = self.input_status(humans, inputs.human_age, running)
+        status = self.input_status(humans, inputs.human_age, running, inputs.stale_after)   # the source's bound
         if status is StepStatus.RUNNING:
             if humans.count:
                 pairs = capsule_pair_distances(self.robot.capsule_segments(q_nom), self.robot.radii,

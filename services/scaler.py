@@ -227,8 +227,10 @@ class Scaler:
             self.layer.hold(q_meas)
         if self.layer.trajectory is None:
             return
+        # the people's way from capture to the tracker's state (a camera's latency): their travel over it counts
+        delay = published - stamp if np.isfinite(stamp) and published >= stamp else 0.0
         step = self.layer.step(ScalingInputs(humans=humans, human_age=age if humans is not None else np.inf,
-                                             stale_after=self.stale_after, robot_age=robot_age))
+                                             stale_after=self.stale_after, robot_age=robot_age, human_delay=delay))
         if step.dropped is not None:
             self.shell.log.warning("trajectory dropped: %s", step.dropped)
             with self.lock:         # the planner numbers its next plan from the followed one: it may come with

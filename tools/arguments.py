@@ -107,7 +107,8 @@ def _add_demo(sub) -> None:
                       help="length of each of the four human phases (default 6)")
     demo.add_argument("--latency", type=sample_latency, default=0.0, metavar="SECONDS",
                       help="the person feed's latency: each sample reaches the cell this long after its capture and "
-                           "is stamped with it, as a camera pipeline delivers skeletons (processes only; default 0)")
+                           "is stamped with it, as a camera pipeline delivers skeletons; with --sim, both layers "
+                           "are given each person that late (default 0)")
     demo.add_argument("--config", type=Path, default=None, metavar="FILE",
                       help="cell configuration YAML (default: built-in, same as deploy/cell.yaml)")
     demo.add_argument("--paper-formula", action="store_true",

@@ -103,8 +103,6 @@ def _demo_processes(args: argparse.Namespace) -> int:
 def _demo_sim(args: argparse.Namespace, human) -> int:
     if args.view:
         raise UsageError("--view needs the processes (without --sim); a --sim run is its summary only")
-    if args.latency:
-        raise UsageError("--latency needs the processes (without --sim): the simulation takes each person as captured")
     from evidence.scenarios import Q_GOAL, Q_START, paper_phases
     from evidence.sim import run_shuttle
     from shared.config import load_config
@@ -162,8 +160,14 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
     from shared.planning.path_search import CELL_BUDGET
 
     result = run_shuttle(robot, config, human, Q_START, Q_GOAL, args.duration, progress, replanner,
-                         beta_replans=not args.no_beta, on_replan=replanned, charge_planning=CELL_BUDGET)
+                         beta_replans=not args.no_beta, on_replan=replanned, charge_planning=CELL_BUDGET,
+                         latency=args.latency)
     summary = result.summary()
+    from tools.report import reaction_said, stale_said
+
+    for line in (stale_said(summary["tracker"]), reaction_said(summary)):
+        if line is not None:
+            print(f"hrc demo --sim: {line}")
     if args.out is not None:
         from tools.mcap_record import recording_from_sim
         from tools.report import write_bag

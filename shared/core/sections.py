@@ -31,12 +31,13 @@ def check_numbers(section: object, name: str, skip: tuple[str, ...] = (), non_ne
 
 def from_mapping(cls: type[T], raw: object, name: str) -> T:
     """The section `cls` from a config mapping (None: its defaults); a non-mapping or an unknown key raises
-    ConfigError naming the section, bad values raise from the section's own checks."""
+    ConfigError naming the section, bad values raise from the section's own checks. A field whose metadata says
+    ``setting: False`` (a value the cell sets as it runs) is not a key."""
     if raw is None:
         return cls()
     if not isinstance(raw, dict):
         raise ConfigError(f"{name}: expected a mapping, got {type(raw).__name__}")
-    known = {f.name for f in fields(cls)}
+    known = {f.name for f in fields(cls) if f.metadata.get("setting", True)}   # not a state set at run time
     unknown = sorted(set(map(str, raw)) - known)
     if unknown:
         raise ConfigError(f"{name}: unknown key(s) {unknown}; known: {sorted(known)}")

@@ -69,8 +69,8 @@ class TimeCostOptions:
 
 @numba.njit(cache=True)
 def _stretched_time(qs, dqs, dts, velocity_limit, placement, parent, local, joint, ancestry, radii, frames, frame_vel,
-                    frame_step, human_rad, human_known, horizon, fixed, near_d, v_near, v_far, a_h, stop_full, stop_min,
-                    reaction, a_stop, static, margin, extrapolation, stay, floor, wait_step, ends):
+                    frame_step, human_rad, human_known, horizon, fixed, near_d, v_near, v_far, a_h, lead, stop_full,
+                    stop_min, reaction, a_stop, static, margin, extrapolation, stay, floor, wait_step, ends):
     """Sum of dts[k] / alpha_k along the samples, the people where the forecast has them by the time
     already predicted (frames (F, M, 2, 3) every frame_step s, linear in between, the last held; and, in
     ends[k], the sum up to the end of sample k: when the robot is predicted to get there); from `stay` on
@@ -105,9 +105,9 @@ def _stretched_time(qs, dqs, dts, velocity_limit, placement, parent, local, join
                         moved[j, e, c] = frames[i, j, e, c] + frac * (frames[nxt, j, e, c] - frames[i, j, e, c])
             dist, robot_speed, human_speed, limit = _pair_ssm_kernel(
                 points.reshape(n_links, 2, 3), radii, vel.reshape(n_links, 2, 3), moved, human_rad, frame_vel[i],
-                human_known, horizon, fixed, near_d, v_near, v_far, a_h)
+                human_known, horizon, fixed, near_d, v_near, v_far, a_h, lead)
             alpha = speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full, stop_min, reaction,
-                                      a_stop, static, near_d, v_near, v_far, a_h, margin)
+                                      a_stop, static, near_d, v_near, v_far, a_h, lead, margin)
             if alpha <= 0.0 and stay < np.inf:
                 # inside a person's no-approach distance, approaching: the robot does not pass here while
                 # they stay (the floor would charge 50 samples' time for a wait that has no end)

@@ -5,12 +5,16 @@ margin for. Their own module, free of compiled code, so reading a configuration 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import functools
+import math
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from shared.core.errors import ConfigError
 from shared.core.sections import check_numbers, from_mapping
+
+AGE_STEP = 0.001   # s: the data's delay is rounded up to this (SsmParameters.aged)
 
 
 @dataclass(frozen=True)
@@ -66,6 +70,17 @@ class SsmParameters:
       the paper's formula (the measured speed held over the horizon: ``paper_formula``, ``hrc demo --paper-formula``), which
       lets a link pass a standing person at its stopping distance and does not cover their starting to move
       (docs/measurements.md: its cost and the violations it lets through, side by side).
+    human_lead (s, not a setting) = 0: how long the people's data took from its capture to the cell (a camera
+      pipeline's latency, the tracker's hop). The independent monitor checks each measured state against the
+      person captured at its moment, which it waits for; the scaling layer has that person only human_lead
+      later. A robot whose speed follows where a person was human_lead ago rides the limit of then, above the
+      limit of now by their travel since, for as long as they approach (46 violations in ``hrc demo --latency
+      0.03`` before this was counted; docs/real-people.md). So the human's part of S_p is their travel over
+      human_lead + T_r + T_s, at the ISO 13855 speed of where they may be by now (``shared.safety.ssm.aged_travel``).
+      The scaling layer sets it each cycle (``aged``). The wait for a source's next sample is not in it: the
+      monitor's person of a moment is the newest sample too, and T_r covers that wait (with the whole chain from
+      capture to the drives: the reaction to what the model does not foresee, a person who starts or comes into
+      view).
     tracking_margin (derived, m/s) = drive_lag x link_acceleration = 0.053 m/s: while the joints run
       drive_lag behind, the measured speed differs from the commanded one by at most this much. The
       scaling layer keeps the commanded approach speed this far below the limit, so the *measured* robot
@@ -86,6 +101,7 @@ class SsmParameters:
     drive_lag: float = 0.012
     link_acceleration: float = 4.4
     human_acceleration: float = 50.0
+    human_lead: float = field(default=0.0, metadata={"setting": False})
 
     def __post_init__(self) -> None:
         check_numbers(self, "ssm", non_negative=True)
@@ -106,6 +122,15 @@ class SsmParameters:
         if not measured > self.drive_lag:          # NaN or no longer: as configured
             return self
         return replace(self, drive_lag=float(measured))
+
+    def aged(self, delay: float) -> "SsmParameters":
+        """The same parameters for people data that took `delay` s from capture to the cell (``human_lead``,
+        rounded up to the next AGE_STEP: a cycle's parameters are one of a few, kept). A NaN or infinite delay is
+        a stale-data stop, not a limit: refused."""
+        if not (math.isfinite(delay) and delay >= 0.0):
+            raise ValueError(f"delay: a finite number of seconds >= 0, got {delay!r}")
+        lead = math.ceil(delay / AGE_STEP - 1e-9) * AGE_STEP
+        return self if lead == self.human_lead else _with_lead(self, lead)
 
     def paper_formula(self) -> "SsmParameters":
         """The same parameters with the paper's formula: the measured speed held over T_r + T_s
@@ -129,10 +154,10 @@ class SsmParameters:
         return self.stop_at(np.max(np.abs(np.asarray(joint_velocity, dtype=float))
                                    / np.asarray(velocity_limit, dtype=float), axis=-1))
 
-    def constants_at(self, stop: float) -> tuple[float, float, float, float, float, float]:
+    def constants_at(self, stop: float) -> tuple[float, float, float, float, float, float, float]:
         """``kernel_constants`` at the stopping time `stop` (s) in place of T_s: the limits of one state."""
         return (self.reaction_time + stop, self.fixed_distance_at(stop), self.human_near_distance,
-                self.human_speed_near, self.human_speed_far, self.human_acceleration)
+                self.human_speed_near, self.human_speed_far, self.human_acceleration, self.human_lead)
 
     def fixed_distance_at(self, stop: float) -> float:
         """``fixed_distance`` with the stopping time `stop` (s) in place of T_s."""
@@ -166,12 +191,19 @@ class SsmParameters:
         return self.reaction_time + self.stopping_time
 
     @property
-    def kernel_constants(self) -> tuple[float, float, float, float, float, float]:
+    def kernel_constants(self) -> tuple[float, float, float, float, float, float, float]:
         """What the compiled SSM kernel takes, in its order: horizon, fixed distance, the ISO 13855 near
-        distance and its two approach speeds (near, far), the human's acceleration."""
+        distance and its two approach speeds (near, far), the human's acceleration, the data's delay (human_lead)."""
         return self.constants_at(self.stopping_time)
 
     @property
     def fixed_distance(self) -> float:
         """The distance terms that do not depend on speed: a_max T_s^2 / 2 + C + Z_d + Z_r (m)."""
         return self.fixed_distance_at(self.stopping_time)
+
+
+@functools.lru_cache(maxsize=256)
+def _with_lead(params: SsmParameters, lead: float) -> SsmParameters:
+    """``SsmParameters.aged``'s parameters, kept (equal parameters give equal ones): a control cycle asks for one of a
+    few delays, 100 times a second."""
+    return replace(params, human_lead=lead)

@@ -59,11 +59,14 @@ def human_distance(human_speed: np.ndarray, params: SsmParameters, separation: n
                    stop: float | None = None) -> np.ndarray:
     """The human's part of S_p (m): how far a person now approaching at human_speed (m/s) may come within
     T_r + T_s under the cell's human model (``human_travel``, capped at the ISO 13855 speed for that
-    separation; without a separation at the near speed, the larger); stop: the state's T_s (s; default the
-    full-speed stopping_time). Element by element, compiled."""
-    cap = params.human_speed_near if separation is None else default_human_speed(separation, params)
+    separation; without a separation at the near speed, the larger), from human_lead s before where the data is
+    that late (``aged_travel``); stop: the state's T_s (s; default the full-speed stopping_time). Element by
+    element, compiled."""
+    lead = params.human_lead
+    cap = params.human_speed_near if separation is None else \
+        default_human_speed(np.asarray(separation, dtype=float) - params.human_speed_near * lead, params)
     speed, cap = np.broadcast_arrays(np.asarray(human_speed, dtype=float), np.asarray(cap, dtype=float))
-    horizon = params.horizon if stop is None else params.reaction_time + float(stop)
+    horizon = lead + (params.horizon if stop is None else params.reaction_time + float(stop))
     out = _travel_each(np.ascontiguousarray(speed).ravel(), np.ascontiguousarray(cap).ravel(),
                        float(params.human_acceleration), float(horizon))
     return out.reshape(speed.shape) if speed.shape else float(out[0])
@@ -84,6 +87,21 @@ def iso_speed(d, near_d, v_near, v_far):
     if d >= near_d + NEAR_RAMP:
         return v_far
     return v_near + (v_far - v_near) * (d - near_d) / NEAR_RAMP
+
+
+@numba.njit(cache=True)
+def aged_travel(d, hs, near_d, v_near, v_far, a_h, lead, horizon):
+    """How far (m) a person seen at separation d (m), approaching at hs (m/s), may have come by the end of
+    `horizon` (T_r + T_s, s) from now when they were seen as they were `lead` s ago (``SsmParameters.human_lead``:
+    the data's way from capture to the cell): their travel over lead + horizon (``human_travel``), capped at the
+    ISO 13855 speed of the nearest they may be by now (d less v_near lead: never a lower cap than that of where
+    they were seen). lead 0: the formula's own human term at d. ISO/TS 15066 checks the separation at every
+    instant, as the independent monitor checks each state against the person captured at its moment: a robot
+    whose speed is chosen against where a person was lead s ago would run above the limit of now by their
+    travel since, for as long as they approach.
+    """
+    cap = iso_speed(d - v_near * lead, near_d, v_near, v_far)
+    return human_travel(hs, cap, a_h, lead + horizon)
 
 
 @numba.njit(cache=True)
@@ -128,19 +146,20 @@ def velocity_limit(separation: np.ndarray, human_speed: np.ndarray, params: SsmP
 
 
 @numba.njit(cache=True)
-def limit_at(d, hs, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h):
+def limit_at(d, hs, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h, lead):
     """v_r_max (m/s) at separation d (m) for a person approaching at hs (m/s; the ISO 13855 speed where
-    untracked) and a robot whose stopping time is `stop` (s): the formula with T_s = stop."""
-    cap = iso_speed(d, near_d, v_near, v_far)
+    untracked) and a robot whose stopping time is `stop` (s): the formula with T_s = stop, the person's travel
+    counted from `lead` s before (``SsmParameters.human_lead``: the data's delay; ``aged_travel``)."""
     horizon = reaction + stop
-    return (d - human_travel(hs, cap, a_h, horizon) - 0.5 * a_stop * stop * stop - static) / horizon
+    return (d - aged_travel(d, hs, near_d, v_near, v_far, a_h, lead, horizon) - 0.5 * a_stop * stop * stop
+            - static) / horizon
 
 
 @numba.njit(cache=True)
-def _limits_each(d, hs, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h):
+def _limits_each(d, hs, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h, lead):
     out = np.empty(d.shape[0])
     for k in range(d.shape[0]):
-        out[k] = limit_at(d[k], hs[k], stop[k], reaction, a_stop, static, near_d, v_near, v_far, a_h)
+        out[k] = limit_at(d[k], hs[k], stop[k], reaction, a_stop, static, near_d, v_near, v_far, a_h, lead)
     return out
 
 
@@ -169,13 +188,13 @@ def stop_of_speed(alpha, fraction, stop_full, stop_min):
 
 @numba.njit(cache=True)
 def _speed_allowed(alpha, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop, static,
-                   near_d, v_near, v_far, a_h, margin):
+                   near_d, v_near, v_far, a_h, lead, margin):
     stop = stop_of_speed(alpha, fraction, stop_full, stop_min)
     for i in range(robot_speed.shape[0]):
         for k in range(robot_speed.shape[1]):
             if robot_speed[i, k] > NEGLIGIBLE_SPEED:
                 lim = limit_at(dist[i, k], human_speed[i, k], stop, reaction, a_stop, static, near_d, v_near,
-                               v_far, a_h)
+                               v_far, a_h, lead)
                 if alpha * robot_speed[i, k] > max(lim - margin, 0.0):
                     return False
     return True
@@ -183,7 +202,7 @@ def _speed_allowed(alpha, dist, robot_speed, human_speed, fraction, stop_full, s
 
 @numba.njit(cache=True)
 def speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full, stop_min, reaction, a_stop,
-                      static, near_d, v_near, v_far, a_h, margin):
+                      static, near_d, v_near, v_far, a_h, lead, margin):
     """The largest alpha in [0, 1] at which every pair that approaches keeps alpha robot_speed within its limit
     less `margin`, the limit taken at the stopping time of that alpha: max(stop_min, stop_full alpha fraction),
     fraction the fastest joint's share of its velocity limit at alpha = 1 (pairs: dist, robot_speed, human_speed
@@ -196,13 +215,13 @@ def speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full
     if fraction > 1.0:                     # beyond the velocity limit T_s grows past stop_full: not below it
         low = min(low, 1.0 / fraction)
     if _speed_allowed(1.0, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop, static,
-                      near_d, v_near, v_far, a_h, margin):
+                      near_d, v_near, v_far, a_h, lead, margin):
         return 1.0
     high = 1.0
     for _ in range(BISECTIONS):
         middle = 0.5 * (low + high)
         if _speed_allowed(middle, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop,
-                          static, near_d, v_near, v_far, a_h, margin):
+                          static, near_d, v_near, v_far, a_h, lead, margin):
             low = middle
         else:
             high = middle
@@ -249,7 +268,7 @@ def _closest(distance, limit, robot_speed, alpha):
 
 @numba.njit(cache=True)
 def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, human_vel, human_known,
-                     horizon, fixed, near_d, v_near, v_far, a_h):
+                     horizon, fixed, near_d, v_near, v_far, a_h, lead):
     n_l, n_m = robot_seg.shape[0], human_seg.shape[0]
     dist, robot_speed = np.empty((n_l, n_m)), np.empty((n_l, n_m))
     human_speed, limit = np.empty((n_l, n_m)), np.empty((n_l, n_m))
@@ -283,11 +302,10 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
                     rs = max(rs, nx * robot_vel[i, e, 0] + ny * robot_vel[i, e, 1] + nz * robot_vel[i, e, 2])
                     hs = max(hs, -(nx * human_vel[j, e, 0] + ny * human_vel[j, e, 1] + nz * human_vel[j, e, 2]))
                 robot_speed[i, j] = rs
-            cap = iso_speed(d, near_d, v_near, v_far)
             if not human_known[j]:
-                hs = cap
+                hs = iso_speed(d - v_near * lead, near_d, v_near, v_far)
             human_speed[i, j] = hs
-            limit[i, j] = (d - human_travel(hs, cap, a_h, horizon) - fixed) / horizon
+            limit[i, j] = (d - aged_travel(d, hs, near_d, v_near, v_far, a_h, lead, horizon) - fixed) / horizon
     return dist, robot_speed, human_speed, limit
 
 

@@ -94,7 +94,10 @@ class StepStatus(str, enum.Enum):
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ScalingInputs:
     """What one control cycle is given. humans: the latest human capsules (None: no human data has ever
-    arrived); human_age: how old they are (s; inf or NaN count as stale); q_measured: where the robot really is
+    arrived); human_age: how old they are, from the capture (s; inf or NaN count as stale); human_delay: the
+    newest sample's way from its capture to the tracker's state (s: a camera's latency, the tracker's hop; the SSM
+    rows count the person's travel over it, ``SsmParameters.aged``; 0 where the people come as captured);
+    q_measured: where the robot really is
     (rad; the SSM rows are written there and its offset from the path is carried to the commanded point; None:
     where the path says); stale_after: the age at which this source's data is stale (s; None: the layer's
     human_timeout; a slower source's bound is ``shared.tracking.tracker.stale_bound``); robot_age: how long since
@@ -106,6 +109,7 @@ class ScalingInputs:
     q_measured: np.ndarray | None = None
     stale_after: float | None = None
     robot_age: float = 0.0
+    human_delay: float = 0.0
 
 
 @dataclass(slots=True, kw_only=True)
@@ -156,6 +160,9 @@ class ScalingLayer:
                  params: ScalingParameters | None = None) -> None:
         self.robot = robot
         self.ssm = ssm or SsmParameters()
+        # this cycle's: self.ssm for the people's data's delay (``SsmParameters.aged``: the person's travel from
+        # the capture to the cell counts), which every check of the cycle uses
+        self._aged = self.ssm
         self.params = params or ScalingParameters()
         self._piqp = PiqpScalingSolver(self.params.acceleration_weight, robot.nq) \
             if self.params.solver == "piqp" else None
@@ -360,7 +367,7 @@ class ScalingLayer:
             if alpha <= 0.0:
                 return 0.0, lowered
             q_next, dq_next, _ = traj.sample(self.s + alpha * self.params.period)
-            bound = ssm_alpha_bound(self.robot, q_next + offset, dq_next, humans, self.ssm)
+            bound = ssm_alpha_bound(self.robot, q_next + offset, dq_next, humans, self._aged)
             if alpha <= bound:
                 return alpha, lowered
             alpha, lowered = bound * (1.0 - 1e-9), True
@@ -389,8 +396,8 @@ class ScalingLayer:
                                     period, self.robot.limits.monitor_acceleration, np.asarray(offset, dtype=float),
                                     LOOKAHEAD_EVERY, self.robot.limits.velocity, *self.robot.chain,
                                     self.robot.ancestry, self.robot.radii, humans.segments, humans.radii,
-                                    humans.velocities, humans.velocity_known, *self.ssm.kernel_constants,
-                                    *self.ssm.stop_constants, self.ssm.tracking_margin))
+                                    humans.velocities, humans.velocity_known, *self._aged.kernel_constants,
+                                    *self._aged.stop_constants, self._aged.tracking_margin))
 
     def braking_floor(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
         """The least path speed this cycle can have: the current one less what the drives' full deceleration
@@ -436,7 +443,10 @@ class ScalingLayer:
         if status is StepStatus.FINISHED:
             alpha, safe_alpha = 1.0, 1.0
         elif status is StepStatus.RUNNING:
-            rows = build_rows(self.robot, q_kin, dq, ddq, 1.0, self.sdot, humans, self.ssm, self.params.period)
+            # the delay is within the age (a NaN one: the whole age, the larger), which is finite when running
+            delay = min(inputs.human_delay, human_age) if math.isfinite(inputs.human_delay) else human_age
+            self._aged = self.ssm.aged(max(0.0, delay))
+            rows = build_rows(self.robot, q_kin, dq, ddq, 1.0, self.sdot, humans, self._aged, self.params.period)
             solution = solve(rows, self.params.acceleration_weight, self._piqp)
             alpha, safe_alpha, method = solution.alpha, rows.upper, solution.method
             alpha, lowered = self._verified(traj, alpha, humans, q_kin - q_nom)

@@ -30,7 +30,7 @@ MAX_STEPS = 100     # periods a stop may take (1 s at 100 Hz; from full speed it
 @numba.njit(cache=True)
 def stop_stays_safe(times, positions, velocities, s, sdot, period, acceleration, offset, every, velocity_limit,
                     placement, parent, local, joint, ancestry, radii, human_seg, human_rad, human_vel, human_known,
-                    horizon, fixed, near_d, v_near, v_far, a_h, stop_full, stop_min, reaction, a_stop, static,
+                    horizon, fixed, near_d, v_near, v_far, a_h, lead, stop_full, stop_min, reaction, a_stop, static,
                     margin):
     """Whether the stop that starts at path parameter s with path speed sdot (the command's) keeps every checked
     state within the SSM rows' bound: each period, the path speed falls by the drives' deceleration
@@ -54,7 +54,7 @@ def stop_stays_safe(times, positions, velocities, s, sdot, period, acceleration,
                     moved[m] += human_vel[m] * (k * period)
             bound = motion_alpha_bound(q + offset, dq, velocity_limit, placement, parent, local, joint, ancestry,
                                        radii, moved, human_rad, human_vel, human_known, horizon, fixed, near_d,
-                                       v_near, v_far, a_h, stop_full, stop_min, reaction, a_stop, static, margin)
+                                       v_near, v_far, a_h, lead, stop_full, stop_min, reaction, a_stop, static, margin)
             if sdot > bound * (1.0 + 1e-9) + 1e-12:
                 return False
     return False

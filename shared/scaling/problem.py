@@ -102,11 +102,11 @@ def speed_fraction(joint_velocity, joint_speed_limit):
 
 
 @numba.njit(cache=True)
-def _state_limits(dist, human_speed, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h):
+def _state_limits(dist, human_speed, stop, reaction, a_stop, static, near_d, v_near, v_far, a_h, lead):
     """Every pair's limit at the stopping time `stop` (s), shaped like dist."""
     flat_d = dist.copy().reshape(-1)
     out = _limits_each(flat_d, human_speed.copy().reshape(-1), np.full(flat_d.shape[0], stop), reaction, a_stop,
-                       static, near_d, v_near, v_far, a_h)
+                       static, near_d, v_near, v_far, a_h, lead)
     return out.reshape(dist.shape)
 
 
@@ -133,7 +133,7 @@ def _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration):
 @numba.njit(cache=True)
 def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, acceleration, placement, parent, local,
                 joint, ancestry, radii, human_seg, human_rad, human_vel, human_known, horizon, fixed, near_d,
-                v_near, v_far, a_h, stop_full, stop_min, reaction, a_stop, static, margin):
+                v_near, v_far, a_h, lead, stop_full, stop_min, reaction, a_stop, static, margin):
     """``build_rows`` in one compiled call: the joint speeds at alpha = 1, every pair's SSM row (kinematics and
     ``_pair_ssm_kernel``; empty without people), the hard rows' bound, each pair's limit at that bound's stopping
     time, the acceleration rows and whether they all hold at that bound (one call: each compiled call costs its
@@ -145,16 +145,16 @@ def _cycle_rows(q, dq, d2q, sdot_nominal, sdot_prev, period, velocity, accelerat
         points, vel = chain_points_and_velocities(q, tangent, placement, parent, local, joint, ancestry)
         dist, robot_speed, human_speed, limit = _pair_ssm_kernel(
             points.reshape(n_links, 2, 3), radii, vel.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
-            human_known, horizon, fixed, near_d, v_near, v_far, a_h)
+            human_known, horizon, fixed, near_d, v_near, v_far, a_h, lead)
     else:
         dist = robot_speed = human_speed = limit = np.zeros((n_links, 0))
     fraction = speed_fraction(tangent, velocity)
     upper = min(_joint_bound(joint_speed, velocity),
                 speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full, stop_min, reaction,
-                                  a_stop, static, near_d, v_near, v_far, a_h, margin))
+                                  a_stop, static, near_d, v_near, v_far, a_h, lead, margin))
     if stop_min < stop_full:
         state = _state_limits(dist, human_speed, stop_of_speed(upper, fraction, stop_full, stop_min), reaction,
-                              a_stop, static, near_d, v_near, v_far, a_h)
+                              a_stop, static, near_d, v_near, v_far, a_h, lead)
     else:
         state = limit
     coef, bound = _acceleration_rows(dq, d2q, sdot_nominal, sdot_prev, period, acceleration)
@@ -191,7 +191,7 @@ def ssm_alpha_bound(robot: RobotModel, q: np.ndarray, joint_velocity: np.ndarray
 
 @numba.njit(cache=True)
 def motion_alpha_bound(q, joint_velocity, velocity_limit, placement, parent, local, joint, ancestry, radii,
-                       human_seg, human_rad, human_vel, human_known, horizon, fixed, near_d, v_near, v_far, a_h,
+                       human_seg, human_rad, human_vel, human_known, horizon, fixed, near_d, v_near, v_far, a_h, lead,
                        stop_full, stop_min, reaction, a_stop, static, margin):
     """``ssm_alpha_bound`` in one compiled call (the kinematics, every pair's SSM row, their bound at the stopping
     time of each alpha, ``speed_alpha_bound``; the kernels the scaling rows and the planning layer's time cost use):
@@ -201,9 +201,9 @@ def motion_alpha_bound(q, joint_velocity, velocity_limit, placement, parent, loc
     points, velocities = chain_points_and_velocities(q, joint_velocity, placement, parent, local, joint, ancestry)
     dist, robot_speed, human_speed, limit = _pair_ssm_kernel(
         points.reshape(n_links, 2, 3), radii, velocities.reshape(n_links, 2, 3), human_seg, human_rad, human_vel,
-        human_known, horizon, fixed, near_d, v_near, v_far, a_h)
+        human_known, horizon, fixed, near_d, v_near, v_far, a_h, lead)
     return speed_alpha_bound(dist, robot_speed, human_speed, limit, speed_fraction(joint_velocity, velocity_limit),
-                             stop_full, stop_min, reaction, a_stop, static, near_d, v_near, v_far, a_h, margin)
+                             stop_full, stop_min, reaction, a_stop, static, near_d, v_near, v_far, a_h, lead, margin)
 
 
 @numba.njit(cache=True)

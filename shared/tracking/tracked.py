@@ -31,6 +31,7 @@ class TrackedMotion:
         self.estimates: list[HumanCapsules | None] = []     # per frame: the tracker's output after it (None: none)
         self.seen = np.full(len(self.times), -1)           # per frame: the last frame given to the tracker by then
         self.bound = np.zeros(len(self.times))             # per frame: the dropout bound (s) the tracker had then
+        self.interval = np.zeros(len(self.times))          # per frame: the sample interval (s) it had measured by then
         last, estimate = -1, None
         for k, frame in enumerate(motion.frames):
             when = float(self.times[k])
@@ -39,20 +40,35 @@ class TrackedMotion:
                 update = tracker.update(capsules.segments, capsules.radii, when, when)
                 last, estimate = k, update if update is not None else estimate
             self.estimates.append(estimate)
-            self.seen[k], self.bound[k] = last, tracker.dropout
+            self.seen[k], self.bound[k], self.interval[k] = last, tracker.dropout, tracker.interval
 
     @property
     def duration(self) -> float:
         return self.motion.duration
 
+    def _frame(self, t: float) -> int:
+        """The last frame at or before t (-1: none yet)."""
+        return int(np.searchsorted(self.times, t, side="right")) - 1
+
     def at(self, t: float) -> HumanCapsules | None:
-        k = int(np.searchsorted(self.times, t, side="right")) - 1
+        k = self._frame(t)
         if k < 0 or self.seen[k] < 0:
             return None
         t = min(t, float(self.times[-1]))       # past the motion's end its last frame holds, as the motion's own at
         if t - self.times[self.seen[k]] > self.bound[k]:          # tracker_ingest's check: no sample for too long
             return None
         return self.estimates[k]
+
+    def captured(self, t: float) -> tuple[float, float]:
+        """When the newest sample the tracker had by t was captured (s; -inf: none yet) and the source's sample
+        interval it had measured by then (s): the data's age at t counts from the first (the scaler's stale-data
+        bound, ``stale_bound``, scales with the second). Past the motion's end its last frame holds as fresh as it
+        was then, as in at(t)."""
+        k = self._frame(t)
+        if k < 0 or self.seen[k] < 0:
+            return -np.inf, 0.0
+        held = max(0.0, t - float(self.times[-1]))
+        return float(self.times[self.seen[k]]) + held, float(self.interval[k])
 
     def phase(self, t: float) -> str:
         return self.motion.phase(t)

@@ -32,7 +32,7 @@ def test_bad_arguments_are_refused_with_the_reason(capsys, tmp_path):
     with pytest.raises(SystemExit) as exit_:
         bench.main(["--recordings", str(FIXTURE), "--only", "nobody"])
     assert exit_.value.code == 2 and "named ['nobody']" in capsys.readouterr().err
-    for bad, said in ((["--latency", "0.9"], "stale"), (["--latency", "0.05", "--sim"], "needs the processes")):
+    for bad, said in ((["--latency", "0.9"], "stale"), (["--latency", "-0.05", "--sim"], "expected 0 to 0.5 s")):
         with pytest.raises(SystemExit) as exit_:
             bench.main(bad)
         assert exit_.value.code == 2 and said in capsys.readouterr().err
@@ -141,3 +141,5 @@ def test_a_latency_goes_to_the_demo_of_each_run(monkeypatch, tmp_path):
     assert calls[0][calls[0].index("--latency") + 1] == "0.08" and "--sim" not in calls[0]
     bench.run(tmp_path / "motion.json", tmp_path / "report", False, False)
     assert "--latency" not in calls[1]
+    bench.run(tmp_path / "motion.json", tmp_path / "report", True, False, None, 0.03)       # the simulation's too
+    assert calls[2][calls[2].index("--latency") + 1] == "0.03" and "--sim" in calls[2]

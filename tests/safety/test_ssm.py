@@ -14,7 +14,15 @@ import pytest
 from shared.core.errors import ConfigError
 from shared.core.humans import HumanCapsules
 from shared.safety.parameters import SsmParameters
-from shared.safety.ssm import NEAR_RAMP, default_human_speed, pair_ssm, protective_separation_distance, velocity_limit
+from shared.safety.ssm import (
+    NEAR_RAMP,
+    default_human_speed,
+    human_distance,
+    human_travel,
+    pair_ssm,
+    protective_separation_distance,
+    velocity_limit,
+)
 
 P = SsmParameters().paper_formula()      # the paper's formula: the measured human speed held
 
@@ -215,3 +223,42 @@ def test_a_robot_that_creeps_may_pass_a_person_where_one_at_full_speed_may_not()
                              humans.velocity_known, *ssm.kernel_constants)
         bounds[name] = speed_alpha_bound(*k, 1.0, *ssm.stop_constants, *ssm.kernel_constants[2:], ssm.tracking_margin)
     assert bounds["one"] == 0.0 and 0.2 < bounds["scaling"] < 0.8
+
+
+def test_data_that_took_a_while_to_come_counts_the_persons_travel_since_its_capture():
+    """A person seen as they were 30 ms ago (a camera's latency): the human's part of S_p is their travel over
+    30 ms + T_r + T_s, at the ISO speed of where they may be by now. The paper's formula by hand: 0.5 m/s over
+    0.43 s; the shipped model: the capped acceleration over 0.43 s. Every kernel that takes the constants agrees
+    (the pair kernel, the per-state limit, the human's distance)."""
+    late = P.aged(0.03)
+    assert late.human_lead == pytest.approx(0.03) and P.human_lead == 0.0
+    r = pair_ssm(np.array([[[0.0, 0, 0], [0.0, 0, 0]]]), np.array([0.1]), np.array([[[1.0, 0, 0], [1.0, 0, 0]]]),
+                 HumanCapsules.from_arrays([[[1.0, 0, 0], [1.0, 0, 0]]], [0.1], [[[-0.5, 0, 0], [-0.5, 0, 0]]], [True]),
+                 late)
+    assert r.limit[0, 0] == pytest.approx((0.8 - 0.5 * 0.43 - 0.295) / 0.4)
+    assert velocity_limit(0.8, 0.5, late) == pytest.approx(r.limit[0, 0])
+    shipped = SsmParameters()
+    cap = default_human_speed(0.9 - 2.0 * 0.03, shipped)          # where they may be by now: a higher ISO speed
+    travel = human_travel(0.5, float(cap), shipped.human_acceleration, 0.43)
+    assert velocity_limit(0.9, 0.5, shipped.aged(0.03)) == pytest.approx((0.9 - travel - shipped.fixed_distance) / 0.4)
+    assert velocity_limit(0.9, 0.5, shipped.aged(0.03)) < velocity_limit(0.9, 0.5, shipped)
+    assert human_distance(0.5, shipped.aged(0.03), 0.9) == pytest.approx(travel)
+    unknown = HumanCapsules.from_arrays([[[1.3, 0, 0], [1.3, 0, 0]]], [0.1], np.zeros((1, 2, 3)), [False])
+    far = pair_ssm(np.array([[[0.0, 0, 0], [0.0, 0, 0]]]), np.array([0.1]), np.zeros((1, 2, 3)), unknown,
+                   shipped.aged(0.05))
+    assert far.human_speed[0, 0] == pytest.approx(float(default_human_speed(1.1 - 0.1, shipped)))
+
+
+def test_a_delay_is_rounded_up_to_the_millisecond_kept_and_never_a_setting():
+    """aged: 12.2 ms counts as 13 ms (never less), the same delay gives the same parameters (a cycle does not
+    build new ones), a NaN or negative delay is refused (it is a stale-data stop, not a limit), and a cell's
+    configuration cannot set human_lead: the cell sets it as it runs."""
+    shipped = SsmParameters()
+    assert shipped.aged(0.0122).human_lead == pytest.approx(0.013)
+    assert shipped.aged(0.013).human_lead == pytest.approx(0.013)
+    assert shipped.aged(0.0122) is shipped.aged(0.0125) and shipped.aged(0.0) is shipped
+    for bad in (float("nan"), float("inf"), -0.01):
+        with pytest.raises(ValueError, match="delay"):
+            shipped.aged(bad)
+    with pytest.raises(ConfigError, match="unknown key"):
+        SsmParameters.from_mapping({"human_lead": 0.03})

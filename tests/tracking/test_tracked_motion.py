@@ -58,3 +58,16 @@ def test_any_order_of_times_gives_the_same_answers_as_a_clock_that_runs_on():
     assert tracked.at(-0.1) is None                                      # before the first frame
     assert np.array_equal(tracked.at(60.0).segments, tracked.at(19.0 / RATE).segments)   # past the end: the last
     assert tracked.phase(0.2) == motion.phase(0.2) and tracked.duration == pytest.approx(19.0 / RATE)
+
+
+def test_the_data_of_a_moment_is_aged_from_the_capture_of_the_newest_frame_the_tracker_had():
+    """captured(t): the newest frame's capture time and the interval the tracker had measured, so that a frame
+    held between two of a 30 Hz camera ages as the scaler finds it; none before the first frame; past the
+    motion's end its last frame holds as fresh as it was then (as at(t) holds it)."""
+    tracked = TrackedMotion(walker(30, gap=(10, 12)))
+    assert tracked.captured(-0.01) == (-np.inf, 0.0)
+    taken, interval = tracked.captured(5.5 / RATE)
+    assert taken == pytest.approx(5 / RATE) and interval == pytest.approx(1 / RATE)
+    assert tracked.captured(11.5 / RATE)[0] == pytest.approx(9 / RATE)          # two frames lost: 2.5 frames old
+    end = 29 / RATE                                                             # the last frame
+    assert tracked.captured(end + 0.5)[0] == pytest.approx(end + 0.5)         # held as fresh as it came
