@@ -284,7 +284,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             else:
                 log_replan(ReplanEvent(t, outcome.action, True, elapsed, res.detail))
 
-    def planning_turn(t: float, k: int, humans) -> None:
+    def planning_turn(t: float, k: int, humans, delay: float = 0.0) -> None:
         """One turn of the planner's loop on what the scaler last reported; its result is taken at once, or
         when its charged time has passed."""
         nonlocal busy_until, waiting, replans_meant, goals_meant
@@ -292,7 +292,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
                                  human_sample=k, report=report,
                                  followed=None if report is None else handed.get(report.version),
                                  in_flight=in_flight, waited=held.waited(t), newest_version=max(handed),
-                                 then=ends[leg % 2])      # then: the shuttle's next goal, back
+                                 then=ends[leg % 2], human_delay=delay)   # then: the shuttle's next goal, back
         started = time.perf_counter()
         outcome = loop.step(t, inputs)
         elapsed = time.perf_counter() - started
@@ -330,7 +330,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             take(t, outcome, elapsed)
 
     if loop is not None:      # the first leg planned before the clock starts, as the fixed path's is made
-        planning_turn(0.0, 0, sensed(human, 0.0, latency).humans)
+        first = sensed(human, 0.0, latency)
+        planning_turn(0.0, 0, first.humans, first.delay)
         take_ready(0.0)       # planned with no search charged: ready at the start
     for k in range(int(round(duration / period))):
         t = k * period
@@ -340,7 +341,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         result.sample_interval = given.interval or result.sample_interval
         take_ready(t)
         if loop is not None and t >= busy_until:
-            planning_turn(t, k, given.humans)
+            planning_turn(t, k, given.humans, given.delay)
         step = layer.step(ScalingInputs(humans=given.humans, human_age=given.age, stale_after=stale_after,
                                         human_delay=given.delay))
         result.stale_cycles += step.status is StepStatus.STALE_HUMAN_DATA     # as the report counts the scaler's
@@ -358,7 +359,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             else:
                 pending_leg = True          # a new goal: the planner takes a turn on it at once (when free)
                 if t >= busy_until:
-                    planning_turn(t, k, given.humans)
+                    planning_turn(t, k, given.humans, given.delay)
         result.progress = result.shuttles + leg_fraction(step.q_command, ends[leg % 2], ends[(leg + 1) % 2])
         record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
         result.records.append(record)

@@ -58,6 +58,7 @@ class PlannerService:
         self.new_goal = False
         self.humans = None
         self.human_seq = -1
+        self.human_delay = 0.0             # s: the newest people state's way from its capture (HumanState)
         self.q = None
         self.status: ScalerStatus | None = None
         self.highest_seen = 0              # the highest trajectory version the scaler reported following
@@ -88,6 +89,9 @@ class PlannerService:
         with self.lock:
             if humans is not None:   # counted here: the horizon check must not depend on the sender's numbering
                 self.humans, self.human_seq = humans_from_msg(humans), self.human_seq + 1
+                # their way from capture to the tracker's state (a camera's latency): counted as the scaler counts it
+                self.human_delay = humans.stamp - humans.sample_stamp \
+                    if humans.valid and humans.stamp >= humans.sample_stamp else 0.0
             if joints is not None:
                 self.q = np.asarray(joints.q)
             if status is not None:
@@ -137,7 +141,8 @@ class PlannerService:
             inputs = planning_inputs(goal=goal.q, new_goal=new_goal, q=q, humans=humans, human_sample=self.human_seq,
                                      report=report, followed=None if report is None else self.published.get(report.version),
                                      in_flight=self._in_flight(now), waited=self.held.waited(now),
-                                     newest_version=newest, then=goal.then[0] if len(goal.then) else None)
+                                     newest_version=newest, then=goal.then[0] if len(goal.then) else None,
+                                     human_delay=self.human_delay)
             if not self.loop.ready(inputs):      # a goal is kept until the robot's position and the people are known
                 return
             self.new_goal = False

@@ -45,6 +45,7 @@ class ExecutedTime:
         self.longest = longest
         self.layer = ScalingLayer(robot, ssm, self.params)
         self.runs = 0                 # forward runs made (what a benchmark charges them by)
+        self.delay = 0.0              # s: the people's way from capture to the cell, which the layer counts
 
     @staticmethod
     def people(humans: HumanCapsules | None, horizon: float, forecaster: Forecaster):
@@ -71,7 +72,7 @@ class ExecutedTime:
         gone = HumanCapsules.empty()
         for k in range(int(np.ceil(self.longest / period))):
             t = k * period
-            step = layer.step(ScalingInputs(humans=people(t) if t < stay else gone))
+            step = layer.step(ScalingInputs(humans=people(t) if t < stay else gone, human_delay=self.delay))
             if step.status is StepStatus.FINISHED:
                 return t
         return self.longest

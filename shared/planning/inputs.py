@@ -31,7 +31,7 @@ class PlanningInputs:
     (``shared.scaling.layer.held_by_ssm``). stop_at: the s of the followed trajectory where the scaler has brought
     (or brings) the robot to rest to await the plan it asked for (``ScalingStep.awaiting``; None: it does not
     wait). then: the goal that follows this one (rad; None: not known), whose plan the loop prepares before the
-    robot arrives."""
+    robot arrives. human_delay: the people's way from their capture to the cell (s; ``Replanner.take_delay``)."""
 
     goal: np.ndarray | None
     new_goal: bool
@@ -46,11 +46,13 @@ class PlanningInputs:
     held: bool = False
     stop_at: float | None = None
     then: np.ndarray | None = None
+    human_delay: float = 0.0
 
 
 def planning_inputs(*, goal: np.ndarray | None, new_goal: bool, q: np.ndarray | None, humans: HumanCapsules | None,
                     human_sample: int, report: ScalerReport | None, followed: Trajectory | None, in_flight: bool,
-                    waited: float, newest_version: int, then: np.ndarray | None = None) -> PlanningInputs:
+                    waited: float, newest_version: int, then: np.ndarray | None = None,
+                    human_delay: float = 0.0) -> PlanningInputs:
     """PlanningInputs from the scaling layer's last report. followed: the trajectory of the report's version (None:
     not one of the planner's); in_flight: a trajectory handed to the scaling layer has not been reported on yet
     (nothing is followed meanwhile: the planner would plan on a path about to be replaced); newest_version: the
@@ -67,4 +69,4 @@ def planning_inputs(*, goal: np.ndarray | None, new_goal: bool, q: np.ndarray | 
                           beta=report is not None and report.beta, waited=waited,
                           version=max(newest_version, -1 if report is None else report.version) + 1,
                           held=report is not None and report.held,
-                          stop_at=None if report is None else report.awaiting, then=then)
+                          stop_at=None if report is None else report.awaiting, then=then, human_delay=human_delay)

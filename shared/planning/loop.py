@@ -131,6 +131,7 @@ class PlanningLoop:
         if not self.ready(inputs):
             return None
         inputs = replace(inputs, waited=max(inputs.waited, self.stays.waited(now)))
+        self.replanner.take_delay(inputs.human_delay)
         before = self.replanner.searches
         self.replanner.begin()
         try:
@@ -241,7 +242,7 @@ class PlanningLoop:
         """Why the goal is out of reach from where the robot is while the people stay, or None."""
         if inputs.humans is None:
             return None
-        return goal_block(self.replanner.collision.robot, self.replanner.ssm, inputs.q, inputs.goal, inputs.humans)
+        return goal_block(self.replanner.collision.robot, self.replanner.cost.ssm, inputs.q, inputs.goal, inputs.humans)
 
     def _why(self, refused: str, inputs: PlanningInputs) -> str:
         """A horizon refusal's reason, and where the goal itself is out of reach while the people stay

@@ -29,6 +29,7 @@ splice of a merge (Alg. 2, ``shared.planning.merge``), the keep-or-replace rule
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -105,6 +106,16 @@ class Replanner:
         self.goal_searched = False     # the last plan_goal took the leg its search found
         self.took_fold = False         # the last plan_goal's leg, where not searched, is the folded one
         self.postures = FoldedLegs(collision)     # the folded legs a new goal may take (``_posture``)
+
+    def take_delay(self, delay: float) -> None:
+        """The people's way from capture to the cell (s, ``PlanningInputs.human_delay``): the time cost, the path
+        search and the forward run of the scaling layer count their travel over it, as the scaling layer does
+        (``SsmParameters.aged``), so the planning layer does not take a way the scaler will not go (a path
+        predicted passable that the scaler holds at rest stood a camera 30 ms behind still for half its run)."""
+        delay = delay if math.isfinite(delay) and delay > 0.0 else 0.0
+        self.cost.ssm = self.ssm.aged(delay)
+        if self.executed is not None:
+            self.executed.delay = delay
 
     def begin(self) -> None:
         """One planning action starts (``ActionBudget.begin``)."""

@@ -443,8 +443,8 @@ class ScalingLayer:
         if status is StepStatus.FINISHED:
             alpha, safe_alpha = 1.0, 1.0
         elif status is StepStatus.RUNNING:
-            # the delay is within the age (a NaN one: the whole age, the larger), which is finite when running
-            delay = min(inputs.human_delay, human_age) if math.isfinite(inputs.human_delay) else human_age
+            # a NaN delay counts the whole age (finite when running): never less than the people's way here
+            delay = inputs.human_delay if math.isfinite(inputs.human_delay) else human_age
             self._aged = self.ssm.aged(max(0.0, delay))
             rows = build_rows(self.robot, q_kin, dq, ddq, 1.0, self.sdot, humans, self._aged, self.params.period)
             solution = solve(rows, self.params.acceleration_weight, self._piqp)

@@ -53,7 +53,8 @@ class RecordingReplanner:
         self.defers, self.search_deferred, self.folds = defers, False, folds
         self.leaving: list[bool] = []        # plan_goal's leaving argument, call by call
         self.options = ReplanOptions()
-        self.cost = SimpleNamespace(forecaster=ConstantVelocity())     # whose record the loop keeps (ForecastTrust)
+        # whose record the loop keeps (ForecastTrust), and whose SSM the loop asks whether a goal is blocked
+        self.cost = SimpleNamespace(forecaster=ConstantVelocity(), ssm=PAPER_SSM)
         self.searches = 0
         self.forgotten = 0
         self.horizon, self.beta_fails, self.horizon_fails = horizon, beta_fails, horizon_fails
@@ -61,6 +62,11 @@ class RecordingReplanner:
         self.collision, self.ssm = COLLISION, PAPER_SSM      # what the loop asks whether a goal is blocked
         self.open_actions = self.actions = 0
         self.remembered: list = []
+
+        self.delays: list[float] = []        # take_delay's, turn by turn
+
+    def take_delay(self, delay: float) -> None:
+        self.delays.append(delay)
 
     def begin(self) -> None:
         self.open_actions += 1
@@ -504,6 +510,31 @@ def planner_given_a_goal(replanner, goal_id: int) -> tuple[FakeShell, PlannerSer
     shell.deliver(shell.keys.human_state, humans_to_msg(HumanCapsules.empty(), True, 0.95))
     service.work_once(1.0)
     return shell, service
+
+
+def test_the_planning_layer_counts_the_peoples_way_from_capture_as_the_scaler_does(replanner):
+    """A people state published 30 ms after its capture: the planner service hands the loop that delay, the loop
+    the replanner before it acts, and its time cost, path search and forward run of the scaling layer count the
+    person's travel over it (a path it predicts passable on data of now, the scaler holds at rest)."""
+    shell, service = planner_given_a_goal(replanner, 3)
+    assert replanner.cost.ssm.human_lead == 0.0
+    someone = HumanCapsules.from_arrays([[[-1.6, 0.0, 0.9], [-1.6, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
+    shell.deliver(shell.keys.human_state, humans_to_msg(someone, True, 1.9, stamp=1.93))
+    service.work_once(2.0)
+    assert service.human_delay == pytest.approx(0.03)
+    assert replanner.cost.ssm.human_lead == pytest.approx(0.03) and replanner.cost.ssm == PAPER_SSM.aged(0.03)
+    shell.deliver(shell.keys.human_state, humans_to_msg(someone, True, 2.0))          # no publication stamp
+    service.work_once(2.1)
+    assert service.human_delay == 0.0 and replanner.cost.ssm.human_lead == 0.0
+    loop = PlanningLoop(RecordingReplanner(horizon=True))
+    loop.step(0.0, inputs(human_delay=0.045))
+    assert loop.replanner.delays == [0.045]
+    judged = fresh_replanner()
+    judged.executed = SimpleNamespace(delay=0.0)
+    judged.take_delay(float("nan"))
+    assert judged.executed.delay == 0.0 and judged.cost.ssm.human_lead == 0.0
+    judged.take_delay(0.02)
+    assert judged.executed.delay == 0.02
 
 
 def test_the_planner_service_plans_a_goal_and_answers_beta_through_the_loop(replanner):
