@@ -36,4 +36,4 @@ bench: $(STAMP)
 	$(BIN)/python bench/forecast.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info .numba-cache

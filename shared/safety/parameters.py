@@ -75,12 +75,12 @@ class SsmParameters:
       person captured at its moment, which it waits for; the scaling layer has that person only human_lead
       later. A robot whose speed follows where a person was human_lead ago rides the limit of then, above the
       limit of now by their travel since, for as long as they approach (46 violations in ``hrc demo --latency
-      0.03`` before this was counted; docs/real-people.md). So the human's part of S_p is their travel over
-      human_lead + T_r + T_s, at the ISO 13855 speed of where they may be by now (``shared.safety.ssm.aged_travel``).
-      The scaling layer sets it each cycle (``aged``). The wait for a source's next sample is not in it: the
-      monitor's person of a moment is the newest sample too, and T_r covers that wait (with the whole chain from
-      capture to the drives: the reaction to what the model does not foresee, a person who starts or comes into
-      view).
+      0.03`` before this was counted; docs/real-people.md). So the human's part of S_p has them come on at their
+      measured speed over human_lead first (``shared.safety.ssm.aged_travel``). What the data did not show, a
+      start or a turn towards the robot within those ms, is not counted again: it is the reaction T_r covers,
+      from the capture to the drives (checked: ``reaction_time_covers_p99``). The scaling layer and the planning
+      layer set it each cycle (``aged``). The wait for a source's next sample is not in it: the monitor's person
+      of a moment is the newest sample too, and T_r covers that wait with the chain.
     tracking_margin (derived, m/s) = drive_lag x link_acceleration = 0.053 m/s: while the joints run
       drive_lag behind, the measured speed differs from the commanded one by at most this much. The
       scaling layer keeps the commanded approach speed this far below the limit, so the *measured* robot

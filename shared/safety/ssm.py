@@ -63,12 +63,13 @@ def human_distance(human_speed: np.ndarray, params: SsmParameters, separation: n
     that late (``aged_travel``); stop: the state's T_s (s; default the full-speed stopping_time). Element by
     element, compiled."""
     lead = params.human_lead
+    ahead = np.asarray(human_speed, dtype=float) * lead
     cap = params.human_speed_near if separation is None else \
-        default_human_speed(np.asarray(separation, dtype=float) - params.human_speed_near * lead, params)
+        default_human_speed(np.asarray(separation, dtype=float) - ahead, params)
     speed, cap = np.broadcast_arrays(np.asarray(human_speed, dtype=float), np.asarray(cap, dtype=float))
-    horizon = lead + (params.horizon if stop is None else params.reaction_time + float(stop))
+    horizon = params.horizon if stop is None else params.reaction_time + float(stop)
     out = _travel_each(np.ascontiguousarray(speed).ravel(), np.ascontiguousarray(cap).ravel(),
-                       float(params.human_acceleration), float(horizon))
+                       float(params.human_acceleration), float(horizon)) + (speed * lead).ravel()
     return out.reshape(speed.shape) if speed.shape else float(out[0])
 
 
@@ -93,15 +94,19 @@ def iso_speed(d, near_d, v_near, v_far):
 def aged_travel(d, hs, near_d, v_near, v_far, a_h, lead, horizon):
     """How far (m) a person seen at separation d (m), approaching at hs (m/s), may have come by the end of
     `horizon` (T_r + T_s, s) from now when they were seen as they were `lead` s ago (``SsmParameters.human_lead``:
-    the data's way from capture to the cell): their travel over lead + horizon (``human_travel``), capped at the
-    ISO 13855 speed of the nearest they may be by now (d less v_near lead: never a lower cap than that of where
-    they were seen). lead 0: the formula's own human term at d. ISO/TS 15066 checks the separation at every
-    instant, as the independent monitor checks each state against the person captured at its moment: a robot
-    whose speed is chosen against where a person was lead s ago would run above the limit of now by their
-    travel since, for as long as they approach.
+    the data's way from capture to the cell): on at hs over the lead, as they were going, then their travel over
+    the horizon from there (``human_travel``, capped at the ISO 13855 speed of that nearer separation). lead 0: the
+    formula's own human term at d.
+
+    ISO/TS 15066 checks the separation at every instant, as the independent monitor checks each state against the
+    person captured at its moment: a robot whose speed is chosen against where a person was lead s ago would run
+    above the limit of now by their travel since, for as long as they keep approaching. What they do that the
+    data did not show (a start, a turn towards the robot) is the reaction T_r covers, from its capture to the
+    drives (``reaction_time_covers_p99``): the human model's acceleration is not counted over the lead too.
     """
-    cap = iso_speed(d - v_near * lead, near_d, v_near, v_far)
-    return human_travel(hs, cap, a_h, lead + horizon)
+    ahead = hs * lead
+    cap = iso_speed(d - ahead, near_d, v_near, v_far)
+    return ahead + human_travel(hs, cap, a_h, horizon)
 
 
 @numba.njit(cache=True)
@@ -302,7 +307,7 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
                     rs = max(rs, nx * robot_vel[i, e, 0] + ny * robot_vel[i, e, 1] + nz * robot_vel[i, e, 2])
                     hs = max(hs, -(nx * human_vel[j, e, 0] + ny * human_vel[j, e, 1] + nz * human_vel[j, e, 2]))
                 robot_speed[i, j] = rs
-            if not human_known[j]:
+            if not human_known[j]:                 # the ISO speed of the nearest they may be by now
                 hs = iso_speed(d - v_near * lead, near_d, v_near, v_far)
             human_speed[i, j] = hs
             limit[i, j] = (d - aged_travel(d, hs, near_d, v_near, v_far, a_h, lead, horizon) - fixed) / horizon

@@ -226,10 +226,11 @@ def test_a_robot_that_creeps_may_pass_a_person_where_one_at_full_speed_may_not()
 
 
 def test_data_that_took_a_while_to_come_counts_the_persons_travel_since_its_capture():
-    """A person seen as they were 30 ms ago (a camera's latency): the human's part of S_p is their travel over
-    30 ms + T_r + T_s, at the ISO speed of where they may be by now. The paper's formula by hand: 0.5 m/s over
-    0.43 s; the shipped model: the capped acceleration over 0.43 s. Every kernel that takes the constants agrees
-    (the pair kernel, the per-state limit, the human's distance)."""
+    """A person seen as they were 30 ms ago (a camera's latency): the human's part of S_p has them come on at
+    their measured speed over those 30 ms, then their travel over T_r + T_s from there, at the ISO speed of that
+    nearer separation. The paper's formula by hand: 0.5 m/s over 0.43 s; the shipped model: 15 mm, then the
+    capped acceleration over 0.4 s (a start within the 30 ms is T_r's). Every kernel that takes the constants
+    agrees (the pair kernel, the per-state limit, the human's distance)."""
     late = P.aged(0.03)
     assert late.human_lead == pytest.approx(0.03) and P.human_lead == 0.0
     r = pair_ssm(np.array([[[0.0, 0, 0], [0.0, 0, 0]]]), np.array([0.1]), np.array([[[1.0, 0, 0], [1.0, 0, 0]]]),
@@ -238,8 +239,8 @@ def test_data_that_took_a_while_to_come_counts_the_persons_travel_since_its_capt
     assert r.limit[0, 0] == pytest.approx((0.8 - 0.5 * 0.43 - 0.295) / 0.4)
     assert velocity_limit(0.8, 0.5, late) == pytest.approx(r.limit[0, 0])
     shipped = SsmParameters()
-    cap = default_human_speed(0.9 - 2.0 * 0.03, shipped)          # where they may be by now: a higher ISO speed
-    travel = human_travel(0.5, float(cap), shipped.human_acceleration, 0.43)
+    cap = default_human_speed(0.9 - 0.5 * 0.03, shipped)          # where they are by now: a higher ISO speed
+    travel = 0.5 * 0.03 + human_travel(0.5, float(cap), shipped.human_acceleration, 0.4)   # no start counted twice
     assert velocity_limit(0.9, 0.5, shipped.aged(0.03)) == pytest.approx((0.9 - travel - shipped.fixed_distance) / 0.4)
     assert velocity_limit(0.9, 0.5, shipped.aged(0.03)) < velocity_limit(0.9, 0.5, shipped)
     assert human_distance(0.5, shipped.aged(0.03), 0.9) == pytest.approx(travel)
