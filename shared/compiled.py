@@ -7,8 +7,9 @@ kernel of ``shared/safety/ssm.py`` kept the old SSM limit after that file change
 before. So the cache directory is keyed by a digest of every source file of ``shared`` (the only package that
 compiles): a change anywhere starts from an empty cache, which the services' warm-up fills (tens of seconds of
 compiling, once), and code never runs against another version's compiled kernels. The root is
-``HRC_NUMBA_CACHE`` where set, else ``.numba-cache`` beside the package; the oldest versions are removed, the
-newest KEPT kept (another checkout's processes may still run theirs).
+``HRC_NUMBA_CACHE`` where set, else ``.numba-cache`` beside the package (the system's temporary folder where that
+cannot be written); the oldest versions are removed, the newest KEPT kept (another checkout's processes may still
+run theirs).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import hashlib
 import os
 import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
@@ -50,14 +52,17 @@ def prune(root: Path, keep: int = KEPT) -> None:
 
 
 def use_versioned_cache() -> Path:
-    """Point numba at this code's own cache directory (before any kernel is compiled or loaded); returns it."""
+    """Point numba at this code's own cache directory (before any kernel is compiled or loaded); returns it. Where
+    the root cannot be written (an installed, read-only tree), the same version's directory under the system's
+    temporary folder."""
     directory = cache_directory()
-    os.environ["NUMBA_CACHE_DIR"] = str(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
         os.utime(directory)                      # in use: the last to be pruned
     except OSError:
-        pass                                     # numba falls back to its own place and says so
+        directory = cache_directory(Path(tempfile.gettempdir()) / "hrc-numba-cache")
+        directory.mkdir(parents=True, exist_ok=True)
+    os.environ["NUMBA_CACHE_DIR"] = str(directory)
     prune(directory.parent)
     if "numba" in sys.modules:                   # imported before the package: its configuration is read again
         from numba.core import config

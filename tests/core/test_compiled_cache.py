@@ -64,3 +64,25 @@ def test_the_digest_follows_every_source_file_and_old_versions_are_pruned(tmp_pa
     assert sorted(p.name for p in root.iterdir()) == ["v4", "v5"]
     prune(tmp_path / "nowhere")                                 # nothing to prune: nothing said
     assert os.environ["NUMBA_CACHE_DIR"].endswith(code_digest())   # this process's: importing shared set it
+
+
+def test_a_root_that_cannot_be_written_falls_back_to_the_temporary_folder(tmp_path, monkeypatch):
+    """An installed, read-only tree: the same version's directory under the system's temporary folder, never an
+    error on importing the package."""
+    from shared import compiled
+
+    blocked = tmp_path / "file"
+    blocked.write_text("not a directory")
+    monkeypatch.setenv("HRC_NUMBA_CACHE", str(blocked / "cache"))
+    monkeypatch.setattr(compiled.tempfile, "gettempdir", lambda: str(tmp_path / "tmp"))
+    before = os.environ["NUMBA_CACHE_DIR"]
+    try:
+        directory = compiled.use_versioned_cache()
+        assert directory == tmp_path / "tmp" / "hrc-numba-cache" / code_digest() and directory.is_dir()
+        assert os.environ["NUMBA_CACHE_DIR"] == str(directory)
+    finally:                                        # this process's numba back on its own cache
+        from numba.core import config
+
+        os.environ["NUMBA_CACHE_DIR"] = before
+        config.reload_config()
+
