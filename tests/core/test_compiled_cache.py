@@ -1,5 +1,5 @@
 """numba's cache keyed by the version of the code (shared.compiled): a kernel that calls a kernel of another file
-never runs the compiled code of that file's old version (numba's own cache keeps it: shown here too)."""
+never runs the compiled code of that file's old version (numba 0.68's own cache keeps it: printed here too)."""
 
 import os
 import subprocess
@@ -44,8 +44,10 @@ def test_a_kernel_never_runs_against_another_versions_compiled_callee(tmp_path):
     fixed = tmp_path / "one-cache"
     assert run(tmp_path, fixed) == "2.0" and run(tmp_path, None) == "2.0"
     (pkg / "limit.py").write_text(limit_file(0.25))          # the callee's file changes, the caller's does not
-    assert run(tmp_path, fixed) == "2.0"                      # numba's own cache: the old limit, compiled in
-    assert run(tmp_path, None) == "0.5"                       # this code's own cache: the new one
+    assert run(tmp_path, None) == "0.5"                       # this code's own cache: the new limit
+    # numba's own cache kept the old one compiled in (numba 0.68: "2.0"); printed, not asserted, so that a numba
+    # that learns to invalidate across files does not fail this test
+    print(f"numba's own cache after the callee changed: {run(tmp_path, fixed)} (2.0: the old limit)")
 
 
 def test_the_digest_follows_every_source_file_and_old_versions_are_pruned(tmp_path):
