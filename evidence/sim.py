@@ -335,8 +335,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         take_ready(0.0)       # planned with no search charged: ready at the start
     for k in range(int(round(duration / period))):
         t = k * period
-        humans = human.at(t)                      # the people of this moment, the judge's
-        given = sensed(human, t, latency) if latency or hasattr(human, "captured") else Sensed(humans, 0.0, 0.0)
+        given = sensed(human, t, latency)          # the layers' people
+        humans = human.at(t) if latency else given.humans      # the people of this moment, the judge's
         stale_after = stale_bound(layer.params.human_timeout, given.interval)
         result.sample_interval = given.interval or result.sample_interval
         take_ready(t)

@@ -39,7 +39,7 @@ from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOption
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.robot.model import default_robot
-from shared.wire.convert import humans_from_msg, report_from_status, trajectory_to_msg
+from shared.wire.convert import capture_delay, humans_from_msg, report_from_status, trajectory_to_msg
 from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
 TAKE_WAIT = 1.0      # s: a trajectory the scaler has not reported on by then was lost on the way (or the scaler restarted)
@@ -89,9 +89,7 @@ class PlannerService:
         with self.lock:
             if humans is not None:   # counted here: the horizon check must not depend on the sender's numbering
                 self.humans, self.human_seq = humans_from_msg(humans), self.human_seq + 1
-                # their way from capture to the tracker's state (a camera's latency): counted as the scaler counts it
-                self.human_delay = humans.stamp - humans.sample_stamp \
-                    if humans.valid and humans.stamp >= humans.sample_stamp else 0.0
+                self.human_delay = capture_delay(humans)      # counted as the scaler counts it
             if joints is not None:
                 self.q = np.asarray(joints.q)
             if status is not None:

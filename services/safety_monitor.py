@@ -36,7 +36,7 @@ from shared.core.humans import HumanCapsules
 from shared.robot.model import default_robot
 from shared.safety.latency import DelayHistogram
 from shared.safety.monitor import Backlog, HumanHistory, ReactionWindow, SafetyMonitor
-from shared.wire.convert import humans_from_msg
+from shared.wire.convert import capture_delay, humans_from_msg
 from shared.wire.messages import HumanState, JointState, MonitorReport, SafetyEvent, encode
 
 PASS_PERIOD = 0.02          # s between checking passes: two joint states a pass, checked in one batch
@@ -69,7 +69,7 @@ class MonitorService:
         """The people and joint states that arrived since the last pass, into the history and the backlog."""
         for msg in self.humans_in.drain():
             self.humans.add(msg.sample_stamp, humans_from_msg(msg))
-            self.backlog.note_delay(msg.stamp - msg.sample_stamp)      # its capture to the tracker's publication
+            self.backlog.note_delay(capture_delay(msg))      # its capture to the tracker's publication
         for msg in self.joints_in.drain():
             self.backlog.add(msg.stamp, msg.q, msg.qd)
 

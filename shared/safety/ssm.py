@@ -47,14 +47,6 @@ def human_travel(speed: float, cap: float, acceleration: float, horizon: float) 
     return speed * rise + 0.5 * acceleration * rise * rise + cap * (horizon - rise)
 
 
-@numba.njit(cache=True)
-def _travel_each(speed, cap, acceleration, horizon):
-    out = np.empty(speed.shape[0])
-    for k in range(speed.shape[0]):
-        out[k] = human_travel(speed[k], cap[k], acceleration, horizon)
-    return out
-
-
 def human_distance(human_speed: np.ndarray, params: SsmParameters, separation: np.ndarray | None = None,
                    stop: float | None = None) -> np.ndarray:
     """The human's part of S_p (m): how far a person now approaching at human_speed (m/s) may come within
@@ -62,14 +54,11 @@ def human_distance(human_speed: np.ndarray, params: SsmParameters, separation: n
     separation; without a separation at the near speed, the larger), from human_lead s before where the data is
     that late (``aged_travel``); stop: the state's T_s (s; default the full-speed stopping_time). Element by
     element, compiled."""
-    lead = params.human_lead
-    ahead = np.asarray(human_speed, dtype=float) * lead
-    cap = params.human_speed_near if separation is None else \
-        default_human_speed(np.asarray(separation, dtype=float) - ahead, params)
-    speed, cap = np.broadcast_arrays(np.asarray(human_speed, dtype=float), np.asarray(cap, dtype=float))
+    where = -np.inf if separation is None else separation      # nearer than any: the near speed
+    speed, d = np.broadcast_arrays(np.asarray(human_speed, dtype=float), np.asarray(where, dtype=float))
     horizon = params.horizon if stop is None else params.reaction_time + float(stop)
-    out = _travel_each(np.ascontiguousarray(speed).ravel(), np.ascontiguousarray(cap).ravel(),
-                       float(params.human_acceleration), float(horizon)) + (speed * lead).ravel()
+    out = _aged_each(np.ascontiguousarray(d).ravel(), np.ascontiguousarray(speed).ravel(),
+                     *params.kernel_constants[2:], float(horizon))
     return out.reshape(speed.shape) if speed.shape else float(out[0])
 
 
@@ -107,6 +96,14 @@ def aged_travel(d, hs, near_d, v_near, v_far, a_h, lead, horizon):
     ahead = hs * lead
     cap = iso_speed(d - ahead, near_d, v_near, v_far)
     return ahead + human_travel(hs, cap, a_h, horizon)
+
+
+@numba.njit(cache=True)
+def _aged_each(d, speed, near_d, v_near, v_far, a_h, lead, horizon):
+    out = np.empty(speed.shape[0])
+    for k in range(speed.shape[0]):
+        out[k] = aged_travel(d[k], speed[k], near_d, v_near, v_far, a_h, lead, horizon)
+    return out
 
 
 @numba.njit(cache=True)

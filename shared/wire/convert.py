@@ -37,6 +37,14 @@ def humans_from_msg(msg: HumanState) -> HumanCapsules | None:
                          np.asarray(msg.velocity_known))
 
 
+def capture_delay(msg: HumanState) -> float:
+    """s: a valid state's way from its sample's capture to the tracker's publication (a camera's latency, the
+    tracker's hop), which the scaling and planning layers count the person's travel over and the monitor waits for;
+    0 for an invalid state, one with no publication stamp or one stamped before its capture (another clock)."""
+    delay = msg.stamp - msg.sample_stamp
+    return float(delay) if msg.valid and np.isfinite(delay) and delay >= 0.0 else 0.0
+
+
 def status_from_step(step, received: int = -1, seq: int = 0, stamp: float = 0.0) -> ScalerStatus:
     """The scaler's status message of one scaling step (``shared.scaling.layer.ScalingStep``): what the scaler
     service publishes each cycle, and what a recording of an in-process run holds (infinite separations and
