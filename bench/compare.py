@@ -38,6 +38,10 @@ place, "won_back_fixed_path" how much of the room that path alone uses.
 leg shapes, one per leg, found with the people's future known by running the whole scenario with each; never below
 scale_only or fixed_path on a scenario, and rising with its search; "full/clairvoyant" and "won_back_clairvoyant"
 say how much of the room these shapes hold the planning layer uses.
+--latency S runs every strategy with the people reaching the cell S s after their capture (a camera pipeline's;
+``run_shuttle(latency=)``): the layers are given them that late, the zones are sized for it (the person's travel over
+it at the ISO 13855 speed, as ISO 13855 counts a sensor's response time), and every command is judged against the
+people of its moment. The JSON line says "latency_s".
 
 Each (scenario, strategy) is one ``evidence.sweep.run_scenario``; they run in chunks on a local process pool,
 or on dask.distributed with --dask [tcp://SCHEDULER:8786] (tools.sweep, docs/sweeps.md), each chunk's records
@@ -48,6 +52,7 @@ every figure is computed from those files.
     python bench/compare.py [--scenarios 1000] [--duration 12] [--workers N] [--out reports/compare] [--dask]
                             [--kinds two_humans,random_walk] [--seed 0] [--foresight] [--oracle]
                             [--forecaster mypackage.predict:MyForecaster] [--fixed-path] [--clairvoyant]
+                            [--latency 0.03]
 
 (--kinds: only these kinds, in turn, seeds counted from --seed: `--scenarios 200 --kinds two_humans` runs
 200 two-person scenarios.)
@@ -72,6 +77,7 @@ from evidence.strategies import BASELINES, BOUNDS, PAPER, PAPER_BASELINES, STRAT
 from evidence.summary import aggregate, columns, per_kind, ratios, wide_rows, won_back  # noqa: E402
 from evidence.sweep import ScenarioSpec, strategies_for  # noqa: E402
 from shared.planning.forecast import forecaster_problem  # noqa: E402
+from tools.arguments import sample_latency  # noqa: E402
 from tools.sweep import SweepMismatch, code_version, plan_id, read_records, run_sweep  # noqa: E402
 
 
@@ -158,6 +164,9 @@ def main() -> int:
     parser.add_argument("--clairvoyant", action="store_true",
                         help="also run the clairvoyant bound (evidence.clairvoyant: the best sequence of fixed leg "
                              "shapes, found by running the whole scenario with each; about a hundred runs a scenario)")
+    parser.add_argument("--latency", type=sample_latency, default=0.0, metavar="SECONDS",
+                        help="the people reach the cell this long after their capture (a camera pipeline's), in "
+                             "every strategy; the zones are sized for it (default 0)")
     args = parser.parse_args()
     if args.scenarios < 1 or args.duration <= 0 or args.workers < 1:
         parser.error("--scenarios and --workers must be >= 1, --duration > 0")
@@ -168,8 +177,8 @@ def main() -> int:
         parser.error(f"--forecaster: {problem}")
     run = (STRATEGIES + (BASELINES if args.fixed_path else ()) + tuple(b for b in BOUNDS if getattr(args, b))
            + (PAPER if args.paper else ()) + (PAPER_BASELINES if args.paper and args.fixed_path else ()))
-    specs = [ScenarioSpec(kinds[k % len(kinds)], args.seed + k, args.duration, strategy, forecaster=args.forecaster)
-             for k in range(args.scenarios) for strategy in run]
+    specs = [ScenarioSpec(kinds[k % len(kinds)], args.seed + k, args.duration, strategy, forecaster=args.forecaster,
+                          latency=args.latency) for k in range(args.scenarios) for strategy in run]
     started = time.perf_counter()
     meta = {"bench": "compare", "code": code_version(ROOT)}
     folder = args.out / f"run-{plan_id(specs, meta=meta)}"      # the same command resumes its own run here
@@ -211,6 +220,7 @@ def main() -> int:
           f"{args.workers} workers; plot and per-scenario results in {args.out}")
     full, zones, scale = (strategies[s]["shuttles_per_min"] for s in ("full", "zones", "scale_only"))
     summary = {"bench": "compare", "scenarios": len(rows), "forecaster": args.forecaster or "constant velocity",
+               "latency_s": args.latency,
                "strategies": strategies,
                "speedup_vs_zones": round(full / zones, 3) if zones else None,
                "speedup_vs_scale_only": round(full / scale, 3) if scale else None,

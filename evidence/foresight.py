@@ -73,6 +73,8 @@ class Foresight:
     def __init__(self, script, step: float = FRAME_STEP) -> None:
         self.script = script
         self.step = step
+        if hasattr(script, "captured"):     # a recorded motion's samples: the simulation ages them as the script's
+            self.captured = script.captured
         self.now = 0.0
         self._handed: deque[tuple[float, HumanCapsules]] = deque()
 

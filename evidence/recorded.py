@@ -149,6 +149,16 @@ class RecordingWindow:
     def phase(self, t: float) -> str:
         return f"{self.name} at {self.start + t:.1f} s: {self.motion.phase(self.start + t)}"
 
+    def captured(self, t: float) -> tuple[float, float]:
+        """When the newest sample by t was captured (s, on the window's clock) and the source's interval (s), as
+        ``TrackedMotion.captured`` (a motion without it: captured at every moment), so the simulation ages a
+        window's samples as the scaler finds them."""
+        captured = getattr(self.motion, "captured", None)
+        if captured is None:
+            return t, 0.0
+        taken, interval = captured(self.start + t)
+        return taken - self.start, interval
+
 
 def recorded_scenario(kind: str, seed: int, duration: float) -> RecordingWindow:
     """The people of one real-people scenario: recording seed mod n at the kind's placement (the around kind's

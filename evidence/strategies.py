@@ -21,9 +21,12 @@
   same under the paper's formula (the measured human speed held), judged, as every run, by the shipped model's
   monitor; "full_paper/scale_only_paper" and "full_paper/fixed_path_paper" are the planning layer's figures
   under that formula, as the issue's goals ask for them with the paper's formula too.
-Every run is judged by the independent monitor's rule (evidence.sim). ``Strategies`` builds the robot, the
-collision model and the planner once per process and runs any (strategy, scenario) on them, and the
-shuttle in an empty cell (``empty_cell``): the most any strategy can do in a scenario's time.
+Every run is judged by the independent monitor's rule (evidence.sim). A run may have the people reach the cell
+``latency`` s after their capture (a camera pipeline's; ``run_shuttle(latency=)``): every strategy is given them that
+late, the zones are sized for it (``SpeedZones.sized(latency=)``), and the judge checks the people of each moment.
+``Strategies`` builds the robot, the collision model and the planner once per process and runs any (strategy,
+scenario) on them, and the shuttle in an empty cell (``empty_cell``): the most any strategy can do in a scenario's
+time.
 """
 
 from __future__ import annotations
@@ -89,22 +92,27 @@ class Strategies:
         s = np.linspace(0.0, shuttle.duration, 200)
         q, dq, _ = shuttle.sample(s)
         self.robot_speed = max(fastest_point_speed(self.robot, q[k], dq[k]) for k in range(s.size))
-        self.zones = SpeedZones.sized(self.config.ssm, self.robot_speed)
+        self.zones = SpeedZones.sized(self.config.ssm, self.robot_speed)     # latency 0; zones_at for another
         self.fixed_path = FixedPath(self.collision)
         self.shaped = ShapedLegs(self.collision)
         self.usable_shapes = [k for k in range(len(self.shaped.shapes)) if self.shaped.usable(k, (Q_START, Q_GOAL))]
 
     def run(self, strategy: str, kind: str, seed: int, duration: float, veto: Veto | None = None,
-            goal_leg: GoalLeg | None = None) -> SimResult:
+            goal_leg: GoalLeg | None = None, latency: float = 0.0) -> SimResult:
         """One strategy on one seeded scenario. veto, goal_leg: the planning layer's replans to drop and new goals'
-        legs to replace (``run_shuttle``'s; full and full_paper)."""
-        return self._run(strategy, make_scenario(kind, seed, duration), duration, veto, goal_leg)
+        legs to replace (``run_shuttle``'s; full and full_paper). latency (s): the people reach the cell that long
+        after their capture (``run_shuttle``'s)."""
+        return self._run(strategy, make_scenario(kind, seed, duration), duration, veto, goal_leg, latency)
+
+    def zones_at(self, latency: float) -> SpeedZones:
+        """The zones an integrator sizes for a sensor whose data is `latency` s late (s)."""
+        return self.zones if latency == 0.0 else SpeedZones.sized(self.config.ssm, self.robot_speed, latency=latency)
 
     def clairvoyant(self, kind: str, seed: int, duration: float,
-                    sizes: tuple[int, ...] = SEARCHES) -> tuple[dict[int, Choice], int]:
+                    sizes: tuple[int, ...] = SEARCHES, latency: float = 0.0) -> tuple[dict[int, Choice], int]:
         """The clairvoyant bound's nested searches on one seeded scenario (``evidence.clairvoyant``): ({number
         of shapes: the best sequence found}, the runs it took)."""
-        return self._clairvoyant(make_scenario(kind, seed, duration), duration, sizes)
+        return self._clairvoyant(make_scenario(kind, seed, duration), duration, sizes, latency)
 
     def greedy(self, kind: str, seed: int, duration: float) -> tuple[Choice, int]:
         """The clairvoyant chooser one leg ahead on one seeded scenario (``evidence.clairvoyant.greedy_sequence``,
@@ -112,19 +120,20 @@ class Strategies:
         runs = self._episode(make_scenario(kind, seed, duration), duration)
         return greedy_sequence(runs, self.usable_shapes), runs.runs
 
-    def _clairvoyant(self, human, duration: float, sizes: tuple[int, ...]) -> tuple[dict[int, Choice], int]:
-        runs = self._episode(human, duration)
+    def _clairvoyant(self, human, duration: float, sizes: tuple[int, ...],
+                     latency: float = 0.0) -> tuple[dict[int, Choice], int]:
+        runs = self._episode(human, duration, latency)
         return nested_searches(runs, self.usable_shapes, sizes), runs.runs
 
-    def _episode(self, human, duration: float) -> EpisodeRuns:
+    def _episode(self, human, duration: float, latency: float = 0.0) -> EpisodeRuns:
         """The runs of sequences of leg shapes with these people (each sequence run once)."""
-        return EpisodeRuns(lambda legs: self.shaped_run(human, duration, legs), self.shaped)
+        return EpisodeRuns(lambda legs: self.shaped_run(human, duration, legs, latency), self.shaped)
 
-    def shaped_run(self, human, duration: float, legs: LegSequence) -> SimResult:
+    def shaped_run(self, human, duration: float, legs: LegSequence, latency: float = 0.0) -> SimResult:
         """The scaling layer alone, each leg the shape the sequence names."""
         layer = ScalingLayer(self.robot, self.config.ssm, self.config.scaling)
         return run_shuttle(self.robot, self.config, human, Q_START, Q_GOAL, duration, layer=layer,
-                           monitor=self.monitor, leg_path=legs)
+                           monitor=self.monitor, leg_path=legs, latency=latency)
 
     def empty_cell(self, duration: float) -> SimResult:
         """The shuttle with nobody in the cell for `duration` s (the scaling layer, at full speed): what the
@@ -132,26 +141,29 @@ class Strategies:
         return self._run("scale_only", EmptyCell(), duration)
 
     def _run(self, strategy: str, human, duration: float, veto: Veto | None = None,
-             goal_leg: GoalLeg | None = None) -> SimResult:
+             goal_leg: GoalLeg | None = None, latency: float = 0.0) -> SimResult:
         """One strategy with these people (anything with ``at(t)`` and ``phase(t)``, as run_shuttle takes);
-        veto and goal_leg as in ``run``."""
+        veto, goal_leg and latency as in ``run``."""
         cfg = self.config
         if strategy == "zones":
-            layer = ZoneScalingLayer(self.robot, self.zones, cfg.ssm, cfg.scaling)
-            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor)
+            layer = ZoneScalingLayer(self.robot, self.zones_at(latency), cfg.ssm, cfg.scaling)
+            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor,
+                               latency=latency)
         if strategy == "scale_only":
             layer = ScalingLayer(self.robot, cfg.ssm, cfg.scaling)
-            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor)
+            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor,
+                               latency=latency)
         if strategy == "fixed_path":
             layer = ScalingLayer(self.robot, cfg.ssm, cfg.scaling)
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor,
-                               leg_path=self.fixed_path.leg)
+                               leg_path=self.fixed_path.leg, latency=latency)
         if strategy == "full":
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
-                               charge_planning=CELL_BUDGET, monitor=self.monitor, veto=veto, goal_leg=goal_leg)
+                               charge_planning=CELL_BUDGET, monitor=self.monitor, veto=veto, goal_leg=goal_leg,
+                               latency=latency)
         if strategy == "clairvoyant":           # the largest search's sequence, run once more for its record
-            best = self._clairvoyant(human, duration, SEARCHES)[0][max(SEARCHES)]
-            return self.shaped_run(human, duration, LegSequence(self.shaped, best.shapes))
+            best = self._clairvoyant(human, duration, SEARCHES, latency)[0][max(SEARCHES)]
+            return self.shaped_run(human, duration, LegSequence(self.shaped, best.shapes), latency)
         if strategy in BOUNDS:
             foreseen = Foresight(human)
             planner = self.foreseeing if strategy == "foresight" else self.oracle
@@ -159,12 +171,12 @@ class Strategies:
             # the oracle plans free of time: its plans are taken the cycle they are asked for
             return run_shuttle(self.robot, cfg, foreseen, Q_START, Q_GOAL, duration, replanner=planner,
                                charge_planning=CELL_BUDGET if strategy == "foresight" else False,
-                               monitor=self.monitor)
+                               monitor=self.monitor, latency=latency)
         if strategy in PAPER + PAPER_BASELINES:
             layer = ScalingLayer(self.robot, self.paper_ssm, cfg.scaling)
             replanner = self.paper_replanner if strategy == "full_paper" else None
             return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, replanner=replanner,
                                charge_planning=CELL_BUDGET if replanner is not None else False, monitor=self.monitor,
                                leg_path=self.fixed_path.leg if strategy in PAPER_BASELINES else None, veto=veto,
-                               goal_leg=goal_leg)
+                               goal_leg=goal_leg, latency=latency)
         raise ValueError(f"unknown strategy {strategy!r}; known: {KNOWN}")

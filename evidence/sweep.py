@@ -1,8 +1,8 @@
 """One simulated scenario as a pure function of its description: the unit every benchmark and sweep runs.
 
 ``run_scenario(spec) -> record``: a ``ScenarioSpec`` (scenario kind, seed, simulated duration, strategy, the
-configuration values that differ from the shipped ones, the full strategy's forecaster) in, a flat record of
-plain numbers and strings out (shuttles, stopped and slowed seconds, violations, replans, compute), so that
+configuration values that differ from the shipped ones, the full strategy's forecaster, the people's latency) in, a
+flat record of plain numbers and strings out (shuttles, stopped and slowed seconds, violations, replans, compute), so that
 records travel between processes and machines (pickle, Parquet) and compare field by field. Deterministic:
 the same spec gives the same record on any machine and in any order (the simulation is seeded by the spec and
 charges each path search a fixed time; only ``wall_s``, the compute it cost, varies). The ``Strategies`` a
@@ -16,21 +16,23 @@ as a configuration file is: a bad key or value is a ConfigError naming it.
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass, field
 
 from shared.config import CellConfig
 from shared.core.errors import ConfigError
 
-RECORD_FIELDS = ("kind", "seed", "duration", "strategy", "overrides", "forecaster", "shuttles", "completed",
-                 "sim_s", "stopped_fraction", "slowed_fraction", "stopped_s", "slowed_s", "min_margin_m_s",
+RECORD_FIELDS = ("kind", "seed", "duration", "strategy", "overrides", "forecaster", "latency", "shuttles",
+                 "completed", "sim_s", "stopped_fraction", "slowed_fraction", "stopped_s", "slowed_s", "min_margin_m_s",
                  "violations", "command_exceedances", "replans", "replans_failed", "beta_requests", "wall_s")
 
 
 @dataclass(frozen=True)
 class ScenarioSpec:
     """One (scenario, strategy, configuration) to simulate. overrides: ((dotted key, value), ...), sorted;
-    forecaster: ``module:attribute`` of the full strategy's forecast of the people (None: the default)."""
+    forecaster: ``module:attribute`` of the full strategy's forecast of the people (None: the default); latency
+    (s): the people reach the cell that long after their capture (a camera pipeline's; ``Strategies.run``)."""
 
     kind: str
     seed: int
@@ -38,6 +40,13 @@ class ScenarioSpec:
     strategy: str
     overrides: tuple[tuple[str, float], ...] = field(default=())
     forecaster: str | None = None
+    latency: float = 0.0
+
+    def __post_init__(self) -> None:
+        from shared.tracking.tracker import OLDEST_SAMPLE
+
+        if not (math.isfinite(self.latency) and 0.0 <= self.latency <= OLDEST_SAMPLE):
+            raise ConfigError(f"latency: from 0 to {OLDEST_SAMPLE} s (a sample older is stale), got {self.latency!r}")
 
     def config_key(self) -> str:
         """The configuration this spec runs under, as one string (the records' ``overrides`` column)."""
@@ -81,9 +90,9 @@ def run_scenario(spec: ScenarioSpec) -> dict:
     """Simulate one spec; its record (RECORD_FIELDS)."""
     started = time.perf_counter()
     s = strategies_for(spec.overrides, spec.forecaster).run(spec.strategy, spec.kind, spec.seed,
-                                                            spec.duration).summary()
+                                                            spec.duration, latency=spec.latency).summary()
     return {"kind": spec.kind, "seed": spec.seed, "duration": spec.duration, "strategy": spec.strategy,
-            "overrides": spec.config_key(), "forecaster": spec.forecaster or "",
+            "overrides": spec.config_key(), "forecaster": spec.forecaster or "", "latency": spec.latency,
             "shuttles": float(s["shuttle_progress"]), "completed": int(s["shuttles_completed"]),
             "sim_s": float(s["duration_s"]), "stopped_fraction": float(s["stopped_fraction"]),
             "slowed_fraction": float(s["slowed_fraction"]),
@@ -109,5 +118,6 @@ def run_chunk(specs: list[ScenarioSpec]) -> list[dict]:
         except Exception as exc:
             where = f"{spec.kind} seed {spec.seed}, {spec.duration:g} s, {spec.strategy}"
             where += f", {spec.config_key()}" if spec.overrides else ""
+            where += f", {1e3 * spec.latency:g} ms late" if spec.latency else ""
             raise RunFailed(f"{where}: {type(exc).__name__}: {exc}") from exc
     return records

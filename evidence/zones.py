@@ -10,7 +10,8 @@ that zone:
     S_full = S_p(v_robot_max, 2.0 m/s)      beyond it: full speed; between: reduced speed
 
 each with the robot's stopping time from its zone's speed (the cell's model of T_s, ``SsmParameters.stop_at``;
-the reduced zone's is shorter).
+the reduced zone's is shorter). Behind a sensor whose data is ``latency`` s late (a camera pipeline's), both zones
+grow by the person's travel over it at that speed, as ISO 13855 counts a sensor's response time in T.
 
 The reduced speed caps every point of every link at v_reduced (ISO 10218's 250 mm/s by default). The
 stop is a category 2 stop: the path speed ramps down to zero within T_s, as S_p assumes; speeding up
@@ -47,12 +48,14 @@ class SpeedZones:
 
     @classmethod
     def sized(cls, ssm: SsmParameters, robot_speed: float, reduced_speed: float = REDUCED_SPEED,
-              human_speed: float = ISO_13855_SPEED) -> "SpeedZones":
+              human_speed: float = ISO_13855_SPEED, latency: float = 0.0) -> "SpeedZones":
         """Zones from the ISO/TS 15066 formula for robot_speed (the fastest point of the robot at full speed,
         m/s), each with the robot's stopping time at its zone's speed (``SsmParameters.stop_at``, as the scaling
         layer has it: at reduced speed the joints move at about reduced_speed / robot_speed of full speed, and a
         robot stops sooner from there; an integrator sizes the stop zone with the stopping time of the reduced
-        speed)."""
+        speed). latency (s): the sensor's data is that late (``SsmParameters.aged``: the person's travel over it at
+        human_speed is added to both zones)."""
+        ssm = ssm.aged(latency)
         reduced_stop = ssm.stop_at(min(1.0, reduced_speed / robot_speed))
         return cls(float(protective_separation_distance(reduced_speed, human_speed, ssm, reduced_stop)),
                    float(protective_separation_distance(robot_speed, human_speed, ssm)), reduced_speed)

@@ -304,6 +304,9 @@ def _add_sweep(sub) -> None:
     sweep.add_argument("--forecaster", default=None, metavar="MODULE:ATTRIBUTE",
                        help="the full strategy's forecast of the people: a researcher's forecaster object, class or "
                             "factory (shared.planning.forecast.load_forecaster; default: constant velocity)")
+    sweep.add_argument("--latency", type=sample_latency, default=None, metavar="SECONDS",
+                       help="the people reach the cell this long after their capture (a camera pipeline's), in every "
+                            "run; the zones are sized for it (default 0, or the grid file's latency)")
     sweep.add_argument("--against", type=Path, default=None, metavar="DIR",
                        help="another sweep's folder (the same grid run by other code: a commit, a worktree): every "
                             "point's ratios against the same point there, scenario by scenario, per kind")
@@ -334,6 +337,8 @@ def _add_scenario(sub) -> None:
                           help="simulated seconds (default 12, as hrc sweep)")
     scenario.add_argument("--forecaster", default=None, metavar="MODULE:ATTRIBUTE",
                           help="the full strategy's forecast of the people, as the sweep had it")
+    scenario.add_argument("--latency", type=sample_latency, default=0.0, metavar="SECONDS",
+                          help="the people this long after their capture, as the sweep had it (default 0)")
 
 
 def _add_report(sub) -> None:

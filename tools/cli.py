@@ -13,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-from shared.core.errors import HrcError
+from shared.core.errors import ConfigError, HrcError
 from tools.arguments import NAMED, build_parser
 
 PAPER_CONFIG = Path(__file__).resolve().parents[1] / "deploy" / "cell-paper.yaml"   # the paper's formula
@@ -583,10 +583,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError("--workers and --chunk must be >= 1")
     other = None if args.against is None else sweep.read_sweep(args.against)     # a bad folder: before any run
     forecaster = _forecaster(args.forecaster if args.forecaster is not None else doc.get("forecaster"))
-    specs = grid.specs(forecaster)
+    latency = number(args.latency, "latency", 0.0, float)
+    try:
+        specs = grid.specs(forecaster, latency)
+    except ConfigError as exc:                      # the grid file's latency (--latency is checked as it is read)
+        raise grids.GridError(f"{args.grid}: {exc}") from None
     print(f"hrc sweep: {len(grid.points())} points x {grid.scenarios} scenarios x {len(grid.strategies)} strategies "
-          f"= {len(specs)} runs into {args.out}" + (f" (full's forecaster {forecaster})" if forecaster else ""),
-          flush=True)
+          f"= {len(specs)} runs into {args.out}" + (f" (full's forecaster {forecaster})" if forecaster else "")
+          + (f", the people {1e3 * latency:g} ms late" if latency else ""), flush=True)
     done = sweep.run_sweep(specs, args.out, executor="dask" if args.dask else "local", workers=args.workers,
                            address=None if args.dask in (None, "local") else args.dask, chunk=args.chunk,
                            meta={"bench": "sweep", "code": sweep.code_version(Path(__file__).resolve().parents[1])})
@@ -636,10 +640,12 @@ def cmd_scenario(args: argparse.Namespace) -> int:
     runs = strategies_for(point, _forecaster(args.forecaster))
     alpha_min = config_of(point).scaling.alpha_min
     print(f"hrc scenario: {args.kind} seed {args.seed}, {args.duration:g} s, {grids.point_label(point)}"
-          + (f", full's forecaster {args.forecaster}" if args.forecaster else ""))
+          + (f", full's forecaster {args.forecaster}" if args.forecaster else "")
+          + (f", the people {1e3 * args.latency:g} ms late" if args.latency else ""))
     print("\n".join(people_lines(make_scenario(args.kind, args.seed, args.duration))) or "people: scripted")
     for strategy in strategies:
-        print("\n".join(story_lines(strategy, runs.run(strategy, args.kind, args.seed, args.duration), alpha_min)))
+        run = runs.run(strategy, args.kind, args.seed, args.duration, latency=args.latency)
+        print("\n".join(story_lines(strategy, run, alpha_min)))
     return 0
 
 

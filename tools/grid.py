@@ -31,10 +31,11 @@ class Grid:
         keys = sorted(self.values)
         return [tuple(zip(keys, combo)) for combo in itertools.product(*(self.values[k] for k in keys))]
 
-    def specs(self, forecaster: str | None = None) -> list[ScenarioSpec]:
-        """Point by point, scenario by scenario, every strategy: a chunk holds whole scenarios of one point."""
+    def specs(self, forecaster: str | None = None, latency: float = 0.0) -> list[ScenarioSpec]:
+        """Point by point, scenario by scenario, every strategy: a chunk holds whole scenarios of one point.
+        latency (s): every run's people that long after their capture (``ScenarioSpec.latency``)."""
         return [ScenarioSpec(self.kinds[k % len(self.kinds)], self.seed + k, self.duration, strategy,
-                             overrides=point, forecaster=forecaster)
+                             overrides=point, forecaster=forecaster, latency=latency)
                 for point in self.points() for k in range(self.scenarios) for strategy in self.strategies]
 
 
@@ -78,7 +79,7 @@ def load_grid(path: Path) -> dict:
         doc = yaml.safe_load(path.read_text())
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise GridError(f"{path}: cannot read the grid: {exc}") from None
-    known = {"set", "strategies", "kinds", "scenarios", "duration", "seed", "forecaster"}
+    known = {"set", "strategies", "kinds", "scenarios", "duration", "seed", "forecaster", "latency"}
     if not isinstance(doc, dict) or set(map(str, doc)) - known:
         raise GridError(f"{path}: expected a mapping with some of {sorted(known)}")
     values = doc.get("set") or {}

@@ -112,7 +112,8 @@ def read_sweep(folder: Path) -> list[dict]:
             rows = pq.read_table(path).to_pylist()
         except (OSError, pa.ArrowException) as exc:
             raise SweepFolderError(f"{path}: cannot read these records: {exc}") from None
-        missing = set(RECORD_FIELDS) - set(rows[0]) if rows else set()
+        missing = set(RECORD_FIELDS) - set(rows[0]) - {"latency"} if rows else set()   # latency: 0 before it was kept
+        rows = [{"latency": 0.0} | r for r in rows]
         if missing:
             raise SweepFolderError(f"{path}: not a sweep's records (no {', '.join(sorted(missing))})")
         records.extend(rows)
@@ -121,7 +122,7 @@ def read_sweep(folder: Path) -> list[dict]:
 
 def plan_of(specs: Sequence[ScenarioSpec], chunk: int, meta: dict) -> dict:
     return {"chunk": chunk, "specs": [[s.kind, s.seed, s.duration, s.strategy, list(map(list, s.overrides)),
-                                       s.forecaster] for s in specs], **meta}
+                                       s.forecaster] + ([s.latency] if s.latency else []) for s in specs], **meta}
 
 
 def plan_id(specs: Sequence[ScenarioSpec], chunk: int = CHUNK, meta: dict | None = None) -> str:

@@ -82,3 +82,20 @@ def test_the_fixed_path_baseline_runs_beside_the_strategies_with_its_ratios(tmp_
             "fixed_path_paper/scale_only_paper", "full_paper/scale_only_paper"} <= set(result["ratios"]["overall"])
     assert set(result["won_back_fixed_path"]) == {"two_humans", "overall"}
     assert result["strategies"]["fixed_path"]["violations"] == 0
+
+
+def test_a_latency_runs_every_strategy_that_late_and_a_bad_one_is_refused(tmp_path):
+    """--latency: each strategy given the people 30 ms after their capture (its records say so), zones sized for
+    it; a latency beyond the oldest sample the cell takes is refused with a message, nothing run."""
+    done = run("--scenarios", "1", "--kinds", "crossing", "--duration", "1.0", "--workers", "1", "--latency", "0.03",
+               tmp_path=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result["latency_s"] == 0.03 and set(result["kinds"]["crossing"]) == {"zones", "scale_only", "full"}
+    import pyarrow.parquet as pq
+
+    records = [r for p in tmp_path.glob("run-*/records/*.parquet") for r in pq.read_table(p).to_pylist()]
+    assert len(records) == 3 and {r["latency"] for r in records} == {0.03}
+    for bad in ("-0.01", "0.8", "soon"):
+        refused = run("--latency", bad, tmp_path=tmp_path)
+        assert refused.returncode == 2 and "--latency" in refused.stderr, bad

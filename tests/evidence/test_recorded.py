@@ -66,6 +66,22 @@ def test_the_people_are_what_the_cells_tracker_passes_on_as_on_the_processes(two
     assert fitted.velocity_known.all() and not np.allclose(fitted.velocities, own.velocities)
 
 
+def test_a_windows_samples_are_aged_from_their_capture_as_the_scaler_finds_them(two_recordings):
+    """The simulation ages a real kind's people between the recording's 30 Hz frames and judges them stale past
+    the bound of that rate (``evidence.sim.sensed``), as ``hrc demo --sim --human`` does with the whole file."""
+    from evidence.sim import sensed
+
+    window = make_scenario("real_table_edge", 2, 3.0)
+    tracked = TrackedMotion(placed_motion(two_recordings / "a_first.txt", "table_edge"))
+    for t in (0.5, 1.01, 2.2):
+        taken, interval = window.captured(t)
+        whole, measured = tracked.captured(window.start + t)
+        assert taken == pytest.approx(whole - window.start) and interval == measured
+        assert 0.0 <= t - taken < 1.5 / 30 and interval == pytest.approx(1 / 30, rel=0.05)
+        late = sensed(window, t, latency=0.03)
+        assert late.age == pytest.approx(t - window.captured(t - 0.03)[0]) and late.age >= 0.03
+
+
 def test_the_motion_is_what_hrc_human_from_keypoints_writes_and_hrc_demo_reads(tmp_path):
     out = tmp_path / "person.json"
     assert run_hrc("human", "from-keypoints", str(SUBSET), str(out), "--format", "assembly", "--translate",

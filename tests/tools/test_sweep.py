@@ -106,6 +106,26 @@ def test_a_folder_holds_one_sweep(tmp_path):
             sweep.write_plan(tmp_path, *other)
 
 
+def test_a_latency_is_part_of_the_spec_its_record_and_its_plan_and_a_bad_one_is_refused(tmp_path):
+    now = ScenarioSpec("standing", 3, 1.0, "scale_only")
+    late = ScenarioSpec("standing", 3, 1.0, "scale_only", latency=0.03)
+    assert run_scenario(now)["latency"] == 0.0
+    record = run_scenario(late)
+    assert record["latency"] == 0.03 and set(record) == set(RECORD_FIELDS)
+    assert sweep.plan_id([now]) != sweep.plan_id([late])
+    assert sweep.plan_of([now], 2, {})["specs"] == [["standing", 3, 1.0, "scale_only", [], None]]   # as before
+    for bad in (-0.01, float("nan"), 0.6):
+        with pytest.raises(ConfigError, match="latency"):
+            ScenarioSpec("standing", 3, 1.0, "scale_only", latency=bad)
+    older = {f: 0 for f in RECORD_FIELDS if f != "latency"}         # a sweep written before the latency was kept
+    sweep.chunk_path(tmp_path, 0).parent.mkdir(parents=True)
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    pq.write_table(pa.Table.from_pylist([older]), sweep.chunk_path(tmp_path, 0))
+    assert sweep.read_sweep(tmp_path)[0]["latency"] == 0.0
+
+
 def test_progress_prints_done_total_rate_and_time_left_as_plain_lines_off_a_terminal():
     out = io.StringIO()
     progress = sweep.Progress(10, stream=out, every=0.0)
@@ -127,7 +147,7 @@ def test_a_failing_chunk_is_tried_again_then_reported_never_dropped_silently():
 def test_hrc_sweep_refuses_bad_grids_with_a_message_and_exit_2(tmp_path):
     from tests.util import run_hrc
 
-    grid = tmp_path / "g.yaml"
+    grid, late = tmp_path / "g.yaml", tmp_path / "late.yaml"
     cases = [(("--set", "ssm.nope=1"), "nope"), (("--set", "ssm.reaction_time"), "KEY=V1"),
              (("--set", "ssm.reaction_time=0.1", "--strategies", "fastest"), "strategies"),
              (("--set", "ssm.reaction_time=0.1", "--kinds", "moon"), "kinds"),
@@ -135,8 +155,10 @@ def test_hrc_sweep_refuses_bad_grids_with_a_message_and_exit_2(tmp_path):
              (("--grid", str(grid)), "scenarios: expected a number"),
              (("--against", str(tmp_path / "nowhere")), "no such folder"),
              (("--forecaster", "nope:Nope"), "cannot import 'nope'"),
-             (("--against", str(tmp_path)), "no sweep records")]
+             (("--against", str(tmp_path)), "no sweep records"),
+             (("--latency", "0.9"), "--latency"), (("--grid", str(late)), "latency: from 0 to")]
     grid.write_text("set:\n  ssm.reaction_time: [0.1]\nscenarios: many\n")
+    late.write_text("set:\n  ssm.reaction_time: [0.1]\nlatency: 0.9\n")
     for args, says in cases:
         done = run_hrc("sweep", "--out", str(tmp_path / "out"), *args)
         assert done.returncode == 2 and says in done.stderr, (args, done.stderr)
