@@ -71,3 +71,40 @@ def test_data_older_than_its_bound_stops_the_robot_and_the_summary_says_so():
     share = recorded.summary()["tracker"]["stale_share"]
     assert 0.2 < share < 0.5
     assert recorded.summary()["tracker"]["sample_interval_ms"] == pytest.approx(1e3 / RATE, abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def strategies():
+    from evidence.strategies import Strategies
+
+    return Strategies(CONFIG)
+
+
+def test_a_first_goal_after_a_late_first_sample_is_planned_from_rest_as_on_the_processes(strategies):
+    """Until the first plan the robot stands on a stand-in of the simulation's, none of the planner's (the scaler
+    service holds the measured position, version -1): 30 ms late, the planning layer's first goal comes after the
+    scaling layer has reported on it, and is still planned as a new goal from rest (the fold or the line, the search
+    on the way), not merged into the stand-in, which took the line through the person at the table's edge and held
+    one recording still for the rest of its run."""
+    now = strategies.run("full", "paper", 3, 1.0)
+    late = strategies.run("full", "paper", 3, 1.0, latency=0.03)
+    assert now.goals and late.goals
+    assert late.goals[0].t >= 0.03 and late.goals[0].detail == now.goals[0].detail != ""
+
+
+def test_a_window_into_a_recording_has_its_samples_from_before_its_start(tmp_path, monkeypatch):
+    """A cell's feed runs before a run starts: a window that starts 2 s into a recording gives the layers the
+    sample of 30 ms before its start at its start, where a whole recording (hrc demo --sim --human) has nobody."""
+    import shutil
+    from pathlib import Path
+
+    from evidence.recorded import RecordingWindow, placed_motion
+
+    fixture = Path(__file__).resolve().parents[1] / "data" / "human-assembly" / "task1_human1_trial1_first300.txt"
+    shutil.copy(fixture, tmp_path / "a.txt")
+    motion = TrackedMotion(placed_motion(tmp_path / "a.txt", "table_edge"))
+    window = RecordingWindow(motion, 2.0, "a")
+    given = sensed(window, 0.0, 0.03)
+    assert given.humans is not None and given.humans.segments == pytest.approx(motion.at(1.97).segments)
+    assert given.age == pytest.approx(2.0 - motion.captured(1.97)[0]) and given.age >= 0.03
+    assert sensed(motion, 0.0, 0.03).humans is None and sensed(motion, 0.0, 0.03).age == math.inf
