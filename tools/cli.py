@@ -577,20 +577,19 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                        kinds=listed(args.kinds, "kinds", sorted(SCENARIO_KINDS)),
                        scenarios=number(args.scenarios, "scenarios", 20, int),
                        duration=number(args.duration, "duration", 12.0, float),
-                       seed=number(args.seed, "seed", 0, int))
+                       seed=number(args.seed, "seed", 0, int), latency=number(args.latency, "latency", 0.0, float))
     grids.check_grid(grid)
     if args.workers < 1 or args.chunk < 1:
         raise UsageError("--workers and --chunk must be >= 1")
     other = None if args.against is None else sweep.read_sweep(args.against)     # a bad folder: before any run
     forecaster = _forecaster(args.forecaster if args.forecaster is not None else doc.get("forecaster"))
-    latency = number(args.latency, "latency", 0.0, float)
     try:
-        specs = grid.specs(forecaster, latency)
+        specs = grid.specs(forecaster)
     except ConfigError as exc:                      # the grid file's latency (--latency is checked as it is read)
         raise grids.GridError(f"{args.grid}: {exc}") from None
     print(f"hrc sweep: {len(grid.points())} points x {grid.scenarios} scenarios x {len(grid.strategies)} strategies "
           f"= {len(specs)} runs into {args.out}" + (f" (full's forecaster {forecaster})" if forecaster else "")
-          + (f", the people {1e3 * latency:g} ms late" if latency else ""), flush=True)
+          + (f", the people {1e3 * grid.latency:g} ms late" if grid.latency else ""), flush=True)
     done = sweep.run_sweep(specs, args.out, executor="dask" if args.dask else "local", workers=args.workers,
                            address=None if args.dask in (None, "local") else args.dask, chunk=args.chunk,
                            meta={"bench": "sweep", "code": sweep.code_version(Path(__file__).resolve().parents[1])})

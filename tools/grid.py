@@ -24,6 +24,7 @@ class Grid:
     scenarios: int
     duration: float
     seed: int = 0
+    latency: float = 0.0        # s: every run's people that long after their capture (``ScenarioSpec.latency``)
 
     def points(self) -> list[tuple[tuple[str, float | str], ...]]:
         import itertools
@@ -31,11 +32,10 @@ class Grid:
         keys = sorted(self.values)
         return [tuple(zip(keys, combo)) for combo in itertools.product(*(self.values[k] for k in keys))]
 
-    def specs(self, forecaster: str | None = None, latency: float = 0.0) -> list[ScenarioSpec]:
-        """Point by point, scenario by scenario, every strategy: a chunk holds whole scenarios of one point.
-        latency (s): every run's people that long after their capture (``ScenarioSpec.latency``)."""
+    def specs(self, forecaster: str | None = None) -> list[ScenarioSpec]:
+        """Point by point, scenario by scenario, every strategy: a chunk holds whole scenarios of one point."""
         return [ScenarioSpec(self.kinds[k % len(self.kinds)], self.seed + k, self.duration, strategy,
-                             overrides=point, forecaster=forecaster, latency=latency)
+                             overrides=point, forecaster=forecaster, latency=self.latency)
                 for point in self.points() for k in range(self.scenarios) for strategy in self.strategies]
 
 
@@ -231,7 +231,8 @@ def write_summary(points: list[dict], grid: Grid, out: Path, first: list[dict] |
     out.mkdir(parents=True, exist_ok=True)
     lists = lambda ratios: {k: (r if isinstance(r, str) else r.as_list()) for k, r in ratios.items()}
     doc = {"grid": {"set": grid.values, "strategies": grid.strategies, "kinds": grid.kinds,
-                    "scenarios": grid.scenarios, "duration": grid.duration, "seed": grid.seed},
+                    "scenarios": grid.scenarios, "duration": grid.duration, "seed": grid.seed,
+                    "latency": grid.latency},
            "points": [{**p, "ratios": lists(p["ratios"]),
                        "kinds": {k: {**v, "ratios": lists(v["ratios"])} for k, v in p["kinds"].items()}}
                       for p in points],

@@ -67,6 +67,8 @@ def test_the_grid_is_every_combination_and_bad_grids_are_refused():
                       ["standing", "crossing"], 3, 2.0)
     assert len(grid.points()) == 6 and len(grid.specs()) == 18
     assert [s.kind for s in grid.specs()[:3]] == ["standing", "crossing", "standing"]
+    assert {s.latency for s in grid.specs()} == {0.0}
+    assert {s.latency for s in grids.Grid(**{**grid.__dict__, "latency": 0.03}).specs()} == {0.03}
     grids.check_grid(grid)
     for bad, what in ((dict(strategies=["fastest"]), "strategies"), (dict(kinds=["moon"]), "kinds"),
                       (dict(values={"ssm.reaction_time": [-1.0]}), "reaction_time"), (dict(scenarios=0), "scenarios")):
