@@ -71,8 +71,9 @@ def sensed(human, t: float, latency: float = 0.0) -> Sensed:
     motion (``TrackedMotion``) gives its newest frame, so its age grows between frames as the scaler finds it; a
     scripted person is captured at every moment. Before the first sample has come: nobody, infinitely old. A
     window into a longer recording (``RecordingWindow``) has the samples from before its start, as a cell's feed
-    has been running before a run starts (else, 30 ms late, each window began with its first 30-60 ms unseen and
-    the planning layer's first goal planned on no people: 19 % of the table's edge lost, not to the latency)."""
+    has been running before a run starts (else, 30 ms late, each window began unseen, and its first goal, planned
+    once the people came, was merged into the stand-in the robot stood on: 19 % of the table's edge lost, not to
+    the latency; ``run_shuttle``'s ``standing``)."""
     then = t - latency
     captured = getattr(human, "captured", None)
     if then < 0.0 and captured is None:

@@ -92,7 +92,7 @@ def test_a_first_goal_after_a_late_first_sample_is_planned_from_rest_as_on_the_p
     assert late.goals[0].t >= 0.03 and late.goals[0].detail == now.goals[0].detail != ""
 
 
-def test_a_window_into_a_recording_has_its_samples_from_before_its_start(tmp_path, monkeypatch):
+def test_a_window_into_a_recording_has_its_samples_from_before_its_start(tmp_path):
     """A cell's feed runs before a run starts: a window that starts 2 s into a recording gives the layers the
     sample of 30 ms before its start at its start, where a whole recording (hrc demo --sim --human) has nobody."""
     import shutil

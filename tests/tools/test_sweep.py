@@ -329,6 +329,11 @@ def test_hrc_scenario_tells_what_each_strategy_did_with_the_sweeps_figures(tmp_p
                          for line in goals), goals
     for args, says in ((("moon", "1"), "kinds"), (("standing", "1", "--set", "ssm.nope=1"), "nope"),
                        (("standing", "1", "--set", "ssm.reaction_time=0.1,0.2"), "one value a key"),
-                       (("standing", "1", "--forecaster", "shared.planning.forecast:Nope"), "has no 'Nope'")):
+                       (("standing", "1", "--forecaster", "shared.planning.forecast:Nope"), "has no 'Nope'"),
+                       (("standing", "1", "--latency", "-0.03"), "--latency")):
         refused = run_hrc("scenario", *args)
         assert refused.returncode == 2 and says in refused.stderr, (args, refused.stderr)
+    late = run_hrc("scenario", "standing", "3", "--strategies", "full", "--duration", "4", "--latency", "0.03")
+    record = run_scenario(ScenarioSpec("standing", 3, 4.0, "full", latency=0.03))
+    assert late.returncode == 0 and "as shipped, the people 30 ms late" in late.stdout, late.stderr[-2000:]
+    assert f"full: {record['shuttles']:.2f} shuttles" in late.stdout, late.stdout
