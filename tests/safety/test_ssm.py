@@ -263,3 +263,36 @@ def test_a_delay_is_rounded_up_to_the_millisecond_kept_and_never_a_setting():
             shipped.aged(bad)
     with pytest.raises(ConfigError, match="unknown key"):
         SsmParameters.from_mapping({"human_lead": 0.03})
+
+
+def test_a_robot_point_may_approach_a_person_seen_late_in_any_direction_they_may_have_turned_to():
+    """approach_within by hand: the largest projection of a velocity on a direction within an angle of n."""
+    from shared.safety.ssm import approach_within
+
+    assert approach_within(0.3, 1.0, 0.0) == 0.3                          # no doubt: the projection itself
+    assert approach_within(0.0, 1.0, 0.1) == pytest.approx(0.1)           # sideways: speed x sin
+    assert approach_within(1.0, 1.0, 0.1) == pytest.approx(1.0)           # straight at them: all of it
+    assert approach_within(0.999, 1.0, 0.1) == pytest.approx(1.0)         # within the angle: all of it
+    away = approach_within(-1.0, 1.0, 0.1)
+    assert away == pytest.approx(-math.sqrt(1 - 0.01)) and away < 0.0     # away, still away
+    assert approach_within(0.6, 1.0, 0.6) == pytest.approx(0.6 * 0.8 + 0.8 * 0.6)
+    for along, speed, doubt in ((0.2, 0.5, 0.3), (-0.4, 0.5, 0.9), (0.0, 2.0, 1.0)):
+        worst = max(speed * math.cos(max(0.0, math.acos(along / speed) - a)) for a in np.linspace(0, math.asin(doubt), 200))
+        assert approach_within(along, speed, doubt) == pytest.approx(worst, abs=1e-3)
+
+
+def test_a_link_moving_sideways_past_a_walker_seen_late_counts_the_turn_of_their_direction():
+    """A person 1 m away walking sideways at 1 m/s, seen 60 ms ago: the direction to them may have turned by up to
+    asin(0.06 / 1.0), so a robot point moving sideways at 1 m/s approaches at up to 0.06 m/s; with data of now, not
+    at all. The person's own approach (none) and the limit are as before."""
+    robot = np.array([[[0.0, 0, 0], [0.0, 0, 0]]])
+    sideways = np.array([[[0.0, 1.0, 0], [0.0, 1.0, 0]]])
+    humans = HumanCapsules.from_arrays([[[1.0, 0, 0], [1.0, 0, 0]]], [0.1], [[[0, 1.0, 0], [0, 1.0, 0]]], [True])
+    now = pair_ssm(robot, np.array([0.1]), sideways, humans, SsmParameters())
+    late = pair_ssm(robot, np.array([0.1]), sideways, humans, SsmParameters().aged(0.06))
+    assert now.robot_speed[0, 0] == pytest.approx(0.0, abs=1e-12)
+    assert late.robot_speed[0, 0] == pytest.approx(0.06)
+    assert late.human_speed[0, 0] == now.human_speed[0, 0] == 0.0 and late.limit[0, 0] == now.limit[0, 0]
+    unknown = HumanCapsules.from_arrays([[[1.0, 0, 0], [1.0, 0, 0]]], [0.1], [[[0, 0, 0], [0, 0, 0]]], [False])
+    assert pair_ssm(robot, np.array([0.1]), sideways, unknown, SsmParameters().aged(0.06)).robot_speed[0, 0] == \
+        pytest.approx(2.0 * 0.06)                                         # the ISO 13855 speed's way
