@@ -115,11 +115,10 @@ def test_a_walker_seen_60_ms_late_past_a_link_moving_sideways_is_no_violation():
     scaling layer held a link's approach at 0 towards where the walker was, inside their no-approach distance,
     while the walker moved on; towards where they were, the link approached at 8.5 mm/s for 0.45 s (27 violations
     of the monitor's rule). Counting every direction the walker may have turned to since, none."""
+    from evidence.strategies import Strategies
     from evidence.sweep import config_of
 
     covering = config_of((("scaling.human_timeout", 0.1), ("ssm.reaction_time", 0.11)))
-    from evidence.strategies import Strategies
-
     result = Strategies(covering).run("full", "random_walk", 237, 12.0, latency=0.06)
     assert result.violations == 0 and result.summary()["reaction_time_covers_p99"] is True
     assert result.progress > 1.9                     # and the robot works on (2.04 shuttles with the violations)
