@@ -292,13 +292,18 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
     n_l, n_m = robot_seg.shape[0], human_seg.shape[0]
     dist, robot_speed = np.empty((n_l, n_m)), np.empty((n_l, n_m))
     human_speed, limit = np.empty((n_l, n_m)), np.empty((n_l, n_m))
+    # each capsule's fastest end-point speed (m/s): a person's where their direction is not defined or has turned
+    capsule_speed = np.zeros(n_m)
+    for j in range(n_m):
+        for e in range(2):
+            capsule_speed[j] = max(capsule_speed[j], np.sqrt(human_vel[j, e, 0] ** 2 + human_vel[j, e, 1] ** 2
+                                                             + human_vel[j, e, 2] ** 2))
+    end_speed = np.empty(2)
     for i in range(n_l):
         p1, q1 = robot_seg[i, 0], robot_seg[i, 1]
-        # fastest end-point speed of link i (for pairs with no defined direction)
-        link_speed = 0.0
-        for e in range(2):
-            v = np.sqrt(robot_vel[i, e, 0] ** 2 + robot_vel[i, e, 1] ** 2 + robot_vel[i, e, 2] ** 2)
-            link_speed = max(link_speed, v)
+        for e in range(2):              # link i's end-point speeds; the fastest for pairs with no defined direction
+            end_speed[e] = np.sqrt(robot_vel[i, e, 0] ** 2 + robot_vel[i, e, 1] ** 2 + robot_vel[i, e, 2] ** 2)
+        link_speed = max(end_speed[0], end_speed[1])
         for j in range(n_m):
             p2, q2 = human_seg[j, 0], human_seg[j, 1]
             s, t = segment_closest_params(p1, q1, p2, q2)
@@ -311,9 +316,7 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
             if centre < EPS_NORMAL:
                 # axes touch: every direction is "towards" -- take full speeds
                 robot_speed[i, j] = link_speed
-                hs = 0.0
-                for e in range(2):
-                    hs = max(hs, np.sqrt(human_vel[j, e, 0] ** 2 + human_vel[j, e, 1] ** 2 + human_vel[j, e, 2] ** 2))
+                hs = capsule_speed[j]
             else:
                 nx, ny, nz = nx / centre, ny / centre, nz / centre
                 rs = -np.inf
@@ -324,17 +327,11 @@ def _pair_ssm_kernel(robot_seg, robot_rad, robot_vel, human_seg, human_rad, huma
                 # unknown): the direction to them now is within an angle of n whose sine is that way / centre
                 sin_t = 0.0
                 if lead > 0.0:
-                    moved = v_near
-                    if human_known[j]:
-                        moved = 0.0
-                        for e in range(2):
-                            moved = max(moved, np.sqrt(human_vel[j, e, 0] ** 2 + human_vel[j, e, 1] ** 2
-                                                       + human_vel[j, e, 2] ** 2))
+                    moved = capsule_speed[j] if human_known[j] else v_near
                     sin_t = min(1.0, moved * lead / centre)
                 for e in range(2):
                     p = nx * robot_vel[i, e, 0] + ny * robot_vel[i, e, 1] + nz * robot_vel[i, e, 2]
-                    speed = np.sqrt(robot_vel[i, e, 0] ** 2 + robot_vel[i, e, 1] ** 2 + robot_vel[i, e, 2] ** 2)
-                    rs = max(rs, approach_within(p, speed, sin_t))
+                    rs = max(rs, approach_within(p, end_speed[e], sin_t))
                 robot_speed[i, j] = rs
             if not human_known[j]:                 # the ISO speed of the nearest they may be by now
                 hs = iso_speed(d - v_near * lead, near_d, v_near, v_far)
