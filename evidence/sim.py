@@ -76,10 +76,8 @@ def sensed(human, t: float, latency: float = 0.0) -> Sensed:
     the latency; ``run_shuttle``'s ``standing``)."""
     then = t - latency
     captured = getattr(human, "captured", None)
-    if then < 0.0 and captured is None:
-        return Sensed(None, float("inf"), 0.0, latency)
     taken, interval = captured(then) if captured is not None else (then, 0.0)
-    if then < 0.0 and taken == -math.inf:           # before a recording's first sample
+    if then < 0.0 and (captured is None or taken == -math.inf):     # before the run's, or a recording's, first sample
         return Sensed(None, float("inf"), 0.0, latency)
     return Sensed(human.at(then), t - taken, interval, latency)
 

@@ -132,13 +132,18 @@ class Strategies:
     def shaped_run(self, human, duration: float, legs: LegSequence, latency: float = 0.0) -> SimResult:
         """The scaling layer alone, each leg the shape the sequence names."""
         layer = ScalingLayer(self.robot, self.config.ssm, self.config.scaling)
-        return run_shuttle(self.robot, self.config, human, Q_START, Q_GOAL, duration, layer=layer,
-                           monitor=self.monitor, leg_path=legs, latency=latency)
+        return self._shuttle(human, duration, latency, layer=layer, leg_path=legs)
 
     def empty_cell(self, duration: float) -> SimResult:
         """The shuttle with nobody in the cell for `duration` s (the scaling layer, at full speed): what the
         people cost a strategy is measured against it (bench/compare.py: the share of it won back)."""
         return self._run("scale_only", EmptyCell(), duration)
+
+    def _shuttle(self, people, duration: float, latency: float, **how) -> SimResult:
+        """``run_shuttle`` between the shuttle's ends with these people, judged by the monitor, the people `latency`
+        s late; `how`: what the strategy runs (its layer, planner, leg paths, ...)."""
+        return run_shuttle(self.robot, self.config, people, Q_START, Q_GOAL, duration, monitor=self.monitor,
+                           latency=latency, **how)
 
     def _run(self, strategy: str, human, duration: float, veto: Veto | None = None,
              goal_leg: GoalLeg | None = None, latency: float = 0.0) -> SimResult:
@@ -147,20 +152,15 @@ class Strategies:
         cfg = self.config
         if strategy == "zones":
             layer = ZoneScalingLayer(self.robot, self.zones_at(latency), cfg.ssm, cfg.scaling)
-            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor,
-                               latency=latency)
+            return self._shuttle(human, duration, latency, layer=layer)
         if strategy == "scale_only":
-            layer = ScalingLayer(self.robot, cfg.ssm, cfg.scaling)
-            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor,
-                               latency=latency)
+            return self._shuttle(human, duration, latency, layer=ScalingLayer(self.robot, cfg.ssm, cfg.scaling))
         if strategy == "fixed_path":
             layer = ScalingLayer(self.robot, cfg.ssm, cfg.scaling)
-            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, monitor=self.monitor,
-                               leg_path=self.fixed_path.leg, latency=latency)
+            return self._shuttle(human, duration, latency, layer=layer, leg_path=self.fixed_path.leg)
         if strategy == "full":
-            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, replanner=self.replanner,
-                               charge_planning=CELL_BUDGET, monitor=self.monitor, veto=veto, goal_leg=goal_leg,
-                               latency=latency)
+            return self._shuttle(human, duration, latency, replanner=self.replanner, charge_planning=CELL_BUDGET,
+                                 veto=veto, goal_leg=goal_leg)
         if strategy == "clairvoyant":           # the largest search's sequence, run once more for its record
             best = self._clairvoyant(human, duration, SEARCHES, latency)[0][max(SEARCHES)]
             return self.shaped_run(human, duration, LegSequence(self.shaped, best.shapes), latency)
@@ -169,14 +169,13 @@ class Strategies:
             planner = self.foreseeing if strategy == "foresight" else self.oracle
             planner.cost.forecaster = foreseen
             # the oracle plans free of time: its plans are taken the cycle they are asked for
-            return run_shuttle(self.robot, cfg, foreseen, Q_START, Q_GOAL, duration, replanner=planner,
-                               charge_planning=CELL_BUDGET if strategy == "foresight" else False,
-                               monitor=self.monitor, latency=latency)
+            return self._shuttle(foreseen, duration, latency, replanner=planner,
+                                 charge_planning=CELL_BUDGET if strategy == "foresight" else False)
         if strategy in PAPER + PAPER_BASELINES:
             layer = ScalingLayer(self.robot, self.paper_ssm, cfg.scaling)
             replanner = self.paper_replanner if strategy == "full_paper" else None
-            return run_shuttle(self.robot, cfg, human, Q_START, Q_GOAL, duration, layer=layer, replanner=replanner,
-                               charge_planning=CELL_BUDGET if replanner is not None else False, monitor=self.monitor,
-                               leg_path=self.fixed_path.leg if strategy in PAPER_BASELINES else None, veto=veto,
-                               goal_leg=goal_leg, latency=latency)
+            return self._shuttle(human, duration, latency, layer=layer, replanner=replanner,
+                                 charge_planning=CELL_BUDGET if replanner is not None else False,
+                                 leg_path=self.fixed_path.leg if strategy in PAPER_BASELINES else None, veto=veto,
+                                 goal_leg=goal_leg)
         raise ValueError(f"unknown strategy {strategy!r}; known: {KNOWN}")
