@@ -48,7 +48,7 @@ from shared.safety.monitor import MonitorResult, ReactionWindow, SafetyMonitor
 from shared.safety.ssm import pair_ssm
 from shared.scaling.layer import ScalingInputs, ScalingLayer, ScalingStep, StepStatus
 from shared.scaling.report import ScalerReport
-from shared.tracking.tracker import stale_bound
+from shared.tracking.tracker import mean_age, stale_bound
 
 START_TOLERANCE = 1e-3   # rad: the simulated robot is exactly on its path (the scaler allows 0.02 for the drives)
 
@@ -164,17 +164,19 @@ class SimResult:
         """The people's data as the processes' report gives it (docs/report-format.md): the share of cycles it was
         stale, a sample's way from its capture to the tracker's state (the latency) and to the command made on it
         (that and at most a control period: the simulated drives follow each command at once, no drive lag), the
-        source's interval, and whether T_r covers the three: the same sum as ``reaction_time_covers_p99``."""
+        source's interval, the part T_r covers (from the tick to the command's taking effect: a control period) and
+        whether T_r covers it: the same test as ``reaction_time_covers_p99``."""
         cycles = len(self.records)
         chain = 1e3 * (self.latency + self.period)
+        own = round(1e3 * self.period, 1)
         return {"tracker": {"stale_share": round(self.stale_cycles / cycles, 4) if cycles else None,
                             "capture_to_state_ms": {"p50": round(1e3 * self.latency, 1),
                                                     "p99": round(1e3 * self.latency, 1)},
                             "sample_interval_ms": round(1e3 * self.sample_interval, 2)},
-                "latency": {"sample_to_frame_ms": {"p50": round(chain, 1), "p99": round(chain, 1)}},
+                "latency": {"sample_to_frame_ms": {"p50": round(chain, 1), "p99": round(chain, 1)},
+                            "tick_to_frame_ms": {"p50": own, "p99": own}},
                 "reaction_time_s": self.reaction_time,
-                "reaction_time_covers_p99": self.latency + self.period + self.sample_interval
-                <= self.reaction_time + 1e-9}
+                "reaction_time_covers_p99": self.period <= self.reaction_time + 1e-9}
 
 
 Veto = Callable[[int, ReplanEvent], bool]     # run_shuttle's veto: (the n-th replan meant, its event) -> drop it
@@ -341,7 +343,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
 
     if loop is not None:      # the first leg planned before the clock starts, as the fixed path's is made
         first = sensed(human, 0.0, latency)
-        planning_turn(0.0, 0, first.humans, first.delay)
+        planning_turn(0.0, 0, first.humans, mean_age(first.delay, first.interval))
         take_ready(0.0)       # planned with no search charged: ready at the start
     for k in range(int(round(duration / period))):
         t = k * period
@@ -351,9 +353,8 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         result.sample_interval = given.interval or result.sample_interval
         take_ready(t)
         if loop is not None and t >= busy_until:
-            planning_turn(t, k, given.humans, given.delay)
-        step = layer.step(ScalingInputs(humans=given.humans, human_age=given.age, stale_after=stale_after,
-                                        human_delay=given.delay))
+            planning_turn(t, k, given.humans, mean_age(given.delay, given.interval))
+        step = layer.step(ScalingInputs(humans=given.humans, human_age=given.age, stale_after=stale_after))
         result.stale_cycles += step.status is StepStatus.STALE_HUMAN_DATA     # as the report counts the scaler's
         if step.beta and not (report is not None and report.beta):
             result.beta_requests += 1
@@ -369,7 +370,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             else:
                 pending_leg = True          # a new goal: the planner takes a turn on it at once (when free)
                 if t >= busy_until:
-                    planning_turn(t, k, given.humans, given.delay)
+                    planning_turn(t, k, given.humans, mean_age(given.delay, given.interval))
         result.progress = result.shuttles + leg_fraction(step.q_command, ends[leg % 2], ends[(leg + 1) % 2])
         record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
         result.records.append(record)

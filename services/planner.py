@@ -39,6 +39,7 @@ from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOption
 from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.robot.model import default_robot
+from shared.tracking.tracker import mean_age
 from shared.wire.convert import capture_delay, humans_from_msg, report_from_status, trajectory_to_msg
 from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
@@ -58,7 +59,7 @@ class PlannerService:
         self.new_goal = False
         self.humans = None
         self.human_seq = -1
-        self.human_delay = 0.0             # s: the newest people state's way from its capture (HumanState)
+        self.human_delay = 0.0             # s: the newest people's age as the scaler counts it on average (mean_age)
         self.q = None
         self.status: ScalerStatus | None = None
         self.highest_seen = 0              # the highest trajectory version the scaler reported following
@@ -89,7 +90,7 @@ class PlannerService:
         with self.lock:
             if humans is not None:   # counted here: the horizon check must not depend on the sender's numbering
                 self.humans, self.human_seq = humans_from_msg(humans), self.human_seq + 1
-                self.human_delay = capture_delay(humans)      # counted as the scaler counts it
+                self.human_delay = mean_age(capture_delay(humans), humans.sample_interval)
             if joints is not None:
                 self.q = np.asarray(joints.q)
             if status is not None:

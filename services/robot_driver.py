@@ -89,9 +89,11 @@ class Driver:
         if early is not None:           # on the bus now; the drives take the latest setpoint at the next SYNC
             self.master.send(None, early, sync=False)
             if msg.human_sample_stamp is not None:          # the end of a sample -> frame chain
-                elapsed = time.monotonic() - msg.human_sample_stamp
+                sent = time.monotonic()
+                elapsed = sent - msg.human_sample_stamp
+                tick = sent - msg.stamp if msg.stamp > 0.0 else elapsed     # the tick: the command's stamp
                 with self.latency_lock:
-                    self.latency.add(elapsed, elapsed - (msg.human_wait or 0.0), msg.human_interval or 0.0)
+                    self.latency.add(elapsed, elapsed - (msg.human_wait or 0.0), tick)
 
     def on_request(self, msg: DriverRequest) -> None:
         log.info("request %s from %s", msg.action, msg.source)
@@ -144,13 +146,13 @@ class Driver:
         if lag_verdict is not None:
             self._publish_event(lag_verdict)
         with self.latency_lock:
-            sample_to_frame, processing = self.latency.drain()
+            sample_to_frame, processing, tick_to_frame = self.latency.drain()
             with self.lag_lock:
                 worst = self.drive_lag.worst()
             verdict = self.latency.check(worst or 0.0)
         if sample_to_frame.size:
             self._publish(self.latency_pub, LatencyReport(source="robot_driver", sample_to_frame=sample_to_frame,
-                                                          processing=processing))
+                                                          processing=processing, tick_to_frame=tick_to_frame))
         if verdict is not None:
             self._publish_event(verdict)
 
@@ -191,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
         master.bring_up()
         shell = ServiceShell("robot_driver", args)
         core = DriverCore(default_robot().limits, args.period, args.command_timeout)
-        driver = Driver(master, core, shell, args.period, LatencyMeter(config.ssm.reaction_time),
+        driver = Driver(master, core, shell, args.period, LatencyMeter(config.ssm.reaction_time, sync_wait=args.period),
                         DriveLagMeter(config.ssm.drive_lag))
 
         def cycle_until(stop: threading.Event) -> int:

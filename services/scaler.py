@@ -51,7 +51,7 @@ from shared.robot.model import default_robot
 from shared.scaling.layer import ScalingInputs, ScalingLayer
 from shared.scaling.sync_clock import GAP_PERIODS, SyncClock
 from shared.tracking.tracker import stale_bound
-from shared.wire.convert import capture_delay, humans_from_msg, status_from_step, trajectory_from_msg
+from shared.wire.convert import humans_from_msg, status_from_step, trajectory_from_msg
 from shared.wire.messages import (
     DriveLagReport,
     HumanState,
@@ -82,7 +82,6 @@ class Scaler:
         self.human_stamp = -np.inf         # monotonic time of the human sample
         self.human_published = -np.inf     # when tracker_ingest published its state (same host clock)
         self.human_interval = 0.0                         # s: the source's sample interval, as the tracker measured
-        self.human_delay = 0.0             # s: the newest state's way from its capture to the tracker (capture_delay)
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
         self.joint_arrived = -np.inf       # when the newest joint state reached this process (monotonic s)
@@ -127,7 +126,6 @@ class Scaler:
             self.human_stamp = newest.sample_stamp if newest.valid else -np.inf
             self.human_published = newest.stamp
             self.human_interval = newest.sample_interval
-            self.human_delay = capture_delay(newest)
 
     def cover_drive_lag(self) -> None:
         """The scaling layer's margin for the drive lag measured: the configured drive_lag, the worst joint's
@@ -220,7 +218,6 @@ class Scaler:
             humans, age, q_meas = self.humans, now - self.human_stamp, self.joint_q
             robot_age = now - self.joint_arrived
             stamp, published, following = self.human_stamp, self.human_published, self.robot_following
-            delay = self.human_delay      # the people's travel over it counts (a camera's latency)
         if q_meas is not None and (self.layer.trajectory is None or not following):
             if not following and self.layer.trajectory is not None and self.layer.trajectory.version != -1:
                 self.shell.log.warning("the robot is not following (driver stopped or enabling): trajectory %d "
@@ -231,7 +228,7 @@ class Scaler:
         if self.layer.trajectory is None:
             return
         step = self.layer.step(ScalingInputs(humans=humans, human_age=age if humans is not None else np.inf,
-                                             stale_after=self.stale_after, robot_age=robot_age, human_delay=delay))
+                                             stale_after=self.stale_after, robot_age=robot_age))
         if step.dropped is not None:
             self.shell.log.warning("trajectory dropped: %s", step.dropped)
             with self.lock:         # the planner numbers its next plan from the followed one: it may come with
@@ -244,7 +241,6 @@ class Scaler:
                                              trajectory_version=step.trajectory_version, s=step.s,
                                              human_sample_stamp=stamp if fresh else None,
                                              human_wait=max(0.0, now - published) if fresh else None,
-                                             human_interval=self.human_interval if fresh else None,
                                              seq=self.seq, stamp=now)))
         self.status_pub.put(encode(status_from_step(step, self.received, self.seq, now)))
 

@@ -210,22 +210,23 @@ def stale_said(tracker: dict) -> str | None:
     latency = (tracker.get("capture_to_state_ms") or {}).get("p99")
     way = f" (from a sample's capture to the tracker's state: p99 {latency:.0f} ms)" if latency is not None else ""
     return (f"the people's data was stale in {100 * share:.0f} % of the control cycles{way}: its age counts from the "
-            "capture, so a camera's latency counts; raise scaling.human_timeout and ssm.reaction_time to cover it "
-            "(docs/human-motion.md)")
+            "capture, so a camera's latency counts; raise scaling.human_timeout to cover it (the layers count the "
+            "person's travel over the age: docs/human-motion.md)")
 
 
 def reaction_said(summary: dict) -> str | None:
     """One line for the operator when the measured reaction chain does not fit in T_r (the summary's
-    ``reaction_time_covers_p99`` false; None otherwise): from a sample's capture to the frame on CAN (p99), the
-    joints' lag behind it and the wait for the source's next sample, against ssm.reaction_time (the robot driver's
-    ``reaction_time_exceeded`` by the same sum)."""
+    ``reaction_time_covers_p99`` false; None otherwise): from the scaler's tick that took a sample to its frame on
+    CAN (p99) and the joints' lag behind it, against ssm.reaction_time (the robot driver's
+    ``reaction_time_exceeded`` by the same sum; the way from the capture to the tick is the data's age, counted
+    on the person's side)."""
     if summary.get("reaction_time_covers_p99") is not False:
         return None
-    chain = ((summary.get("latency") or {}).get("sample_to_frame_ms") or {}).get("p99") or 0.0
+    chain = ((summary.get("latency") or {}).get("tick_to_frame_ms") or {}).get("p99") or 0.0
     lag = max((summary.get("drives") or {}).get("lag_p99_ms") or [0.0])
-    interval = (summary.get("tracker") or {}).get("sample_interval_ms") or 0.0
-    return (f"the reaction chain, from a sample's capture to its frame on CAN (p99 {chain:.0f} ms), the joints' "
-            f"{lag:.0f} ms behind it and the source's {interval:.0f} ms to its next sample, is longer than T_r "
+    sync = (summary.get("latency") or {}).get("sync_wait_ms") or 0.0
+    return (f"the reaction chain, from the scaler's tick to its frame on CAN (p99 {chain:.0f} ms), the frame's wait "
+            f"for the SYNC ({sync:.0f} ms) and the joints' {lag:.0f} ms behind that, is longer than T_r "
             f"({1e3 * summary['reaction_time_s']:.0f} ms): the SSM's distances assume a faster reaction; raise "
             "ssm.reaction_time to cover it")
 
@@ -296,10 +297,10 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         replans.append(entry)
     s2f = np.concatenate([r.sample_to_frame for r in rec.latency]) if rec.latency else np.zeros(0)
     proc = np.concatenate([r.processing for r in rec.latency]) if rec.latency else np.zeros(0)
+    own = np.concatenate([r.tick_to_frame for r in rec.latency]) if rec.latency else np.zeros(0)
     stall_values = np.array([s["stall_ms"] for s in stalls])
-    p99 = float(np.percentile(s2f, 99)) if s2f.size else None
+    p99 = float(np.percentile(own, 99)) if own.size else None
     tracker = tracker_summary(rec)
-    interval = (tracker["sample_interval_ms"] or 0.0) / 1e3
     drives = drive_summary(rec)
     lag = max(drives["lag_p99_ms"] or [0.0]) / 1e3           # the joints behind the frames (the worst joint's p99)
     summary = {
@@ -333,7 +334,8 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "violation_events": [e.text for e in violation_events[:10]],
         "monitor": summaries[-1].text if summaries else "no monitor summary received",
         "latency": {"chains": int(s2f.size), "sample_to_frame_ms": _percentiles(s2f, 50, 99),
-                    "processing_ms": _percentiles(proc, 50, 99)},
+                    "processing_ms": _percentiles(proc, 50, 99), "tick_to_frame_ms": _percentiles(own, 50, 99),
+                    "sync_wait_ms": round(1e3 * config.scaling.period, 3)},
         "scaling_cycle": scaling_cycle(st),
         "drives": drives,
         "scaler_silences": scaler_silences(stamps, np.array([s.compute_us for s in st]),
@@ -349,8 +351,10 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "exceedances_after_reaction_time": int(np.count_nonzero(series["late_excess"] > 0)),
         "worst_late_excess_m_s": round(float(series["late_excess"].max()), 4) if series["late_excess"].size else 0.0,
         "reaction_time_s": config.ssm.reaction_time,
-        # the chain from a sample to the frame on CAN, and the wait for the next sample at the source's rate
-        "reaction_time_covers_p99": None if p99 is None else bool(p99 + lag + interval <= config.ssm.reaction_time),
+        # the chain T_r covers: from the tick that took a sample to its frame on CAN, the frame's wait for the SYNC
+        # (a period) and the joints' lag behind that
+        "reaction_time_covers_p99": None if p99 is None
+        else bool(p99 + config.scaling.period + lag <= config.ssm.reaction_time),
         "events": sorted({f"{e.source}:{e.event}" for e in rec.events if e.severity != "info"}),
     }
     return summary, series
@@ -406,9 +410,9 @@ def write_trace(out: Path, rec: Recording) -> None:
     _write_csv(out / "events.csv", ["t", "source", "event", "severity", "value", "text"],
                [[_fmt(e.stamp - rec.t0), e.source, e.event, e.severity, "" if e.value is None else _fmt(e.value),
                  e.text] for e in rec.events])
-    _write_csv(out / "latency.csv", ["t", "sample_to_frame_ms", "processing_ms"],
-               [[_fmt(r.stamp - rec.t0), f"{a * 1e3:.3f}", f"{b * 1e3:.3f}"] for r in rec.latency
-                for a, b in zip(r.sample_to_frame, r.processing)])
+    _write_csv(out / "latency.csv", ["t", "sample_to_frame_ms", "processing_ms", "tick_to_frame_ms"],
+               [[_fmt(r.stamp - rec.t0), f"{a * 1e3:.3f}", f"{b * 1e3:.3f}", f"{c * 1e3:.3f}"] for r in rec.latency
+                for a, b, c in zip(r.sample_to_frame, r.processing, r.tick_to_frame)])
     (out / "trajectories.json").write_text(json.dumps([
         {"t": round(m.stamp - rec.t0, 4), "version": m.version, "base_version": m.base_version, "reason": m.reason,
          "goal_id": m.goal_id, "junction": m.junction, "times": m.times.tolist(), "positions": m.positions.tolist(),

@@ -18,6 +18,7 @@ path search's thousands of candidate paths. Pure: no I/O.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -45,7 +46,7 @@ class ExecutedTime:
         self.longest = longest
         self.layer = ScalingLayer(robot, ssm, self.params)
         self.runs = 0                 # forward runs made (what a benchmark charges them by)
-        self.delay = 0.0              # s: the people's way from capture to the cell, which the layer counts
+        self.delay = 0.0              # s: the people's data's age, which the layer counts (mean_age)
 
     @staticmethod
     def people(humans: HumanCapsules | None, horizon: float, forecaster: Forecaster):
@@ -72,7 +73,8 @@ class ExecutedTime:
         gone = HumanCapsules.empty()
         for k in range(int(np.ceil(self.longest / period))):
             t = k * period
-            step = layer.step(ScalingInputs(humans=people(t) if t < stay else gone, human_delay=self.delay))
+            step = layer.step(ScalingInputs(humans=people(t) if t < stay else gone, human_age=self.delay,
+                                            stale_after=math.inf))     # a forecast: as old as the data, never stale
             if step.status is StepStatus.FINISHED:
                 return t
         return self.longest

@@ -31,7 +31,8 @@ class PlanningInputs:
     (``shared.scaling.layer.held_by_ssm``). stop_at: the s of the followed trajectory where the scaler has brought
     (or brings) the robot to rest to await the plan it asked for (``ScalingStep.awaiting``; None: it does not
     wait). then: the goal that follows this one (rad; None: not known), whose plan the loop prepares before the
-    robot arrives. human_delay: the people's way from their capture to the cell (s; ``Replanner.take_delay``)."""
+    robot arrives. human_delay: the people's data's age as the scaler counts it on average (s; ``mean_age``,
+    ``Replanner.take_delay``)."""
 
     goal: np.ndarray | None
     new_goal: bool

@@ -108,10 +108,11 @@ class Replanner:
         self.postures = FoldedLegs(collision)     # the folded legs a new goal may take (``_posture``)
 
     def take_delay(self, delay: float) -> None:
-        """The people's way from capture to the cell (s, ``PlanningInputs.human_delay``): the time cost, the path
-        search and the forward run of the scaling layer count their travel over it, as the scaling layer does
-        (``SsmParameters.aged``), so the planning layer does not take a way the scaler will not go (a path
-        predicted passable that the scaler holds at rest stood a camera 30 ms behind still for half its run)."""
+        """The people's data's age as the scaling layer counts it on average (s, ``PlanningInputs.human_delay``,
+        ``shared.tracking.tracker.mean_age``): the time cost, the path search and the forward run of the scaling
+        layer count their travel over it, as the scaling layer does (``SsmParameters.aged``), so the planning layer
+        does not take a way the scaler will not go (a path predicted passable that the scaler holds at rest stood
+        a camera 30 ms behind still for half its run)."""
         delay = delay if math.isfinite(delay) and delay > 0.0 else 0.0
         self.cost.ssm = self.ssm.aged(delay)
         if self.executed is not None:

@@ -1,15 +1,16 @@
 """The system's reaction latency, measured, and checked against the SSM's reaction time T_r (pure).
 
 The ISO/TS 15066 formula assumes the robot reacts to a new human position within T_r. Here that reaction
-is a chain: a sample enters tracker_ingest, the human state reaches the scaler, the scaler's next tick
-computes a command from it, the driver puts the resulting target frame on the CAN bus (``LatencyMeter``:
-every such chain, ``JointCommand.human_sample_stamp``, one clock, CLOCK_MONOTONIC, for all processes of
-the host), and the joints then follow that setpoint some time behind it (``DriveLagMeter``: the lag of
-the measured positions behind the driver's own setpoints). When the p99 of the whole chain, sample ->
-frame plus frame -> motion, exceeds T_r, the configured T_r is too small for this installation: a warning
-names the numbers, once per episode, and says so again when it is back within. The drive lag is also
-checked on its own against the configured ``ssm.drive_lag`` that the scaling layer's tracking margin is
-computed from.
+is a chain: a sample is captured, enters tracker_ingest, the human state reaches the scaler, the scaler's next
+tick computes a command from it, the driver puts the resulting target frame on the CAN bus (``LatencyMeter``:
+every such chain, ``JointCommand.human_sample_stamp``, one clock, CLOCK_MONOTONIC, for all processes of the
+host), and the joints then follow that setpoint some time behind it (``DriveLagMeter``: the lag of the
+measured positions behind the driver's own setpoints). The part from the capture to the tick is the data's
+age, which the scaling layer counts on the person's side (``shared.safety.ssm.aged_travel``: their travel over
+it); T_r covers the rest, from the tick to the joints moving. When the p99 of that, tick -> frame, the frame's
+wait for the SYNC that the drives take it at (a period at most) and SYNC -> motion, exceeds T_r, the configured T_r is too small for this installation: a warning names the
+numbers, once per episode, and says so again when it is back within. The drive lag is also checked on its own
+against the configured ``ssm.drive_lag`` that the scaling layer's tracking margin is computed from.
 """
 
 from __future__ import annotations
@@ -50,51 +51,55 @@ class Episode:
 
 
 class LatencyMeter:
-    """Rolling window of (sample_to_frame, processing) latencies in seconds, and the T_r verdict."""
+    """Rolling window of the chains' latencies in seconds (from the capture to the frame, its processing part,
+    and from the tick that computed the command to the frame), and the T_r verdict."""
 
-    def __init__(self, reaction_time: float, window: int = 2000, min_samples: int = 100) -> None:
+    def __init__(self, reaction_time: float, window: int = 2000, min_samples: int = 100,
+                 sync_wait: float = 0.0) -> None:
         if not reaction_time > 0:
             raise ValueError(f"reaction_time must be positive, got {reaction_time}")
+        if not sync_wait >= 0:
+            raise ValueError(f"sync_wait must be >= 0, got {sync_wait}")
         self.reaction_time = reaction_time
+        self.sync_wait = sync_wait            # s: a frame's wait for the SYNC that the drives take it at (a period)
         self.min_samples = min_samples
         self._window: deque[float] = deque(maxlen=window)
-        self._pending: list[tuple[float, float]] = []
-        self.interval = 0.0                  # s: the source's sample interval with the newest chain
+        self._pending: list[tuple[float, float, float]] = []
         self.episode = Episode()
 
-    def add(self, sample_to_frame: float, processing: float, interval: float = 0.0) -> None:
-        """One chain: from the sample's capture to its frame, and the processing part of that (s); interval: the
-        source's sample interval then (s), the newest of which ``check`` adds (the wait for the next sample is
-        part of the reaction: a person's move is seen at the next frame at the latest).
-        Non-finite or negative latencies (a clock mix-up) are not data and are ignored."""
-        if not (np.isfinite(sample_to_frame) and np.isfinite(processing)) or sample_to_frame < 0:
+    def add(self, sample_to_frame: float, processing: float, tick_to_frame: float) -> None:
+        """One chain: from the sample's capture to its frame, the processing part of that, and from the scaler's
+        tick that took the sample to the frame (s): the part of the reaction T_r covers (the rest is the data's
+        age at the tick, counted on the person's side). Non-finite or negative latencies (a clock mix-up) are not
+        data and are ignored."""
+        if not all(np.isfinite(x) and x >= 0.0 for x in (sample_to_frame, tick_to_frame)) \
+                or not np.isfinite(processing):
             return
-        if np.isfinite(interval) and interval >= 0.0:
-            self.interval = float(interval)
-        self._window.append(sample_to_frame)
-        self._pending.append((sample_to_frame, processing))
+        self._window.append(tick_to_frame)
+        self._pending.append((sample_to_frame, processing, tick_to_frame))
 
-    def drain(self) -> tuple[np.ndarray, np.ndarray]:
-        """The (sample_to_frame, processing) latencies added since the last drain, for a report."""
+    def drain(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The (sample_to_frame, processing, tick_to_frame) latencies added since the last drain, for a report."""
         pending, self._pending = self._pending, []
-        arr = np.array(pending, dtype=float).reshape(-1, 2)
-        return arr[:, 0], arr[:, 1]
+        arr = np.array(pending, dtype=float).reshape(-1, 3)
+        return arr[:, 0], arr[:, 1], arr[:, 2]
 
     def p99(self) -> float | None:
-        """p99 of sample_to_frame over the window, or None before min_samples chains."""
+        """p99 of tick_to_frame over the window, or None before min_samples chains."""
         if len(self._window) < self.min_samples:
             return None
         return float(np.percentile(np.fromiter(self._window, float), 99))
 
     def check(self, motion_lag: float = 0.0) -> LatencyCheck | None:
-        """A LatencyCheck when the verdict (sample -> frame p99 + motion_lag + the source's interval > T_r, or not)
-        changes, else None. motion_lag (s): how far the joints run behind the frames (the drive lag p99)."""
+        """A LatencyCheck when the verdict (tick -> frame p99 + the wait for the SYNC + motion_lag > T_r, or not)
+        changes, else None. motion_lag (s): how far the joints run behind the SYNC that took the frame (the drive
+        lag p99)."""
         p99 = self.p99()
         if p99 is None:
             return None
-        chain = p99 + max(motion_lag, 0.0) + self.interval
-        parts = (f"sample -> frame p99 {p99 * 1e3:.1f} ms + drive lag {motion_lag * 1e3:.1f} ms + the source's "
-                 f"interval {self.interval * 1e3:.1f} ms")
+        chain = p99 + self.sync_wait + max(motion_lag, 0.0)
+        parts = (f"tick -> frame p99 {p99 * 1e3:.1f} ms + the wait for the SYNC {self.sync_wait * 1e3:.0f} ms + "
+                 f"drive lag {motion_lag * 1e3:.1f} ms")
         return self.episode.verdict(
             chain > self.reaction_time, chain,
             ("reaction_time_exceeded", f"measured reaction chain {chain * 1e3:.1f} ms ({parts}) exceeds the configured "

@@ -21,10 +21,14 @@ AGE_STEP = 0.001   # s: the data's delay is rounded up to this (SsmParameters.ag
 class SsmParameters:
     """The SSM parameter set. Defaults and where they come from:
 
-    reaction_time T_r = 0.10 s: the system's reaction latency bound: tracker latency and velocity filter
-      (a few 240 Hz samples), one control period (10 ms), one drive interpolation period (10 ms), the CAN
-      and Zenoh hops (sub-millisecond, measured by bench/), with margin. Must stay >= the measured p99 of
-      human-sample-to-target-frame latency; the end-to-end benchmark checks this.
+    reaction_time T_r = 0.05 s: the cell's own reaction, from the control cycle that takes a person's sample to
+      the joints moving: the tick's command to its frame on CAN (a few ms), the frame's wait for the SYNC the
+      drives take it at (one 10 ms period at most) and the drives' lag behind that SYNC (one period, 10-12 ms; up
+      to 24 ms measured here in a slow phase of the machine), with margin. The way from the person's capture to
+      that cycle (a camera's latency, the tracker's hop, the wait for the next frame) is the data's age, counted on
+      the person's side each cycle (human_lead): the robot's part of it is known, since the scaling layer takes the
+      robot where it is now. Must stay >= the measured p99 of that chain; the robot driver warns
+      (``reaction_time_exceeded``) and the report checks it (``reaction_time_covers_p99``).
     stopping_time T_s = 0.30 s: Pilz publishes no stopping data. A Cartesian stop from the PRBT's 1 m/s
       speed limit at its 5 m/s^2 deceleration limit takes 0.20 s (also the controller's Stop-1 trajectory
       duration, stop_trajectory_duration = 0.2 s); a joint stop from 1.57 rad/s at the 6 rad/s^2 the
@@ -70,24 +74,23 @@ class SsmParameters:
       the paper's formula (the measured speed held over the horizon: ``paper_formula``, ``hrc demo --paper-formula``), which
       lets a link pass a standing person at its stopping distance and does not cover their starting to move
       (docs/measurements.md: its cost and the violations it lets through, side by side).
-    human_lead (s, not a setting) = 0: how long the people's data took from its capture to the cell (a camera
-      pipeline's latency, the tracker's hop). The independent monitor checks each measured state against the
-      person captured at its moment, which it waits for; the scaling layer has that person only human_lead
-      later. A robot whose speed follows where a person was human_lead ago rides the limit of then, above the
-      limit of now by their travel since, for as long as they approach (46 violations in ``hrc demo --latency
-      0.03`` before this was counted; docs/real-people.md). So the human's part of S_p has them come on at their
-      measured speed over human_lead first (``shared.safety.ssm.aged_travel``). What the data did not show, a
-      start or a turn towards the robot within those ms, is not counted again: it is the reaction T_r covers,
-      from the capture to the drives (checked: ``reaction_time_covers_p99``). The scaling layer and the planning
-      layer set it each cycle (``aged``). The wait for a source's next sample is not in it: the monitor's person
-      of a moment is the newest sample too, and T_r covers that wait with the chain.
+    human_lead (s, not a setting) = 0: the people's data's age, from its capture to the control cycle (a camera
+      pipeline's latency, the tracker's hop, the state's wait for the tick, the wait for a source's next sample).
+      The independent monitor checks each measured state against the person captured at its moment, which it
+      waits for; the scaling layer has that person only human_lead later. A robot whose speed follows where a
+      person was human_lead ago rides the limit of then, above the limit of now by their travel since (46
+      violations in ``hrc demo --latency 0.03`` before this was counted; docs/real-people.md). So the human's part
+      of S_p is their travel under the human model over human_lead + T_r + T_s from the capture
+      (``shared.safety.ssm.aged_travel``): a start or a turn towards the robot within those ms counts, and T_r
+      covers only the cell's own chain from the cycle on. The scaling layer sets it each cycle to the age
+      (``aged``); the planning layer to the age it counts on average (``shared.tracking.tracker.mean_age``).
     tracking_margin (derived, m/s) = drive_lag x link_acceleration = 0.053 m/s: while the joints run
       drive_lag behind, the measured speed differs from the commanded one by at most this much. The
       scaling layer keeps the commanded approach speed this far below the limit, so the *measured* robot
       meets it too (the independent monitor checks measured states).
     """
 
-    reaction_time: float = 0.10
+    reaction_time: float = 0.05
     stopping_time: float = 0.30
     min_stopping_time: float = 0.05
     stopping_deceleration: float = 5.0

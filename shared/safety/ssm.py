@@ -83,19 +83,21 @@ def iso_speed(d, near_d, v_near, v_far):
 def aged_travel(d, hs, near_d, v_near, v_far, a_h, lead, horizon):
     """How far (m) a person seen at separation d (m), approaching at hs (m/s), may have come by the end of
     `horizon` (T_r + T_s, s) from now when they were seen as they were `lead` s ago (``SsmParameters.human_lead``:
-    the data's way from capture to the cell): on at hs over the lead, as they were going, then their travel over
-    the horizon from there (``human_travel``, capped at the ISO 13855 speed of that nearer separation). lead 0: the
+    the data's whole age, from its capture to this cycle): their travel under the human model over lead +
+    horizon from the capture (``human_travel``: a start or a speed-up within the lead counted as one within the
+    horizon), capped at the ISO 13855 speed of the separation they may have reached by now. lead 0: the
     formula's own human term at d.
 
-    ISO/TS 15066 checks the separation at every instant, as the independent monitor checks each state against the
-    person captured at its moment: a robot whose speed is chosen against where a person was lead s ago would run
-    above the limit of now by their travel since, for as long as they keep approaching. What they do that the
-    data did not show (a start, a turn towards the robot) is the reaction T_r covers, from its capture to the
-    drives (``reaction_time_covers_p99``): the human model's acceleration is not counted over the lead too.
+    ISO/TS 15066's T_r runs from the person's detection to the robot's reaction. The robot's part of a delay is
+    known: the scaling layer takes the robot where it is now, and only the person's way since their capture is
+    unknown. So that way is counted here, on the person's side, once, and T_r covers only the cell's own chain
+    from this cycle to the drives moving (the robot driver's ``reaction_time_exceeded``, the report's
+    ``reaction_time_covers_p99``). A camera's latency and the wait for its next frame are both in the age:
+    counted in T_r as well, they were counted twice, on the robot's side too (docs/measurements.md, session 81).
     """
-    ahead = hs * lead
+    ahead = human_travel(hs, iso_speed(d, near_d, v_near, v_far), a_h, lead)
     cap = iso_speed(d - ahead, near_d, v_near, v_far)
-    return ahead + human_travel(hs, cap, a_h, horizon)
+    return human_travel(hs, cap, a_h, lead + horizon)
 
 
 @numba.njit(cache=True)

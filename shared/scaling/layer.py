@@ -94,10 +94,9 @@ class StepStatus(str, enum.Enum):
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ScalingInputs:
     """What one control cycle is given. humans: the latest human capsules (None: no human data has ever
-    arrived); human_age: how old they are, from the capture (s; inf or NaN count as stale); human_delay: the
-    newest sample's way from its capture to the tracker's state (s: a camera's latency, the tracker's hop; the SSM
-    rows count the person's travel over it, ``SsmParameters.aged``; 0 where the people come as captured);
-    q_measured: where the robot really is
+    arrived); human_age: how old they are, from the capture (s; inf or NaN count as stale; the SSM rows count the
+    person's travel over it, ``SsmParameters.aged``: a camera's latency and the wait for its next frame, on the
+    person's side); q_measured: where the robot really is
     (rad; the SSM rows are written there and its offset from the path is carried to the commanded point; None:
     where the path says); stale_after: the age at which this source's data is stale (s; None: the layer's
     human_timeout; a slower source's bound is ``shared.tracking.tracker.stale_bound``); robot_age: how long since
@@ -109,7 +108,6 @@ class ScalingInputs:
     q_measured: np.ndarray | None = None
     stale_after: float | None = None
     robot_age: float = 0.0
-    human_delay: float = 0.0
 
 
 @dataclass(slots=True, kw_only=True)
@@ -160,8 +158,8 @@ class ScalingLayer:
                  params: ScalingParameters | None = None) -> None:
         self.robot = robot
         self.ssm = ssm or SsmParameters()
-        # this cycle's: self.ssm for the people's data's delay (``SsmParameters.aged``: the person's travel from
-        # the capture to the cell counts), which every check of the cycle uses
+        # this cycle's: self.ssm for the people's data's age (``SsmParameters.aged``: the person's travel from
+        # the capture to this cycle counts), which every check of the cycle uses
         self._aged = self.ssm
         self.params = params or ScalingParameters()
         self._piqp = PiqpScalingSolver(self.params.acceleration_weight, robot.nq) \
@@ -443,9 +441,7 @@ class ScalingLayer:
         if status is StepStatus.FINISHED:
             alpha, safe_alpha = 1.0, 1.0
         elif status is StepStatus.RUNNING:
-            # a NaN delay counts the whole age (finite when running): never less than the people's way here
-            delay = inputs.human_delay if math.isfinite(inputs.human_delay) else human_age
-            self._aged = self.ssm.aged(max(0.0, delay))
+            self._aged = self.ssm.aged(max(0.0, human_age))   # finite when running: the stale check above
             rows = build_rows(self.robot, q_kin, dq, ddq, 1.0, self.sdot, humans, self._aged, self.params.period)
             solution = solve(rows, self.params.acceleration_weight, self._piqp)
             alpha, safe_alpha, method = solution.alpha, rows.upper, solution.method

@@ -41,9 +41,8 @@ def stale_bound(configured: float, interval: float) -> float:
     20-60 Hz camera tracker: a 30 Hz skeleton is 33 ms old just before the next one comes, and one frame
     late under load must not read as a lost person), at most STALE_CEILING: a slower source (or one that
     falls silent between samples) is stopped for as stale unless the cell configures a larger bound itself,
-    with a T_r that covers it. The tracker's dropout and the scaler's stale-data stop both use it; that the
-    reaction time covers the age is checked against T_r (the report's reaction_time_covers_p99 adds the
-    interval to the measured chain)."""
+    (the layers count the person's travel over the whole age, ``shared.safety.ssm.aged_travel``, so a larger bound
+    costs speed, not safety). The tracker's dropout and the scaler's stale-data stop both use it."""
     return max(configured, min(STALE_INTERVALS * interval, STALE_CEILING))
 
 
@@ -58,6 +57,14 @@ def capture_stamp(sample_time: float, arrival: float, oldest: float = OLDEST_SAM
     if sample_time > arrival:
         return arrival
     return sample_time if arrival - sample_time <= oldest else None
+
+
+def mean_age(latency: float, interval: float) -> float:
+    """The people's data's age (s) as the scaling layer counts it on average: the samples' way from capture to
+    the cell (`latency`, s) and half the source's sample interval (`interval`, s; 0 for a person captured at every
+    moment), since the age grows from the latency to the latency and an interval before the next sample. The
+    planning layer counts it (``Replanner.take_delay``) to predict the scaler's speed on a path."""
+    return max(0.0, latency) + 0.5 * max(0.0, interval)
 
 
 SOURCE_RATES = (1.0, 1000.0)   # Hz: the rates a source may be declared at (tracker_ingest --source-rate, hrc up)

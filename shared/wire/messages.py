@@ -153,25 +153,22 @@ class TrajectoryMsg(Message):
 class JointCommand(Message):
     """The scaler's joint command for the driver: position (rad) and velocity (rad/s).
 
-    For the end-to-end latency (a human sample entering tracker_ingest -> the target frame on CAN), the
-    first command computed from a new human state carries that state's sample_stamp and how long it had
-    been published by tracker_ingest when the tick took it (s: its way to the scaler and its wait for the
-    tick): the driver subtracts the wait to get the processing time; and the source's sample interval (s, as
-    the tracker measured it: the wait for the next sample, part of the reaction too). All are None on every
-    other command."""
+    For the end-to-end latency (a human sample's capture -> the target frame on CAN), the first command computed
+    from a new human state carries that state's sample_stamp and how long it had been published by
+    tracker_ingest when the tick took it (s: its way to the scaler and its wait for the tick): the driver subtracts
+    the wait to get the processing time, and the command's stamp (its tick) to get the part T_r covers. Both are
+    None on every other command."""
 
     KIND: ClassVar[str] = "joint_command"
     SPEC: ClassVar[dict[str, Spec]] = {"q": Q, "qd": Q, "trajectory_version": Spec("int", minimum=-1),
                                        "s": F, "human_sample_stamp": Spec("float", optional=True),
-                                       "human_wait": Spec("float", optional=True, minimum=0.0),
-                                       "human_interval": Spec("float", optional=True, minimum=0.0)}
+                                       "human_wait": Spec("float", optional=True, minimum=0.0)}
     q: np.ndarray
     qd: np.ndarray
     trajectory_version: int
     s: float
     human_sample_stamp: float | None = None
     human_wait: float | None = None
-    human_interval: float | None = None
 
 
 @dataclass(frozen=True)
@@ -266,19 +263,22 @@ class DriverRequest(Message):
 @dataclass(frozen=True)
 class LatencyReport(Message):
     """The robot driver's latency measurements since its last report (s): for each human sample that
-    reached the bus, from its arrival at tracker_ingest to its target frame on CAN, and the part of that
-    which was processing (the rest is the human state's way to the scaler and its wait for the tick). p99 is
-    checked against T_r."""
+    reached the bus, from its capture to its target frame on CAN, the part of that which was processing (the
+    rest is the human state's way to the scaler and its wait for the tick), and from the scaler's tick that took
+    it to the frame (tick_to_frame: the part T_r covers, whose p99 is checked against it; the rest is the data's
+    age, counted on the person's side)."""
 
     KIND: ClassVar[str] = "latency_report"
     SPEC: ClassVar[dict[str, Spec]] = {"source": S, "sample_to_frame": Spec("farray", (-1,), minimum=0.0),
-                                       "processing": Spec("farray", (-1,))}
+                                       "processing": Spec("farray", (-1,)),
+                                       "tick_to_frame": Spec("farray", (-1,), minimum=0.0)}
     source: str
     sample_to_frame: np.ndarray
     processing: np.ndarray
+    tick_to_frame: np.ndarray
 
     def check(self) -> None:
-        _same_rows(self, "sample_to_frame", "processing")
+        _same_rows(self, "sample_to_frame", "processing", "tick_to_frame")
 
 
 @dataclass(frozen=True)

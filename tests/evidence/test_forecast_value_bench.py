@@ -11,12 +11,12 @@ from tests.util import load_bench
 
 def test_told_every_decision_it_is_the_foresight_strategy_and_told_none_the_forecast_costs_shuttles():
     bench = load_bench("forecast_value")
-    foresight = Strategies().run("foresight", "random_walk", 12112, 6.0)
-    kind, seed, row, told_all, violations = bench.one(("random_walk", 12112, 6.0, "everything", None))
-    assert (kind, seed, row, violations) == ("random_walk", 12112, "everything", 0)
+    foresight = Strategies().run("foresight", "random_walk", 12105, 6.0)
+    kind, seed, row, told_all, violations = bench.one(("random_walk", 12105, 6.0, "everything", None))
+    assert (kind, seed, row, violations) == ("random_walk", 12105, "everything", 0)
     assert told_all == pytest.approx(foresight.progress, abs=1e-12)
-    told_none = bench.one(("random_walk", 12112, 6.0, "nothing", None))[3]
-    assert told_none < told_all - 0.1           # the forecast matters here: 1.73 against 2.14 shuttles
+    told_none = bench.one(("random_walk", 12105, 6.0, "nothing", None))[3]
+    assert told_none < told_all - 0.1           # the forecast matters here: 1.74 against 2.06 shuttles
 
 
 @pytest.mark.parametrize("name, args", [("forecast_value", ("--kinds", "moon")), ("forecast_value", ("--seeds", "0")),

@@ -233,10 +233,11 @@ def test_a_camera_rate_source_is_stale_after_its_own_bound():
     assert shell.published(keys.scaler_status, ScalerStatus)[-1].status == "stale_human_data"
 
 
-def test_the_scaler_gives_the_layer_the_peoples_way_from_capture_to_the_tracker():
-    """A state published 30 ms after its sample's capture (a camera's latency): the scaling layer is told so
-    (human_delay; it counts the person's travel over it), beside the age from the capture; a state with no
-    publication stamp, or one before its capture (another clock), gives no delay."""
+def test_the_scaler_gives_the_layer_the_peoples_age_from_their_capture():
+    """A state captured 40 ms before the tick (a camera's latency, the state's way, its wait for the tick): the
+    scaling layer is given that whole age, whenever the tracker published it (it counts the person's travel over
+    it); the command made on it carries the capture's stamp and its own, the tick's, so that the driver measures
+    the part T_r covers (from the tick to the frame) apart from the age."""
     shell, scaler, keys = scaler_at_start()
     traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
     shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
@@ -244,10 +245,12 @@ def test_the_scaler_gives_the_layer_the_peoples_way_from_capture_to_the_tracker(
     step = scaler.layer.step
     scaler.layer.step = lambda inputs: (given.append(inputs), step(inputs))[1]
     now = time.monotonic()
-    for published, delay in ((now - 0.01, 0.03), (0.0, 0.0), (now - 0.05, 0.0)):
-        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now - 0.04, stamp=published))
+    for k, published in enumerate((now - 0.01, 0.0, now - 0.05)):
+        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now - 0.04 + k * 1e-3, stamp=published))
         scaler.tick(now)
-        assert given[-1].human_delay == pytest.approx(delay) and given[-1].human_age == pytest.approx(0.04)
+        assert given[-1].human_age == pytest.approx(0.04 - k * 1e-3)
+        command = shell.published(keys.command, JointCommand)[-1]
+        assert command.stamp == now and command.human_sample_stamp == pytest.approx(now - 0.04 + k * 1e-3)
 
 
 def test_the_scaler_stops_the_robot_on_stale_human_data():

@@ -42,12 +42,15 @@ def test_nothing_is_said_of_fresh_data_nor_of_a_run_without_figures():
 
 
 def test_a_reaction_chain_longer_than_t_r_is_said_with_its_parts():
-    summary = {"reaction_time_covers_p99": False, "reaction_time_s": 0.1,
-               "latency": {"sample_to_frame_ms": {"p50": 68.4, "p99": 72.5}}, "tracker": {"sample_interval_ms": 33.33},
-               "drives": {"lag_p99_ms": [10.03, 10.04, 9.8]}}
+    """The parts T_r covers: the tick -> frame p99, the wait for the SYNC, the drive lag; a camera's latency (the
+    capture -> frame p99's rest) is the data's age, not said."""
+    summary = {"reaction_time_covers_p99": False, "reaction_time_s": 0.03,
+               "latency": {"sample_to_frame_ms": {"p50": 68.4, "p99": 92.5}, "tick_to_frame_ms": {"p50": 3.1, "p99": 12.4},
+                           "sync_wait_ms": 10.0},
+               "tracker": {"sample_interval_ms": 33.33}, "drives": {"lag_p99_ms": [10.03, 10.04, 9.8]}}
     line = reaction_said(summary)
-    assert "p99 72 ms" in line and "10 ms behind it" in line and "33 ms to its next sample" in line
-    assert "T_r (100 ms)" in line
+    assert "p99 12 ms" in line and "SYNC (10 ms)" in line and "10 ms behind that" in line and "92" not in line
+    assert "T_r (30 ms)" in line
     assert reaction_said({**summary, "reaction_time_covers_p99": True}) is None
     assert reaction_said({"reaction_time_covers_p99": None}) is None            # not measured: nothing said
 
