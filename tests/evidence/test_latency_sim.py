@@ -56,7 +56,8 @@ def test_with_30_ms_of_latency_the_paper_phases_stay_within_the_limit_of_where_t
 def test_data_older_than_its_bound_stops_the_robot_and_the_summary_says_so():
     """60 ms from capture against the 50 ms bound of a scripted person: stale in every cycle, no shuttle, and the
     summary gives what the processes' report gives (the stale share, the way from capture, whether T_r covers the
-    cell's own chain: from the tick, a control period). A 30 Hz recording 60 ms late is stale only while a frame is held past 83 ms (2.5 intervals)."""
+    cell's own chain: from the tick, a control period). A 30 Hz recording 60 ms late is stale only while a frame is
+    held past 83 ms (2.5 intervals)."""
     result = run_shuttle(ROBOT, CONFIG, paper_phases(6.0), Q_START, Q_GOAL, 4.0, latency=0.06)
     summary = result.summary()
     assert result.shuttles == 0 and result.progress == 0.0         # the age is the person's: T_r covers the period
