@@ -15,6 +15,9 @@ from shared.core.errors import ConfigError
 from shared.core.sections import check_numbers, from_mapping
 
 AGE_STEP = 0.001   # s: the data's delay is rounded up to this (SsmParameters.aged)
+PAPER_REACTION_TIME = 0.10   # s: T_r of the paper's formula as this project reproduces it (``paper_formula``): the whole
+                             # chain from the person's detection, counted on the robot's side too (shipped until
+                             # session 81, when the data's age came to be counted on the person's side instead)
 
 
 @dataclass(frozen=True)
@@ -137,9 +140,11 @@ class SsmParameters:
 
     def paper_formula(self) -> "SsmParameters":
         """The same parameters with the paper's formula: the measured speed held over T_r + T_s
-        (human_acceleration 0) and one T_s whatever the robot's speed (min_stopping_time = stopping_time), for
-        reproducing the paper; not safe for a person who starts to move."""
-        return replace(self, human_acceleration=0.0, min_stopping_time=self.stopping_time)
+        (human_acceleration 0), one T_s whatever the robot's speed (min_stopping_time = stopping_time) and T_r for
+        the whole chain from the detection (``PAPER_REACTION_TIME``), for reproducing the paper; not safe for a
+        person who starts to move."""
+        return replace(self, human_acceleration=0.0, min_stopping_time=self.stopping_time,
+                       reaction_time=PAPER_REACTION_TIME)
 
     @property
     def stop_scales(self) -> bool:

@@ -42,7 +42,7 @@ def test_a_goal_inside_the_no_approach_distance_of_a_person_is_blocked_and_says_
     no_approach = SSM.fixed_distance + SSM.tracking_margin * SSM.horizon       # 0.316 m for a person standing
     assert np.isclose(block.no_approach, no_approach) and 0.30 < no_approach < 0.33
     # the shipped model: a robot that creeps stops within min_stopping_time (0.05 s), and a person standing may
-    # start at 50 m/s^2 up to 2.0 m/s: 0.26 m within T_r + that T_s
+    # start at 50 m/s^2 up to 2.0 m/s: 0.16 m within T_r (0.05 s) + that T_s
     shipped_ssm = SsmParameters()
     creeping = shipped_ssm.reaction_time + shipped_ssm.min_stopping_time
     shipped = goal_block(ROBOT, shipped_ssm, Q_HELD, Q_START, person)

@@ -18,6 +18,7 @@ from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
 from shared.scaling.layer import ScalingInputs, ScalingLayer, StepStatus
 from shared.scaling.parameters import ScalingParameters
+from tests.util import LAID_OUT_SSM
 
 ROBOT = default_robot()
 SSM = SsmParameters().paper_formula()          # the paper's formula: a person beside the path slows, not stops
@@ -52,7 +53,7 @@ def test_the_forward_run_is_the_scaling_layers_own_steps_against_the_forecast():
 
 
 def test_people_who_leave_or_walk_away_cost_less_and_one_who_never_leaves_costs_the_longest():
-    judge = ExecutedTime(ROBOT, SsmParameters(), ScalingParameters(), longest=6.0)   # the shipped model
+    judge = ExecutedTime(ROBOT, LAID_OUT_SSM, ScalingParameters(), longest=6.0)   # the shipped model
     blocking = person(-1.0)                     # near enough that even a creeping robot may not pass them
     stays = judge.time(LEG, 0.0, blocking)
     assert stays == 6.0                                               # held for as long as it looks

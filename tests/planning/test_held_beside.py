@@ -17,14 +17,14 @@ from shared.planning.replanner import Replanner
 from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.planning.time_cost import SsmTimeCost
 from shared.robot.model import default_robot
-from shared.safety.parameters import SsmParameters
 from shared.scaling.parameters import ScalingParameters
 from shared.scaling.problem import ssm_alpha_bound
+from tests.util import LAID_OUT_SSM
 
 ROBOT = default_robot()
 LIM = ROBOT.limits
 CM = CollisionModel(ROBOT, load_scene(DEFAULT_SCENE))
-SHIPPED = SsmParameters()
+SHIPPED = LAID_OUT_SSM
 
 
 # a person standing beside the start of the sweep, leaning in, a hand reaching half-way into it (capsule ends, m,

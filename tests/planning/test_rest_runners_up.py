@@ -18,9 +18,9 @@ from shared.planning.options import ReplanOptions
 from shared.planning.replanner import Replanner
 from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.robot.model import default_robot
-from shared.safety.parameters import SsmParameters
 from shared.tracking.motion import RecordedMotion
 from shared.tracking.tracked import TrackedMotion
+from tests.util import LAID_OUT_SSM
 
 CM = CollisionModel(default_robot(), load_scene(DEFAULT_SCENE))
 PLANNER = JointPlanner(CM, PlannerOptions(seed=1))
@@ -30,13 +30,13 @@ WAITED = 0.5
 @pytest.fixture(scope="module")
 def held():
     """(the folded leg, s where the robot is held, the people 7.22 s into the motion)."""
-    leg = Replanner(CM, PLANNER, SsmParameters()).postures.leg(Q_START, Q_GOAL, 3)
+    leg = Replanner(CM, PLANNER, LAID_OUT_SSM).postures.leg(Q_START, Q_GOAL, 3)
     people = TrackedMotion(RecordedMotion.load("docs/motions/one_person.json")).at(7.22)
     return leg, 0.9675, people
 
 
 def replanner(seed: int) -> Replanner:
-    return Replanner(CM, PLANNER, SsmParameters(), options=replace(ReplanOptions(), seed=seed))
+    return Replanner(CM, PLANNER, LAID_OUT_SSM, options=replace(ReplanOptions(), seed=seed))
 
 
 def test_the_runners_up_are_free_bent_and_not_the_winner(held):

@@ -16,12 +16,12 @@ from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.replanner import Replanner
 from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.robot.model import default_robot
-from shared.safety.parameters import SsmParameters
+from tests.util import LAID_OUT_SSM
 
 ROBOT = default_robot()
 LIM = ROBOT.limits
 CM = CollisionModel(ROBOT, load_scene(DEFAULT_SCENE))
-SHIPPED = SsmParameters()
+SHIPPED = LAID_OUT_SSM
 LEG_START = np.array([1.57, -0.4, 1.17, 0.0, 1.57, 0.0])        # where the leg began, at rest
 GOAL = np.array([-1.57, -0.4, 1.17, 0.0, 1.57, 0.0])
 HELD_AT = np.array([0.620081, -1.199181, 1.343502, -0.174341, 1.737545, -0.470488])

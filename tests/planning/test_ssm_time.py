@@ -14,6 +14,7 @@ from shared.planning.time_cost import SsmTimeCost, TimeCostOptions
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
 from shared.scaling.problem import ssm_alpha_bound
+from tests.util import LAID_OUT_SSM
 
 ROBOT = default_robot()
 LIM = ROBOT.limits
@@ -337,7 +338,7 @@ def test_a_raised_arm_is_chosen_past_a_person_standing_in_the_sweep_and_is_faste
     from shared.planning.timing import parameterize
     from shared.scaling.parameters import ScalingParameters
 
-    shipped = SsmParameters()
+    shipped = LAID_OUT_SSM
     cost = SsmTimeCost(ROBOT, shipped)
     standing = person(-1.0, 0.0, 0.6, (-0.5, 0.0, 0.9))
     direct = np.vstack([Q_START, Q_GOAL])

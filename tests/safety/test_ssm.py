@@ -1,8 +1,9 @@
 """ISO/TS 15066 SSM: hand-computed numbers with the default parameters, validation, per-pair speeds.
 
-The paper's formula (human_acceleration 0) unless said otherwise. Defaults: T_r = 0.1, T_s = 0.3 (horizon
-0.4 s), a_max = 5, C = 0, Z_d = 0.05, Z_r = 0.02, so the fixed
-distance is 0.5 * 5 * 0.3^2 + 0.07 = 0.295 m.
+The paper's formula (human_acceleration 0) unless said otherwise. The defaults with T_r = 0.1 (``BY_HAND``: the
+shipped 0.05 covers the cell's own chain alone; the hand numbers are the formula's at any T_r), T_s = 0.3
+(horizon 0.4 s), a_max = 5, C = 0, Z_d = 0.05, Z_r = 0.02, so the fixed distance is 0.5 * 5 * 0.3^2 + 0.07 =
+0.295 m.
 """
 
 import math
@@ -24,7 +25,8 @@ from shared.safety.ssm import (
     velocity_limit,
 )
 
-P = SsmParameters().paper_formula()      # the paper's formula: the measured human speed held
+BY_HAND = SsmParameters(reaction_time=0.1)   # the shipped model with T_r 0.1 s: a horizon of 0.4 s
+P = BY_HAND.paper_formula()      # the paper's formula: the measured human speed held
 
 
 def test_fixed_terms_by_hand():
@@ -72,7 +74,7 @@ def test_a_person_who_may_speed_up_comes_as_far_as_the_capped_acceleration_takes
     ISO speeds' distance. a_h 0 is the paper's formula; a negative a_h is refused."""
     from shared.safety.ssm import human_distance, human_travel
 
-    model = SsmParameters.from_mapping({"human_acceleration": 10.0})
+    model = SsmParameters.from_mapping({"human_acceleration": 10.0, "reaction_time": 0.1})
     assert human_travel(0.0, 2.0, 10.0, 0.4) == pytest.approx(0.6)
     assert human_travel(0.0, 1.6, 10.0, 0.4) == pytest.approx(0.512)
     assert human_travel(0.5, 2.0, 1.0, 0.4) == pytest.approx(0.5 * 0.4 + 0.08)       # never reaches the cap
@@ -95,7 +97,7 @@ def test_a_person_who_may_speed_up_comes_as_far_as_the_capped_acceleration_takes
 def test_the_shipped_default_covers_a_person_who_starts_to_move():
     """The built-in parameters (= deploy/cell.yaml) hold a person measured standing to less than the
     paper's formula does, and never to more than an untracked person."""
-    shipped = SsmParameters()
+    shipped = BY_HAND
     assert shipped.human_acceleration > 0
     for s in (0.3, 0.6, 1.0, 2.0):
         assert velocity_limit(s, 0.0, shipped) < velocity_limit(s, 0.0, P)
@@ -155,7 +157,7 @@ def test_touching_axes_count_full_speed():
 def test_the_stopping_time_follows_the_robots_speed():
     """T_s of a state is stopping_time x the fastest joint's share of its velocity limit, at least
     min_stopping_time; the paper's formula has one T_s; a floor above T_s is refused."""
-    shipped = SsmParameters()
+    shipped = BY_HAND
     limits = np.full(6, 1.57)
     assert shipped.stop_scales and not P.stop_scales and P.min_stopping_time == P.stopping_time
     assert shipped.stop_of(np.array([0.0, 1.57, 0, 0, 0, 0]), limits) == pytest.approx(0.30)
@@ -182,7 +184,7 @@ def test_the_path_speed_bound_is_where_the_limit_at_its_own_stop_holds(seed):
     from shared.safety.ssm import _pair_ssm_kernel, fixed_stop_alpha_bound, speed_alpha_bound
 
     rng = np.random.default_rng(seed)
-    shipped = SsmParameters()
+    shipped = BY_HAND
     robot = rng.uniform(-0.3, 0.3, (4, 2, 3))
     robot_vel = rng.normal(scale=0.8, size=(4, 2, 3))
     humans = HumanCapsules.from_arrays(rng.uniform(0.2, 0.9, (3, 2, 3)), rng.uniform(0.05, 0.12, 3),
@@ -214,7 +216,7 @@ def test_a_robot_that_creeps_may_pass_a_person_where_one_at_full_speed_may_not()
     slowly, and not at full speed."""
     from shared.safety.ssm import _pair_ssm_kernel, speed_alpha_bound
 
-    shipped = SsmParameters()
+    shipped = BY_HAND
     robot, robot_vel = np.array([[[0.0, 0, 0], [0.0, 0, 0]]]), np.array([[[1.0, 0, 0], [1.0, 0, 0]]])
     humans = HumanCapsules.from_arrays([[[0.8, 0, 0], [0.8, 0, 0]]], [0.1], np.zeros((1, 2, 3)), [True])
     bounds = {}
@@ -239,7 +241,7 @@ def test_data_that_took_a_while_to_come_counts_the_persons_travel_since_its_capt
                  late)
     assert r.limit[0, 0] == pytest.approx((0.8 - 0.5 * 0.43 - 0.295) / 0.4)
     assert velocity_limit(0.8, 0.5, late) == pytest.approx(r.limit[0, 0])
-    shipped = SsmParameters()
+    shipped = BY_HAND
     a_h = shipped.human_acceleration
     ahead = human_travel(0.5, float(default_human_speed(0.9, shipped)), a_h, 0.03)
     cap = default_human_speed(0.9 - ahead, shipped)               # where they may be by now: a higher ISO speed
@@ -258,7 +260,7 @@ def test_a_delay_is_rounded_up_to_the_millisecond_kept_and_never_a_setting():
     """aged: 12.2 ms counts as 13 ms (never less), the same delay gives the same parameters (a cycle does not
     build new ones), a NaN or negative delay is refused (it is a stale-data stop, not a limit), and a cell's
     configuration cannot set human_lead: the cell sets it as it runs."""
-    shipped = SsmParameters()
+    shipped = BY_HAND
     assert shipped.aged(0.0122).human_lead == pytest.approx(0.013)
     assert shipped.aged(0.013).human_lead == pytest.approx(0.013)
     assert shipped.aged(0.0122) is shipped.aged(0.0125) and shipped.aged(0.0) is shipped
@@ -293,11 +295,11 @@ def test_a_link_moving_sideways_past_a_walker_seen_late_counts_the_turn_of_their
     robot = np.array([[[0.0, 0, 0], [0.0, 0, 0]]])
     sideways = np.array([[[0.0, 1.0, 0], [0.0, 1.0, 0]]])
     humans = HumanCapsules.from_arrays([[[1.0, 0, 0], [1.0, 0, 0]]], [0.1], [[[0, 1.0, 0], [0, 1.0, 0]]], [True])
-    now = pair_ssm(robot, np.array([0.1]), sideways, humans, SsmParameters())
-    late = pair_ssm(robot, np.array([0.1]), sideways, humans, SsmParameters().aged(0.06))
+    now = pair_ssm(robot, np.array([0.1]), sideways, humans, BY_HAND)
+    late = pair_ssm(robot, np.array([0.1]), sideways, humans, BY_HAND.aged(0.06))
     assert now.robot_speed[0, 0] == pytest.approx(0.0, abs=1e-12)
     assert late.robot_speed[0, 0] == pytest.approx(0.06)
     assert late.human_speed[0, 0] == now.human_speed[0, 0] == 0.0 and late.limit[0, 0] < now.limit[0, 0]
     unknown = HumanCapsules.from_arrays([[[1.0, 0, 0], [1.0, 0, 0]]], [0.1], [[[0, 0, 0], [0, 0, 0]]], [False])
-    assert pair_ssm(robot, np.array([0.1]), sideways, unknown, SsmParameters().aged(0.06)).robot_speed[0, 0] == \
+    assert pair_ssm(robot, np.array([0.1]), sideways, unknown, BY_HAND.aged(0.06)).robot_speed[0, 0] == \
         pytest.approx(2.0 * 0.06)                                         # the ISO 13855 speed's way

@@ -22,6 +22,8 @@ from shared.scaling.layer import ScalingInputs, ScalingLayer
 
 # that run's folded leg Q_START -> Q_GOAL began at cycle 879 (8.79 s) and was followed to its end, unreplanned
 LEG_FROM, LEG_TO = 879, 1190
+# the configuration it was found with: T_r 0.1 s (shipped until session 81; now 0.05 s, the cell's own chain)
+FOUND_WITH = CellConfig(ssm=replace(CellConfig().ssm, reaction_time=0.1))
 
 
 def replay(robot, config):
@@ -45,9 +47,10 @@ def robot():
 
 
 def test_the_robot_slows_before_the_turn_and_the_monitor_counts_no_violation(robot):
-    violations, methods = replay(robot, CellConfig())
+    violations, methods = replay(robot, FOUND_WITH)
     assert violations == 0
     assert any("+lookahead" in m for m in methods)
+    assert replay(robot, CellConfig())[0] == 0                  # and as shipped
 
 
 def test_without_the_stop_run_ahead_the_same_pass_is_a_violation(robot, monkeypatch):
@@ -55,7 +58,7 @@ def test_without_the_stop_run_ahead_the_same_pass_is_a_violation(robot, monkeypa
     following the robot's speed the layer takes this pass more slowly, and it is no violation without the stop run
     ahead either; the mechanism is what is tested here, on the model it was made for."""
     monkeypatch.setattr(layer_module, "LOOKAHEAD_LIMIT", -np.inf)
-    fixed_stop = CellConfig(ssm=replace(CellConfig().ssm, min_stopping_time=CellConfig().ssm.stopping_time))
+    fixed_stop = CellConfig(ssm=replace(FOUND_WITH.ssm, min_stopping_time=FOUND_WITH.ssm.stopping_time))
     violations, methods = replay(robot, fixed_stop)
     assert violations >= 1 and not any("+lookahead" in m for m in methods)
     monkeypatch.setattr(layer_module, "LOOKAHEAD_LIMIT", np.inf)

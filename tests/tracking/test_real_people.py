@@ -188,7 +188,8 @@ def test_the_independent_recount_counts_a_robot_that_does_not_brake_and_agrees_w
               for k in range(50)]
     people = [humans_to_msg(person, True, 0.01 * k - 0.002) for k in range(50)]
     judged = recount(robot, config, joints, people)
-    monitor, window, history = SafetyMonitor(robot, config.ssm), ReactionWindow(0.1, 0.3), HumanHistory()
+    monitor, history = SafetyMonitor(robot, config.ssm), HumanHistory()
+    window = ReactionWindow(config.ssm.reaction_time, config.ssm.stopping_time)
     for msg in people:
         history.add(msg.sample_stamp, person)
     before = [-np.inf] + [js.stamp for js in joints[:-1]]
@@ -200,9 +201,9 @@ def test_the_independent_recount_counts_a_robot_that_does_not_brake_and_agrees_w
 
 
 def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unknown():
-    """The shuttle slowed to below half its path speed by a person 0.9 m off; the person steps back to 1.5 m
-    with the velocity unknown (a glitch): the SSM alone would let the robot speed up again (its bound is above
-    the path speed), but it holds its speed; once the velocity is known it speeds up."""
+    """The shuttle slowed to below half its path speed by a person 0.9 m off along x, 0.7 m to its side; the
+    person steps back to 1.5 m with the velocity unknown (a glitch): the SSM alone would let the robot speed up
+    again (its bound is above the path speed), but it holds its speed; once the velocity is known it speeds up."""
     from evidence.scenarios import Q_GOAL, Q_START
     from shared.core.trajectory import straight_line_trajectory
     from shared.robot.model import default_robot
@@ -212,7 +213,7 @@ def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unkno
     robot = default_robot()
 
     def person(x, known):
-        return HumanCapsules(np.array([[[x, -0.9, 0.4], [x, -0.9, 1.5]]]), np.array([0.2]), np.zeros((1, 2, 3)),
+        return HumanCapsules(np.array([[[x, -0.7, 0.4], [x, -0.7, 1.5]]]), np.array([0.2]), np.zeros((1, 2, 3)),
                              np.array([known]))
 
     lay = ScalingLayer(robot, SsmParameters())
