@@ -36,8 +36,10 @@ def test_zones_are_sized_with_the_iso_formula_for_the_worst_case():
     reduced = ssm.stopping_time * 0.25 / 0.72                   # T_s from the reduced speed's share of full
     assert zones.stop == pytest.approx((2.0 + 0.25) * (ssm.reaction_time + reduced) + ssm.fixed_distance_at(reduced))
     assert zones.full == pytest.approx((2.0 + 0.72) * ssm.horizon + ssm.fixed_distance)
-    one = SpeedZones.sized(ssm.paper_formula(), robot_speed=0.72)          # one T_s: the stop zone at T_s
-    assert one.stop == pytest.approx((2.0 + 0.25) * ssm.horizon + ssm.fixed_distance) and one.full == zones.full
+    paper = ssm.paper_formula()                     # one T_s: the stop zone at T_s (and the paper's T_r)
+    one = SpeedZones.sized(paper, robot_speed=0.72)
+    assert one.stop == pytest.approx((2.0 + 0.25) * paper.horizon + paper.fixed_distance)
+    assert one.full == pytest.approx((2.0 + 0.72) * paper.horizon + paper.fixed_distance)
 
 
 def test_zones_behind_a_late_sensor_grow_by_the_persons_travel_over_its_latency():
