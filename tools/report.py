@@ -217,9 +217,9 @@ def stale_said(tracker: dict) -> str | None:
 def reaction_said(summary: dict) -> str | None:
     """One line for the operator when the measured reaction chain does not fit in T_r (the summary's
     ``reaction_time_covers_p99`` false; None otherwise): from the scaler's tick that took a sample to its frame on
-    CAN (p99) and the joints' lag behind it, against ssm.reaction_time (the robot driver's
-    ``reaction_time_exceeded`` by the same sum; the way from the capture to the tick is the data's age, counted
-    on the person's side)."""
+    CAN (p99), the frame's wait for the SYNC and the joints' lag behind that, against ssm.reaction_time (the robot
+    driver's ``reaction_time_exceeded`` by the same sum; the way from the capture to the tick is the data's age,
+    counted on the person's side)."""
     if summary.get("reaction_time_covers_p99") is not False:
         return None
     chain = ((summary.get("latency") or {}).get("tick_to_frame_ms") or {}).get("p99") or 0.0

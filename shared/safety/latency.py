@@ -10,8 +10,8 @@ age, which the scaling layer counts on the person's side (``shared.safety.ssm.ag
 it); T_r covers the rest, from the tick to the joints moving. When the p99 of that, tick -> frame, the frame's
 wait for the SYNC that the drives take it at (a period at most) and SYNC -> motion, exceeds T_r, the configured
 T_r is too small for this installation: a warning names the numbers, once per episode, and says so again when it
-is back within. The drive lag is also checked on its own
-against the configured ``ssm.drive_lag`` that the scaling layer's tracking margin is computed from.
+is back within. The drive lag is also checked on its own against the configured ``ssm.drive_lag`` that the
+scaling layer's tracking margin is computed from.
 """
 
 from __future__ import annotations
