@@ -11,7 +11,11 @@ that zone:
 
 each with the robot's stopping time from its zone's speed (the cell's model of T_s, ``SsmParameters.stop_at``;
 the reduced zone's is shorter). Behind a sensor whose data is ``latency`` s late (a camera pipeline's), both zones
-grow by the person's travel over it at that speed, as ISO 13855 counts a sensor's response time in T.
+grow by the person's travel over it at that speed, as ISO 13855 counts a sensor's response time in T. The zones
+count no age of their data, so their T_r is the whole chain from the sensor to the drives (``WHOLE_CHAIN``, the
+SSM's own T_r until session 81): with the cell's T_r of 0.05 s, which covers only the chain from the control cycle
+because the scaling layer counts the data's age, the zones let 11 violations through in 1000 scenarios
+(``bench/compare.py --scenarios 1000``, random walk seeds 467 and 627), none with 0.1 s.
 
 The reduced speed caps every point of every link at v_reduced (ISO 10218's 250 mm/s by default). The
 stop is a category 2 stop: the path speed ramps down to zero within T_s, as S_p assumes; speeding up
@@ -23,19 +27,20 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from shared.core.geometry import capsule_pair_distances
 from shared.robot.model import RobotModel
-from shared.safety.parameters import SsmParameters
+from shared.safety.parameters import PAPER_REACTION_TIME, SsmParameters
 from shared.safety.ssm import protective_separation_distance
 from shared.scaling.layer import ScalingInputs, ScalingLayer, ScalingStep, StepStatus, held_by_ssm
 from shared.scaling.parameters import ScalingParameters
 
 ISO_13855_SPEED = 2.0        # m/s, the approach speed the zones are sized for
 REDUCED_SPEED = 0.25         # m/s, ISO 10218-1 reduced speed
+WHOLE_CHAIN = PAPER_REACTION_TIME   # s: the zones' T_r at the least, from the sensor's detection to the drives
 
 
 @dataclass(frozen=True)
@@ -54,8 +59,8 @@ class SpeedZones:
         layer has it: at reduced speed the joints move at about reduced_speed / robot_speed of full speed, and a
         robot stops sooner from there; an integrator sizes the stop zone with the stopping time of the reduced
         speed). latency (s): the sensor's data is that late (``SsmParameters.aged``: the person's travel over it at
-        human_speed is added to both zones)."""
-        ssm = ssm.aged(latency)
+        human_speed is added to both zones). T_r is at least ``WHOLE_CHAIN``: zones count no age of their data."""
+        ssm = replace(ssm, reaction_time=max(ssm.reaction_time, WHOLE_CHAIN)).aged(latency)
         reduced_stop = ssm.stop_at(min(1.0, reduced_speed / robot_speed))
         return cls(float(protective_separation_distance(reduced_speed, human_speed, ssm, reduced_stop)),
                    float(protective_separation_distance(robot_speed, human_speed, ssm)), reduced_speed)
