@@ -64,6 +64,11 @@ class Sensed:
     interval: float
     delay: float = 0.0
 
+    @property
+    def planned_age(self) -> float:
+        """The age the planning layer counts (s): the scaler's on average, ``mean_age``."""
+        return mean_age(self.delay, self.interval)
+
 
 def sensed(human, t: float, latency: float = 0.0) -> Sensed:
     """What the layers have of `human` at t (s) when each sample reaches the cell `latency` s after its capture
@@ -343,7 +348,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
 
     if loop is not None:      # the first leg planned before the clock starts, as the fixed path's is made
         first = sensed(human, 0.0, latency)
-        planning_turn(0.0, 0, first.humans, mean_age(first.delay, first.interval))
+        planning_turn(0.0, 0, first.humans, first.planned_age)
         take_ready(0.0)       # planned with no search charged: ready at the start
     for k in range(int(round(duration / period))):
         t = k * period
@@ -353,7 +358,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         result.sample_interval = given.interval or result.sample_interval
         take_ready(t)
         if loop is not None and t >= busy_until:
-            planning_turn(t, k, given.humans, mean_age(given.delay, given.interval))
+            planning_turn(t, k, given.humans, given.planned_age)
         step = layer.step(ScalingInputs(humans=given.humans, human_age=given.age, stale_after=stale_after))
         result.stale_cycles += step.status is StepStatus.STALE_HUMAN_DATA     # as the report counts the scaler's
         if step.beta and not (report is not None and report.beta):
@@ -370,7 +375,7 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
             else:
                 pending_leg = True          # a new goal: the planner takes a turn on it at once (when free)
                 if t >= busy_until:
-                    planning_turn(t, k, given.humans, mean_age(given.delay, given.interval))
+                    planning_turn(t, k, given.humans, given.planned_age)
         result.progress = result.shuttles + leg_fraction(step.q_command, ends[leg % 2], ends[(leg + 1) % 2])
         record = SimRecord(t, human.phase(t), step, result.shuttles, margin)
         result.records.append(record)

@@ -40,8 +40,8 @@ def stale_bound(configured: float, interval: float) -> float:
     120-240 Hz), or STALE_INTERVALS of the source's own measured sample interval where that is longer (a
     20-60 Hz camera tracker: a 30 Hz skeleton is 33 ms old just before the next one comes, and one frame
     late under load must not read as a lost person), at most STALE_CEILING: a slower source (or one that
-    falls silent between samples) is stopped for as stale unless the cell configures a larger bound itself,
-    (the layers count the person's travel over the whole age, ``shared.safety.ssm.aged_travel``, so a larger bound
+    falls silent between samples) is stopped for as stale unless the cell configures a larger bound itself (the
+    layers count the person's travel over the whole age, ``shared.safety.ssm.aged_travel``, so a larger bound
     costs speed, not safety). The tracker's dropout and the scaler's stale-data stop both use it."""
     return max(configured, min(STALE_INTERVALS * interval, STALE_CEILING))
 
