@@ -49,6 +49,15 @@ class PlanningInputs:
     then: np.ndarray | None = None
     human_delay: float = 0.0
 
+    @property
+    def kept_slow(self) -> bool:
+        """The SSM keeps the robot's speed down: its speed is the SSM's bound (held), or the bound is below
+        alpha_min (beta, the replan request, until it is back above alpha_release). Not a ramp back to speed:
+        beside a person the bound and the robot's speed chatter (the bound 0 while it speeds up, about 0.2
+        while it brakes), and ``held`` alone, one cycle in three, took a robot at 3 % of its nominal speed for
+        one moving near it (real_table_edge seed 6, 30 ms late: merges offered for 8 s, never a plan from rest)."""
+        return self.held or self.beta
+
 
 def planning_inputs(*, goal: np.ndarray | None, new_goal: bool, q: np.ndarray | None, humans: HumanCapsules | None,
                     human_sample: int, report: ScalerReport | None, followed: Trajectory | None, in_flight: bool,

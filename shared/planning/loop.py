@@ -166,7 +166,7 @@ class PlanningLoop:
                 return PlanningOutcome("beta", refused=f"not searched: {block.describe()}")
             try:
                 return PlanningOutcome("beta", self.replanner.on_beta(trajectory, s, inputs.goal, inputs.humans,
-                                                                      inputs.speed, inputs.waited, inputs.held,
+                                                                      inputs.speed, inputs.waited, inputs.kept_slow,
                                                                       stop_at=inputs.stop_at))
             except ReplanFailed as exc:          # (the goal is not blocked: asked just above)
                 return PlanningOutcome("beta", refused=str(exc))
@@ -174,7 +174,7 @@ class PlanningLoop:
             self.search_due = None
             try:
                 return PlanningOutcome("search", self.replanner.on_search(
-                    trajectory, s, inputs.goal, inputs.humans, inputs.speed, inputs.waited, inputs.held))
+                    trajectory, s, inputs.goal, inputs.humans, inputs.speed, inputs.waited, inputs.kept_slow))
             except ReplanFailed as exc:
                 return PlanningOutcome("search", refused=str(exc))
         if inputs.human_sample != self.last_sample and now >= self.next_horizon:
@@ -182,7 +182,7 @@ class PlanningLoop:
             self.next_horizon = now + self.horizon_period
             try:
                 result = self.replanner.on_horizon(trajectory, s, inputs.goal, inputs.humans, inputs.speed,
-                                                   inputs.waited, inputs.held)
+                                                   inputs.waited, inputs.kept_slow)
             except ReplanFailed as exc:
                 self.next_horizon = now + self.beta_cooldown / 2
                 return PlanningOutcome("horizon", refused=self._why(str(exc), inputs))
@@ -192,7 +192,7 @@ class PlanningLoop:
             self.next_slow = now + self.slow_period
             try:
                 result = self.replanner.on_slow(trajectory, s, inputs.goal, inputs.humans, inputs.speed,
-                                                inputs.waited, inputs.held)
+                                                inputs.waited, inputs.kept_slow)
             except ReplanFailed as exc:
                 self.next_slow = now + self.beta_cooldown
                 return PlanningOutcome("slow", refused=str(exc))
@@ -236,7 +236,7 @@ class PlanningLoop:
         ``rest_speed`` or more), or the SSM holds it where it stands (then the search plans from rest there)."""
         trajectory, _ = inputs.following
         return (self.search_due is not None and trajectory.version == self.search_due and inputs.speed is not None
-                and (inputs.speed >= self.replanner.options.rest_speed or inputs.held))
+                and (inputs.speed >= self.replanner.options.rest_speed or inputs.kept_slow))
 
     def _block(self, inputs: PlanningInputs) -> GoalBlock | None:
         """Why the goal is out of reach from where the robot is while the people stay, or None."""

@@ -393,7 +393,8 @@ class Replanner:
         continuous in nominal time, so the new part starts with the old nominal velocity: the branch point
         is then put one nominal stopping time ahead, so the old path gives room to come to rest before the
         new path leaves it. waited (s): how long the scaling layer has been asking (see predicted_time).
-        held: the robot's speed is the SSM's bound (or it brakes), not a ramp below it. reason and why: the
+        held: the SSM keeps the robot's speed down, not a ramp back to speed (the loop passes
+        ``PlanningInputs.kept_slow``: the speed is the SSM's bound, or the bound is below alpha_min). reason and why: the
         result's reason and what the decision's detail calls the request (on_slow's own). stop_at: where the
         scaler brings the robot to rest to await this plan (``ScalingStep.awaiting``): the plan starts from
         rest there, and the old trajectory is predicted from rest there too."""

@@ -215,10 +215,23 @@ def test_beta_is_answered_at_most_once_a_cooldown_and_before_the_horizon():
     assert loop.step(0.0, inputs(beta=True, human_sample=1)).action == "beta"
     assert loop.step(0.1, inputs(beta=True, human_sample=1)).action == "horizon"   # beta cools down
     assert loop.step(0.2, inputs(beta=True, human_sample=1)) is None     # same sample: the path ahead is not slow
-    assert loop.replanner.held is False
     assert loop.step(0.5, inputs(beta=True, human_sample=1, held=True)).action == "beta"
-    assert loop.replanner.held is True          # whether the SSM holds the robot's speed goes to the replanner
     assert loop.replanner.calls == ["beta", "horizon", "slow", "beta"]
+
+
+def test_the_replanner_is_told_whether_the_ssm_keeps_the_robot_slow_held_or_asking_for_a_replan():
+    """The SSM keeps the robot's speed down where its speed is the SSM's bound (held) or the bound is below
+    alpha_min (beta): beside a person the two chatter, and a robot at a few % of its nominal speed that is
+    not held this cycle is no robot speeding back up (real_table_edge seed 6, 30 ms late). Neither: a ramp."""
+    assert [inputs(held=h, beta=b).kept_slow for h, b in ((False, False), (True, False), (False, True))] == \
+        [False, True, True]
+    loop = PlanningLoop(RecordingReplanner(horizon=True), beta_cooldown=0.5, slow_period=None)
+    assert loop.step(0.0, inputs(beta=True, human_sample=1)).action == "beta"
+    assert loop.replanner.held is True          # asking, not held this cycle: kept slow all the same
+    assert loop.step(1.0, inputs(human_sample=2)).action == "horizon"
+    assert loop.replanner.held is False         # neither held nor asking: a ramp back to speed
+    assert loop.step(2.0, inputs(human_sample=3, held=True)).action == "horizon"
+    assert loop.replanner.held is True
 
 
 def test_a_robot_stopped_to_await_its_plan_is_answered_at_once_and_once_for_each_wait():
