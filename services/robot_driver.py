@@ -152,7 +152,8 @@ class Driver:
             verdict = self.latency.check(worst or 0.0)
         if sample_to_frame.size:
             self._publish(self.latency_pub, LatencyReport(source="robot_driver", sample_to_frame=sample_to_frame,
-                                                          processing=processing, tick_to_frame=tick_to_frame))
+                                                          processing=processing, tick_to_frame=tick_to_frame,
+                                                          sync_wait=self.latency.sync_wait))
         if verdict is not None:
             self._publish_event(verdict)
 

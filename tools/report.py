@@ -298,6 +298,8 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
     s2f = np.concatenate([r.sample_to_frame for r in rec.latency]) if rec.latency else np.zeros(0)
     proc = np.concatenate([r.processing for r in rec.latency]) if rec.latency else np.zeros(0)
     own = np.concatenate([r.tick_to_frame for r in rec.latency]) if rec.latency else np.zeros(0)
+    # a frame's wait for the SYNC: the driver's period as it reported it (its --period), else the configuration's
+    sync_wait = max((r.sync_wait for r in rec.latency), default=config.scaling.period)
     stall_values = np.array([s["stall_ms"] for s in stalls])
     p99 = float(np.percentile(own, 99)) if own.size else None
     tracker = tracker_summary(rec)
@@ -335,7 +337,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "monitor": summaries[-1].text if summaries else "no monitor summary received",
         "latency": {"chains": int(s2f.size), "sample_to_frame_ms": _percentiles(s2f, 50, 99),
                     "processing_ms": _percentiles(proc, 50, 99), "tick_to_frame_ms": _percentiles(own, 50, 99),
-                    "sync_wait_ms": round(1e3 * config.scaling.period, 3)},
+                    "sync_wait_ms": round(1e3 * sync_wait, 3)},
         "scaling_cycle": scaling_cycle(st),
         "drives": drives,
         "scaler_silences": scaler_silences(stamps, np.array([s.compute_us for s in st]),
@@ -354,7 +356,7 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         # the chain T_r covers: from the tick that took a sample to its frame on CAN, the frame's wait for the SYNC
         # (a period) and the joints' lag behind that
         "reaction_time_covers_p99": None if p99 is None
-        else bool(p99 + config.scaling.period + lag <= config.ssm.reaction_time),
+        else bool(p99 + sync_wait + lag <= config.ssm.reaction_time),
         "events": sorted({f"{e.source}:{e.event}" for e in rec.events if e.severity != "info"}),
     }
     return summary, series

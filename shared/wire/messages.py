@@ -266,16 +266,19 @@ class LatencyReport(Message):
     reached the bus, from its capture to its target frame on CAN, the part of that which was processing (the
     rest is the human state's way to the scaler and its wait for the tick), and from the scaler's tick that took
     it to the frame (tick_to_frame: the part T_r covers, whose p99 is checked against it; the rest is the data's
-    age, counted on the person's side)."""
+    age, counted on the person's side); sync_wait: the driver's SYNC period, a frame's wait for the SYNC the drives
+    take it at, which T_r covers too (the driver's own ``--period``, not the cell configuration's)."""
 
     KIND: ClassVar[str] = "latency_report"
     SPEC: ClassVar[dict[str, Spec]] = {"source": S, "sample_to_frame": Spec("farray", (-1,), minimum=0.0),
                                        "processing": Spec("farray", (-1,)),
-                                       "tick_to_frame": Spec("farray", (-1,), minimum=0.0)}
+                                       "tick_to_frame": Spec("farray", (-1,), minimum=0.0),
+                                       "sync_wait": Spec("float", minimum=0.0)}
     source: str
     sample_to_frame: np.ndarray
     processing: np.ndarray
     tick_to_frame: np.ndarray
+    sync_wait: float
 
     def check(self) -> None:
         _same_rows(self, "sample_to_frame", "processing", "tick_to_frame")

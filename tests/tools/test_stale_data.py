@@ -2,6 +2,8 @@
 to the tracker's publication, the share of control cycles the scaler found it stale, and the line `hrc demo` says
 when that share is not small."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -53,6 +55,32 @@ def test_a_reaction_chain_longer_than_t_r_is_said_with_its_parts():
     assert "T_r (30 ms)" in line
     assert reaction_said({**summary, "reaction_time_covers_p99": True}) is None
     assert reaction_said({"reaction_time_covers_p99": None}) is None            # not measured: nothing said
+
+
+def test_the_reaction_chain_counts_the_drivers_own_sync_period_not_the_configurations():
+    """The robot driver runs at its --period: the frame's wait for the SYNC is the period it reports, which a
+    driver at 50 ms (the configuration's 10 ms) makes longer than T_r's 50 ms; without a report, the configuration's."""
+    from evidence.scenarios import Q_START
+    from shared.config import CellConfig
+    from shared.robot.model import default_robot
+    from shared.wire.messages import LatencyReport
+    from tools.report import analyse
+
+    def chain(sync_wait: float | None) -> dict:
+        rec = Recording(t0=100.0)
+        rec.statuses = [dataclasses.replace(status(100.0 + k * 0.01, stale=False), q_command=Q_START, alpha=1.0)
+                        for k in range(50)]
+        if sync_wait is not None:
+            rec.latency = [LatencyReport(source="robot_driver", sample_to_frame=np.full(20, 0.03),
+                                         processing=np.full(20, 0.001), tick_to_frame=np.full(20, 0.002),
+                                         sync_wait=sync_wait, stamp=100.2)]
+        summary, _ = analyse(default_robot(), CellConfig(), rec)
+        return summary
+
+    at_10, at_50 = chain(0.01), chain(0.05)
+    assert at_10["latency"]["sync_wait_ms"] == 10.0 and at_10["reaction_time_covers_p99"] is True
+    assert at_50["latency"]["sync_wait_ms"] == 50.0 and at_50["reaction_time_covers_p99"] is False     # 2 + 50 ms
+    assert chain(None)["latency"]["sync_wait_ms"] == 10.0
 
 
 def test_hrc_status_says_the_peoples_track_rate_and_way_from_capture():
