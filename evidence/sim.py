@@ -293,12 +293,14 @@ def run_shuttle(robot: RobotModel, config: CellConfig, human: ScriptedHuman, q_a
         handed[res.trajectory.version], in_flight = res.trajectory, True
         for old in [v for v in handed if v < res.trajectory.version - 8]:
             del handed[old]
-        if layer.take(res.trajectory, res.from_rest, res.junction, q_now, START_TOLERANCE) is None:
-            if outcome.action == "goal":
-                pending_leg = False
-                result.goals.append(ReplanEvent(t, "goal", True, elapsed, res.detail))
-            else:
-                log_replan(ReplanEvent(t, outcome.action, True, elapsed, res.detail))
+        why = layer.take(res.trajectory, res.from_rest, res.junction, q_now, START_TOLERANCE)
+        if why is not None:           # the scaler service logs it too ("trajectory N not taken: ...")
+            log_replan(ReplanEvent(t, outcome.action, False, elapsed, f"not taken by the scaling layer: {why}"))
+        elif outcome.action == "goal":
+            pending_leg = False
+            result.goals.append(ReplanEvent(t, "goal", True, elapsed, res.detail))
+        else:
+            log_replan(ReplanEvent(t, outcome.action, True, elapsed, res.detail))
 
     def planning_turn(t: float, k: int, humans, delay: float = 0.0) -> None:
         """One turn of the planner's loop on what the scaler last reported; its result is taken at once, or

@@ -21,6 +21,7 @@ from shared.planning.decision import ReplanFailed, ReplanResult, required_gain
 from shared.planning.merge import merge
 from shared.planning.ompl_planner import PlanningError
 from shared.planning.options import ReplanOptions
+from shared.planning.path_search import ACTION_BUDGET
 from shared.planning.time_cost import SsmTimeCost
 from shared.planning.timing import TimingError, parameterize
 from shared.scaling.stopping import stopping_time
@@ -244,6 +245,10 @@ class Candidates:
         # where the crawl gets to by then: at most its present rate, less where the SSM slows it further, and
         # never within the robot's own stopping distance (the scaler could not stop it there)
         crawl = min(s_now + rate * lead, self.cost.reached(old, s_now, humans, lead, self.stay(waited)))
+        # ... and at least where its present rate takes it while the plan is made (ACTION_BUDGET): beside a person the
+        # SSM's bound and the robot's speed chatter (no motion at a frame's end, a little on a fresh frame), the cost
+        # sees the crawl stand, and the robot crept past a start put where it stood (real_table_edge seed 6, 30 ms late)
+        crawl = max(crawl, s_now + rate * ACTION_BUDGET)
         s_stop = min(old.duration, max(s_now + rate * 0.5 * stopping, crawl))
         result = self.rest_plan(old, s_stop, q_goal, humans, reason, waited)
         return replace(result, junction=s_stop, plan_s=time.perf_counter() - started,

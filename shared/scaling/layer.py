@@ -69,6 +69,10 @@ def unknown_within_reach(pairs: PairSsm, velocity_known: np.ndarray) -> bool:
 
 AT_REST = 1e-9            # rad/s: a commanded joint speed below this is the robot at rest (``ScalingLayer.take``)
 STOP_REACH = 0.5          # nominal s: how far ahead a plan for a crawling robot may start (``ScalingLayer.take``)
+# s: how long the SSM must hold a robot short of a pending plan's start before the plan is dropped. Beside a person the
+# bound chatters with the data's age (0 at a frame's end, about 0.2 on a fresh one: the robot creeps on between): a
+# plan dropped at the first such cycle was dropped at every try (real_table_edge seed 6, 30 ms late: held 5 s)
+HELD_SHORT_FOR = 0.1
 AT_START = 1e-3           # rad: the most a plan from rest may start from where the robot is commanded to stand. A
                           # command that jumps is a motion the drives make that no SSM check has seen (0.74 mm at
                           # the PRBT's reach; the start_tolerance the scaler allows is the drives' following error)
@@ -170,6 +174,7 @@ class ScalingLayer:
         self.beta = False
         self._pending: tuple[Trajectory, float] | None = None   # a plan from rest that starts ahead, at that s
         self._dropped: str | None = None     # why the pending plan was dropped in this step (ScalingStep.dropped)
+        self._short = 0.0                    # s the SSM has held the robot short of the pending plan's start
         # the s where the robot is brought to rest to await the plan it asked for (None: not awaiting; how long it
         # may stand there is params.await_plan, 0 where no planning layer answers), and how long it has stood
         self._awaiting: float | None = None
@@ -467,9 +472,11 @@ class ScalingLayer:
         if at_rest:
             alpha, method = 0.0, method + "+at rest"
         held_short = status is StepStatus.RUNNING and safe_alpha < cap and float(np.abs(dq).max()) * alpha < REST_SPEED
-        if self._pending is not None and held_short:
+        self._short = self._short + self.params.period if self._pending is not None and held_short else 0.0
+        if self._short >= HELD_SHORT_FOR - 1e-9:
             plan, s_stop = self._pending   # the SSM holds it short of the start, where it would wait for as long as
             self._pending = None           # the person stays: dropped, so that a plan from where it stands can follow
+            self._short = 0.0
             self._dropped = (f"held by the SSM at s={self.s:.3f}, short of the start of plan {plan.version} "
                             f"at s={s_stop:.3f}")
         elif self._awaiting is not None and held_short:

@@ -295,6 +295,38 @@ def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_i
     assert lay.trajectory is fresh
 
 
+def test_a_plan_ahead_is_not_dropped_for_a_hold_shorter_than_held_short_for():
+    """Beside a person the SSM's bound chatters with the data's age (0 at a frame's end, up on a fresh frame) and the
+    robot creeps on between: a hold of a few cycles short of a pending plan's start does not drop the plan, which is
+    taken at its start once the robot gets there (dropped at the first such cycle, every stop plan was lost:
+    real_table_edge seed 6, 30 ms late). A hold of HELD_SHORT_FOR drops it (the test above)."""
+    from shared.scaling.layer import HELD_SHORT_FOR
+
+    lim = ROBOT.limits
+    old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
+    q, dq, _ = old.sample(1.0)
+    points, velocities = ROBOT.capsule_motion(q, dq)
+    ahead = points[-1, 1] + 0.4 * velocities[-1, 1] / np.linalg.norm(velocities[-1, 1])   # in the flange's way
+    person = HumanCapsules(np.array([[ahead, ahead]]), np.array([0.1]), np.zeros((1, 2, 3)), np.array([True]))
+    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters())
+    lay.set_trajectory(old)
+    lay.s, lay.sdot = 1.0, 0.2
+    back = straight_line_trajectory(old.sample(1.04)[0], Q_START, lim.velocity, lim.acceleration, version=2)
+    assert lay.take(back, True, 0.0, q_here=q, start_tolerance=1e-3) is None
+    steps = [lay.step(ScalingInputs(humans=person))]
+    while steps[-1].pending is not None and steps[-1].speed >= 0.02 and len(steps) < 100:   # brought to rest short
+        steps.append(lay.step(ScalingInputs(humans=person)))
+    held = int(round(0.5 * HELD_SHORT_FOR / lay.params.period))
+    steps += [lay.step(ScalingInputs(humans=person)) for _ in range(held)]          # held short, half the grace
+    assert all(st.dropped is None and st.pending == 2 for st in steps)
+    nobody = HumanCapsules.empty()
+    for _ in range(300):                                  # the person steps back: the robot goes on to the start
+        steps.append(lay.step(ScalingInputs(humans=nobody)))
+        if lay.trajectory is back:
+            break
+    assert lay.trajectory is back and all(st.dropped is None for st in steps)
+
+
 def test_a_plan_for_a_crawling_robot_that_comes_after_the_ssm_stopped_it_short_is_refused_not_jumped_to():
     """The SSM has stopped the robot (at rest, its joints where its command is) short of where a plan for a crawling
     robot starts, within the scaler's start tolerance: taking it would make the command jump ahead, towards the
