@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from evidence.scenarios import Q_GOAL, Q_START, body_segments
 from shared.core.humans import HumanCapsules
-from shared.core.trajectory import straight_line_trajectory
+from shared.core.trajectory import Trajectory, straight_line_trajectory
 from shared.robot.model import default_robot
 from shared.safety.parameters import SsmParameters
 from shared.safety.ssm import pair_ssm
@@ -265,10 +265,10 @@ def test_a_plan_from_rest_ahead_of_a_crawling_robot_is_taken_where_the_robot_sto
     assert "could not stop" in next(st.dropped for st in steps if st.dropped is not None)
 
 
-def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_it_is_held_at_rest():
-    """A person who came closer after the stop plan was made holds the robot short of its start: it would
-    wait there for as long as they stay, so the plan is dropped, saying why, and a plan from rest where the
-    robot stands is taken instead (the paper's phase 4, where the robot used to stand still beside the arm)."""
+def pending_plan_beside_a_person() -> tuple[ScalingLayer, Trajectory, Trajectory, HumanCapsules]:
+    """A robot crawling (path speed 0.2) along the shuttle's line towards a person 0.4 m ahead of its flange, with a
+    plan from rest (version 2) that starts ahead of it at s = 1.04 pending: (the layer, the line, the plan, the
+    person)."""
     lim = ROBOT.limits
     old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
     q, dq, _ = old.sample(1.0)
@@ -280,6 +280,15 @@ def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_i
     lay.s, lay.sdot = 1.0, 0.2
     back = straight_line_trajectory(old.sample(1.04)[0], Q_START, lim.velocity, lim.acceleration, version=2)
     assert lay.take(back, True, 0.0, q_here=q, start_tolerance=1e-3) is None
+    return lay, old, back, person
+
+
+def test_a_plan_ahead_whose_start_the_ssm_keeps_the_robot_from_is_dropped_once_it_is_held_at_rest():
+    """A person who came closer after the stop plan was made holds the robot short of its start: it would
+    wait there for as long as they stay, so the plan is dropped, saying why, and a plan from rest where the
+    robot stands is taken instead (the paper's phase 4, where the robot used to stand still beside the arm)."""
+    lay, old, back, person = pending_plan_beside_a_person()
+    lim = ROBOT.limits
     steps = [lay.step(ScalingInputs(humans=person))]
     while steps[-1].pending is not None and len(steps) < 100:
         steps.append(lay.step(ScalingInputs(humans=person)))
@@ -302,17 +311,7 @@ def test_a_plan_ahead_is_not_dropped_for_a_hold_shorter_than_held_short_for():
     real_table_edge seed 6, 30 ms late). A hold of HELD_SHORT_FOR drops it (the test above)."""
     from shared.scaling.layer import HELD_SHORT_FOR
 
-    lim = ROBOT.limits
-    old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
-    q, dq, _ = old.sample(1.0)
-    points, velocities = ROBOT.capsule_motion(q, dq)
-    ahead = points[-1, 1] + 0.4 * velocities[-1, 1] / np.linalg.norm(velocities[-1, 1])   # in the flange's way
-    person = HumanCapsules(np.array([[ahead, ahead]]), np.array([0.1]), np.zeros((1, 2, 3)), np.array([True]))
-    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters())
-    lay.set_trajectory(old)
-    lay.s, lay.sdot = 1.0, 0.2
-    back = straight_line_trajectory(old.sample(1.04)[0], Q_START, lim.velocity, lim.acceleration, version=2)
-    assert lay.take(back, True, 0.0, q_here=q, start_tolerance=1e-3) is None
+    lay, old, back, person = pending_plan_beside_a_person()
     steps = [lay.step(ScalingInputs(humans=person))]
     while steps[-1].pending is not None and steps[-1].speed >= 0.02 and len(steps) < 100:   # brought to rest short
         steps.append(lay.step(ScalingInputs(humans=person)))
