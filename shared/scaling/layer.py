@@ -218,8 +218,12 @@ class ScalingLayer:
         if from_rest:
             if q_here is None:
                 return "the robot's position is not known"
-            if self._moving() and self._stop_for(trajectory, start_tolerance) is None:
-                return None          # moving towards its start: stopped there first, even if it is near
+            # moving towards its start: stopped there first, even if it is near. The start must lie on the commanded
+            # path within AT_START, whatever the tolerance for the joints (the service's 0.02 rad, for the drives):
+            # with that tolerance a start the crawl had passed by up to 20 mrad was taken where the robot stood,
+            # the command jumping back to it in one period (15.7 mrad: the joints' speed limit)
+            if self._moving() and self._stop_for(trajectory, AT_START) is None:
+                return None
             if np.abs(trajectory.positions[0] - np.asarray(q_here)).max() > start_tolerance:
                 return "the robot is not at its start, nor moving towards it"
             jump = self._command_jump(trajectory.positions[0])

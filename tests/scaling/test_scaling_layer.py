@@ -326,6 +326,32 @@ def test_a_plan_ahead_is_not_dropped_for_a_hold_shorter_than_held_short_for():
     assert lay.trajectory is back and all(st.dropped is None for st in steps)
 
 
+def test_a_plan_whose_start_a_crawl_has_passed_is_refused_with_the_services_tolerance_never_jumped_back_to():
+    """The scaler service takes plans with a start tolerance of 0.02 rad, for the drives' following error. A plan from
+    rest made where the robot stood is passed by the crawl before it comes (beside a person the bound chatters and
+    the robot creeps on): its start is not on the path ahead within AT_START, so it is refused, not taken where the
+    robot is with the command jumping back 15.7 mrad in one period. One that starts on the path ahead is stopped at."""
+    from shared.scaling.layer import AT_START
+
+    lim = ROBOT.limits
+    old = straight_line_trajectory(Q_START, Q_GOAL, lim.velocity, lim.acceleration, version=1)
+    lay = ScalingLayer(ROBOT, PAPER_SSM, ScalingParameters())
+    lay.set_trajectory(old)
+    lay.s, lay.sdot = 1.0, 0.05
+    here = lay.step(ScalingInputs(humans=HumanCapsules.empty())).q_command
+    passed = straight_line_trajectory(old.sample(lay.s - 0.01)[0], Q_START, lim.velocity, lim.acceleration, version=2)
+    assert 10 * AT_START < np.abs(passed.positions[0] - here).max() < 0.02
+    why = lay.take(passed, True, 0.0, q_here=here, start_tolerance=0.02)
+    assert why is not None and "never jumped to" in why
+    assert lay.trajectory is old
+    ahead = straight_line_trajectory(old.sample(lay.s + 0.01)[0], Q_START, lim.velocity, lim.acceleration, version=3)
+    assert lay.take(ahead, True, 0.0, q_here=here, start_tolerance=0.02) is None
+    steps = [lay.step(ScalingInputs(humans=HumanCapsules.empty())) for _ in range(30)]
+    assert lay.trajectory is ahead
+    commands = np.array([here] + [st.q_command for st in steps])
+    assert np.abs(np.diff(commands, axis=0)).max() < 0.01           # no jump on the way to its start
+
+
 def test_a_plan_for_a_crawling_robot_that_comes_after_the_ssm_stopped_it_short_is_refused_not_jumped_to():
     """The SSM has stopped the robot (at rest, its joints where its command is) short of where a plan for a crawling
     robot starts, within the scaler's start tolerance: taking it would make the command jump ahead, towards the
