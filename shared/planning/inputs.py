@@ -53,9 +53,10 @@ class PlanningInputs:
     def kept_slow(self) -> bool:
         """The SSM keeps the robot's speed down: its speed is the SSM's bound (held), or the bound is below
         alpha_min (beta, the replan request, until it is back above alpha_release). Not a ramp back to speed:
-        beside a person the bound and the robot's speed chatter (the bound 0 while it speeds up, about 0.2
-        while it brakes), and ``held`` alone, one cycle in three, took a robot at 3 % of its nominal speed for
-        one moving near it (real_table_edge seed 6, 30 ms late: merges offered for 8 s, never a plan from rest)."""
+        beside a person the bound and the robot's speed chatter with the data's age (the bound 0 at a frame's
+        end, where the robot brakes and is held; about 0.2 on a fresh frame, where it speeds up and is not), and
+        ``held`` alone, true one cycle in three, took a robot at 3 % of its nominal speed for one moving near it
+        (real_table_edge seed 6, 30 ms late: merges offered for 8 s, never a plan from rest)."""
         return self.held or self.beta
 
 
