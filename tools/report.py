@@ -17,6 +17,7 @@ import numpy as np
 
 from shared.config import CellConfig
 from shared.robot.model import RobotModel
+from shared.safety.latency import reaction_chain
 from shared.safety.monitor import HumanHistory, ReactionWindow, SafetyMonitor
 from shared.wire.convert import humans_from_msg
 from shared.wire.messages import (
@@ -353,10 +354,8 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
         "exceedances_after_reaction_time": int(np.count_nonzero(series["late_excess"] > 0)),
         "worst_late_excess_m_s": round(float(series["late_excess"].max()), 4) if series["late_excess"].size else 0.0,
         "reaction_time_s": config.ssm.reaction_time,
-        # the chain T_r covers: from the tick that took a sample to its frame on CAN, the frame's wait for the SYNC
-        # (a period) and the joints' lag behind that
         "reaction_time_covers_p99": None if p99 is None
-        else bool(p99 + sync_wait + lag <= config.ssm.reaction_time),
+        else bool(reaction_chain(p99, sync_wait, lag) <= config.ssm.reaction_time),
         "events": sorted({f"{e.source}:{e.event}" for e in rec.events if e.severity != "info"}),
     }
     return summary, series

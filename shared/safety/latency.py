@@ -51,6 +51,13 @@ class Episode:
         return LatencyCheck(event, "warning" if exceeded else "info", text, value)
 
 
+def reaction_chain(tick_to_frame: float, sync_wait: float, motion_lag: float) -> float:
+    """The part of the reaction T_r covers (s): from the tick that took a sample to its frame on CAN (its p99), the
+    frame's wait for the SYNC the drives take it at, and the joints' lag behind that SYNC (the drive lag p99). The
+    robot driver's ``reaction_time_exceeded`` and the report's ``reaction_time_covers_p99`` hold it against T_r."""
+    return tick_to_frame + sync_wait + max(motion_lag, 0.0)
+
+
 class LatencyMeter:
     """Rolling window of the chains' latencies in seconds (from the capture to the frame, its processing part,
     and from the tick that computed the command to the frame), and the T_r verdict."""
@@ -98,7 +105,7 @@ class LatencyMeter:
         p99 = self.p99()
         if p99 is None:
             return None
-        chain = p99 + self.sync_wait + max(motion_lag, 0.0)
+        chain = reaction_chain(p99, self.sync_wait, motion_lag)
         parts = (f"tick -> frame p99 {p99 * 1e3:.1f} ms + the wait for the SYNC {self.sync_wait * 1e3:.0f} ms + "
                  f"drive lag {motion_lag * 1e3:.1f} ms")
         return self.episode.verdict(
