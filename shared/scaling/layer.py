@@ -174,7 +174,8 @@ class ScalingLayer:
         self.beta = False
         self._pending: tuple[Trajectory, float] | None = None   # a plan from rest that starts ahead, at that s
         self._dropped: str | None = None     # why the pending plan was dropped in this step (ScalingStep.dropped)
-        self._short = 0.0                    # s the SSM has held the robot short of the pending plan's start
+        self._short = 0.0                    # s the SSM has held the robot short of the pending plan's start (its clock:
+                                             # set going with the plan, ``_stop_for``)
         # the s where the robot is brought to rest to await the plan it asked for (None: not awaiting; how long it
         # may stand there is params.await_plan, 0 where no planning layer answers), and how long it has stood
         self._awaiting: float | None = None
@@ -269,7 +270,7 @@ class ScalingLayer:
             best, grid = float(grid[k]), np.linspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], 21)
         if gap[k] > tolerance:
             return "its start is not ahead on the path"
-        self._pending, self._dropped = (trajectory, best), None
+        self._pending, self._dropped, self._short = (trajectory, best), None, 0.0
         return None
 
     def _stop_deceleration(self, dq_ds: np.ndarray, d2q_ds2: np.ndarray) -> float:
@@ -480,7 +481,6 @@ class ScalingLayer:
         if self._short >= HELD_SHORT_FOR - 1e-9:
             plan, s_stop = self._pending   # the SSM holds it short of the start, where it would wait for as long as
             self._pending = None           # the person stays: dropped, so that a plan from where it stands can follow
-            self._short = 0.0
             self._dropped = (f"held by the SSM at s={self.s:.3f}, short of the start of plan {plan.version} "
                             f"at s={s_stop:.3f}")
         elif self._awaiting is not None and held_short:
