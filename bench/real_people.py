@@ -108,7 +108,8 @@ def row(recording: str, placement: str, summary: dict) -> dict:
             "unchecked": check.get("unchecked"),
             "dropouts": tracker.get("dropouts"),
             "velocity_unknown": [tracker.get("velocity_unknown_share"), tracker.get("velocity_unknown_longest_ms")],
-            "speedups": independent.get("speedups"),
+            # the judge's speed-ups within T_r, and of them those towards a capsule whose velocity was unknown
+            "speedups": [independent.get("speedups"), independent.get("speedups_unknown")],
             "drive_lag_p99_ms": max(lags) if lags else None,
             "events": summary.get("events") or [],
             # the machine's own stalls (tools.stalls: how many beyond 10 ms, the longest), and the events after one
@@ -209,7 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     header = ["recording", "placement", "shuttles/min", "with the last leg's part", "stopped", "stale data",
               "violations (monitor / recount / independent)",
-              "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups", "drive lag p99 ms",
+              "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups (all, velocity unknown)",
+              "drive lag p99 ms",
               "machine stalls > 10 ms (count, longest ms)", "scaler silences (count, longest ms, joint states in it)",
               "events (machine: during or just after a stall)"]
     print("| " + " | ".join(header) + " |")
@@ -231,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
                       _cell(r["stale_data"], share=True)]
                      + [_cell(r[k]) for k in ("violations", "unchecked", "dropouts")]
                      + [f"{_cell(r['velocity_unknown'][0], share=True)}, {_cell(r['velocity_unknown'][1])}"]
-                     + [_cell(r[k]) for k in ("speedups", "drive_lag_p99_ms")]
+                     + [", ".join(_cell(v) for v in r["speedups"]), _cell(r["drive_lag_p99_ms"])]
                      + [f"{_cell(r['machine'][0])}, {_cell(r['machine'][1])}"]
                      + [", ".join(_cell(v) for v in r["scaler_silences"])]
                      + [event_cell(r)])

@@ -22,7 +22,7 @@ is unchecked, as the monitor has it, never a violation and never a pass.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -33,6 +33,7 @@ from shared.wire.convert import humans_from_msg
 from shared.wire.messages import HumanState, JointState
 
 PAIR_AGE = 0.1      # s: a person state older than this at a joint state is not the person of its moment
+SPEEDUPS_KEPT = 10  # the speed-ups whose stamps a recount keeps
 
 
 @dataclass
@@ -42,13 +43,18 @@ class Recount:
     joint states judged; speedups: pairs whose approach rose, within the first T_r of an episode, more than
     the tolerance above its speed at the episode's first state (the stricter reading of v_r T_r; not counted
     as violations: a robot braking at full deceleration along a curved path does it, see
-    shared.safety.monitor.ReactionWindow)."""
+    shared.safety.monitor.ReactionWindow); speedups_unknown: those towards a capsule whose velocity the tracker
+    did not know at that moment (the robot must never speed up towards a person it cannot judge:
+    ``shared.scaling.layer.unknown_within_reach``); speedup_stamps: the joint states' stamps (s) of the first
+    SPEEDUPS_KEPT of them, to find them in a trace."""
 
     violations: int = 0
     exceedances: int = 0
     unchecked: int = 0
     states: int = 0
     speedups: int = 0
+    speedups_unknown: int = 0
+    speedup_stamps: list[float] = field(default_factory=list)
 
 
 def _in_force(human_stamps: np.ndarray, start: float, end: float) -> range:
@@ -84,6 +90,7 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
             continue
         out.states += 1
         worst: dict[tuple[str, int], float] = {}
+        unknown: set[tuple[str, int]] = set()           # pairs whose capsule's velocity was unknown
         stop = float(monitor.stopping_times(js.qd))       # this state's T_s
         offset = 0
         for humans in reversed(seen):                  # newest first: capsule numbers as the monitor's union
@@ -95,6 +102,8 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
                     continue
                 pair = (v.link, offset + v.capsule)
                 worst[pair] = max(worst.get(pair, -np.inf), v.approach_speed)
+                if not humans.velocity_known[v.capsule]:
+                    unknown.add(pair)
             offset += humans.count
         out.exceedances += len(worst)
         kept = {}
@@ -104,7 +113,11 @@ def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState
             elapsed = js.stamp - start
             if elapsed <= ssm.reaction_time:          # reacting: the fastest approach of these T_r is the one
                 kept[pair] = (start, max(reference, speed), braking)      # braking must start from
-                out.speedups += speed > first[pair] + tolerance
+                if speed > first[pair] + tolerance:
+                    out.speedups += 1
+                    out.speedups_unknown += pair in unknown
+                    if len(out.speedup_stamps) < SPEEDUPS_KEPT:
+                        out.speedup_stamps.append(js.stamp)
                 continue
             kept[pair] = (start, reference, braking)
             allowed = reference * max(0.0, 1.0 - (elapsed - ssm.reaction_time) / braking)

@@ -166,7 +166,9 @@ def monitor_summary(rec: Recording, series: dict[str, np.ndarray], violations: i
                        "max": None if last is None else round(last.lag_max * 1e3, 1)},
             "violations_recounted": recount,
             "independent": {"violations": judged.violations, "exceedances": judged.exceedances,
-                            "unchecked": judged.unchecked, "states": judged.states, "speedups": judged.speedups},
+                            "unchecked": judged.unchecked, "states": judged.states, "speedups": judged.speedups,
+                            "speedups_unknown": judged.speedups_unknown,
+                            "speedup_at_s": [round(t - rec.t0, 3) for t in judged.speedup_stamps]},
             "disagrees": None if violations is None else len({violations, recount, judged.violations}) > 1}
 
 

@@ -200,6 +200,34 @@ def test_the_independent_recount_counts_a_robot_that_does_not_brake_and_agrees_w
     assert judged.unchecked == 0 and judged.states == 50
 
 
+def test_the_independent_recount_says_which_speed_ups_went_towards_a_velocity_it_did_not_know():
+    """The link of the test above speeding up within T_r of its first exceedance (1.0 to 1.4 rad/s about the
+    base): speed-ups, each at its joint state's stamp; towards the person whose velocity the tracker did not know,
+    all of them are counted as such, towards the same person with a known velocity none."""
+    from shared.config import CellConfig
+    from shared.robot.model import default_robot
+    from shared.wire.convert import humans_to_msg
+    from shared.wire.messages import JointState
+    from tools.judge import recount
+
+    robot, config = default_robot(), CellConfig()
+    q = np.array([0.0, -0.4, 1.17, 0.0, 1.57, 0.0])
+    target = robot.capsule_segments(q)[-1][0] + np.array([0.0, 0.45, 0.0])
+    joints = [JointState(q=q, qd=np.array([1.0 + 0.1 * min(k, 4), 0, 0, 0, 0, 0]), enabled=True, fault=False,
+                         drive_state="operation_enabled", stamp=0.01 * k) for k in range(10)]
+    for known in (False, True):
+        person = HumanCapsules(np.array([[target, target + [0, 0, 0.3]]]), np.array([0.1]), np.zeros((1, 2, 3)),
+                               np.array([known]))
+        people = [humans_to_msg(person, True, 0.01 * k - 0.002) for k in range(10)]
+        judged = recount(robot, config, joints, people, tolerance=1e-3)    # link 1's approach: 14 to 20 mm/s
+        assert judged.speedups > 0 and judged.speedups_unknown == (0 if known else judged.speedups)
+        assert len(judged.speedup_stamps) == min(judged.speedups, 10)
+        # within T_r of their episode's start: the person's states in force at a joint state are paired each (the
+        # newest and the one before it), the second pair's episode a state later
+        assert judged.speedup_stamps[0] == pytest.approx(0.01)
+        assert max(judged.speedup_stamps) <= config.ssm.reaction_time + 0.01 + 1e-9
+
+
 def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unknown():
     """The shuttle slowed to below half its path speed by a person 0.9 m off along x, 0.7 m to its side; the
     person steps back to 1.5 m with the velocity unknown (a glitch): the SSM alone would let the robot speed up
