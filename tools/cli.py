@@ -152,8 +152,8 @@ def _demo_sim(args: argparse.Namespace, human) -> int:
     def replanned(event) -> None:
         if not args.quiet:
             state = "replanned" if event.ok else "replan refused"
-            print(f"t={event.t:6.2f}s  {state} ({event.reason}) in {event.compute_ms:.0f} ms  {event.detail[:100]}",
-                  flush=True)
+            print(f"t={event.t:6.2f}s  {state} ({event.reason}) in {event.compute_ms:.0f} ms  {event.detail}",
+                  flush=True)     # whole: a refusal's figures (both predicted times) come at its end
 
     # each path search charged the planner service's budget on the simulated clock, as the benchmarks charge it
     # (evidence.strategies): plans free of time made the simulation kinder than the cell where the robot replans often

@@ -178,7 +178,7 @@ def _direct(session, keys: KeySpace, recorder: Recorder, rec: Recording, duratio
             new_events, seen_events = rec.events[seen_events:], len(rec.events)
         for e in new_events:
             if e.source == "planner" and e.event != "trajectory_goal" or e.severity != "info":
-                say(f"t={e.stamp - rec.t0:6.2f}s  {e.source}: {e.event}: {e.text[:110]}")
+                say(f"t={e.stamp - rec.t0:6.2f}s  {e.source}: {e.event}: {e.text}")   # whole: its figures end it
         shuttle.step(now)
         if now - last_print >= 0.5:
             last_print = now
