@@ -10,7 +10,8 @@ Safety rules kept here:
 * no human data yet, or data older than ``human_timeout``: alpha = 0 (stop), whatever the solver says;
 * the SSM rows are hard; acceleration limits take a slack;
 * the robot never speeds up while a human capsule within reach has no known velocity (``unknown_within_reach``,
-  method '+unknown'): the formula's v_r T_r is the distance at the speed it has, not at one it gains;
+  method '+unknown'): the formula's v_r T_r is the distance at the speed it has, not at one it gains. Its joints'
+  speed is held, not only alpha (``_speed_kept``): on a leg's start ramp q'(s) rises under a held alpha;
 * **a command the robot can still stop from**: where someone is near, the stop that would follow the command (at
   the drives' limit along the path) is run ahead against the people moved on along their tracked velocities, and
   alpha lowered until no link on the way approaches a person faster than the SSM allows
@@ -239,6 +240,16 @@ class ScalingLayer:
         self.set_trajectory(trajectory, self.s)
         return None
 
+    def _speed_kept(self, traj: Trajectory, dq_ds: np.ndarray) -> float:
+        """The largest alpha at which this step's command is no faster (its fastest joint, rad/s) than the last one,
+        sdot max|q'(s)|: at most the last path speed, and less where the nominal speed rises ahead, on a leg's start
+        ramp or into a blend (the command is sampled where the step advances to, at most sdot T on). Holding alpha
+        alone let the joints speed up with q'(s) along a start ramp, 0.63 to 0.80 rad/s in five periods, towards a
+        person whose velocity was unknown."""
+        ahead = float(np.abs(traj.sample(min(traj.duration, self.s + self.sdot * self.params.period))[1]).max())
+        here = float(np.abs(dq_ds).max())
+        return self.sdot if ahead <= here * (1.0 + 1e-9) else self.sdot * here / ahead   # (rounding: no rise)
+
     def _command_jump(self, start: np.ndarray) -> float:
         """How far (rad, the largest joint) the command would jump to `start` from where it stands now (0 with no
         trajectory yet: the first plan starts where the joints are)."""
@@ -464,8 +475,10 @@ class ScalingLayer:
                 if lowered:          # and where a stop from it leads: the SSM's bound too
                     method += "+lookahead"
                     safe_alpha = min(safe_alpha, alpha)
-            if rows.ssm is not None and alpha > self.sdot and unknown_within_reach(rows.ssm, humans.velocity_known):
-                alpha, method = self.sdot, method + "+unknown"
+            if rows.ssm is not None and alpha > 0.0:
+                kept = self._speed_kept(traj, dq)
+                if alpha > kept and unknown_within_reach(rows.ssm, humans.velocity_known):
+                    alpha, method = kept, method + "+unknown"
             if rows.state is not None:
                 min_sep, min_margin = rows.state.closest(alpha)
         cap = self._stop_cap(dq, ddq)

@@ -256,3 +256,29 @@ def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unkno
         step = lay.step(ScalingInputs(humans=person(-1.5, False)))
         assert step.sdot == held and step.safe_alpha > held and step.method.endswith("+unknown")
     assert lay.step(ScalingInputs(humans=person(-1.5, True))).sdot > held
+
+
+def test_on_a_start_ramp_the_joints_speed_is_held_not_only_alpha_while_a_velocity_near_it_is_unknown():
+    """The shuttle leaving from rest beside a person (0.9 m off along x, 0.5 m to its side); three periods into its
+    start ramp the person's velocity turns unknown: q'(s) still rises along the ramp, so a held alpha (the rule's
+    first form) let the joints speed up from 0.63 to 0.80 rad/s in five periods; the commanded joint speed is held
+    now, and rises again once the velocity is known."""
+    from evidence.scenarios import Q_GOAL, Q_START
+    from shared.core.trajectory import straight_line_trajectory
+    from shared.robot.model import default_robot
+    from shared.safety.parameters import SsmParameters
+    from shared.scaling.layer import ScalingInputs, ScalingLayer
+
+    robot = default_robot()
+    person = [HumanCapsules(np.array([[[-0.9, 0.5, 0.4], [-0.9, 0.5, 1.5]]]), np.array([0.2]), np.zeros((1, 2, 3)),
+                            np.array([known])) for known in (False, True)]
+    lay = ScalingLayer(robot, SsmParameters())
+    lay.set_trajectory(straight_line_trajectory(Q_START, Q_GOAL, robot.limits.velocity, robot.limits.acceleration))
+    speeds = [float(np.abs(lay.step(ScalingInputs(humans=person[True])).qd_command).max()) for _ in range(3)]
+    assert speeds[0] < speeds[1] < speeds[2]                   # known: it speeds up along the ramp
+    for _ in range(30):
+        step = lay.step(ScalingInputs(humans=person[False]))
+        speeds.append(float(np.abs(step.qd_command).max()))
+        assert step.method.endswith("+unknown") and speeds[-1] <= speeds[-2] + 1e-12
+        assert step.safe_alpha > step.alpha                     # the SSM alone would let it speed up
+    assert float(np.abs(lay.step(ScalingInputs(humans=person[True])).qd_command).max()) > speeds[-1]
