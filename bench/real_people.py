@@ -108,8 +108,10 @@ def row(recording: str, placement: str, summary: dict) -> dict:
             "unchecked": check.get("unchecked"),
             "dropouts": tracker.get("dropouts"),
             "velocity_unknown": [tracker.get("velocity_unknown_share"), tracker.get("velocity_unknown_longest_ms")],
-            # the judge's speed-ups within T_r, and of them those towards a capsule whose velocity was unknown
-            "speedups": [independent.get("speedups"), independent.get("speedups_unknown")],
+            # the judge's speed-ups within T_r, of them those towards a capsule whose velocity was unknown, and of
+            # those the ones a command made (the rest: the drives following commands made before the person state)
+            "speedups": [independent.get("speedups"), independent.get("speedups_unknown"),
+                         independent.get("speedups_unknown_commanded")],
             "drive_lag_p99_ms": max(lags) if lags else None,
             "events": summary.get("events") or [],
             # the machine's own stalls (tools.stalls: how many beyond 10 ms, the longest), and the events after one
@@ -210,7 +212,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     header = ["recording", "placement", "shuttles/min", "with the last leg's part", "stopped", "stale data",
               "violations (monitor / recount / independent)",
-              "unchecked", "dropouts", "velocity unknown (share, longest ms)", "speed-ups (all, velocity unknown)",
+              "unchecked", "dropouts", "velocity unknown (share, longest ms)",
+              "speed-ups (all, velocity unknown, of those a command's)",
               "drive lag p99 ms",
               "machine stalls > 10 ms (count, longest ms)", "scaler silences (count, longest ms, joint states in it)",
               "events (machine: during or just after a stall)"]

@@ -168,6 +168,7 @@ def monitor_summary(rec: Recording, series: dict[str, np.ndarray], violations: i
             "independent": {"violations": judged.violations, "exceedances": judged.exceedances,
                             "unchecked": judged.unchecked, "states": judged.states, "speedups": judged.speedups,
                             "speedups_unknown": judged.speedups_unknown,
+                            "speedups_unknown_commanded": judged.speedups_unknown_commanded,
                             "speedup_at_s": [round(t - rec.t0, 3) for t in judged.speedup_stamps]},
             "disagrees": None if violations is None else len({violations, recount, judged.violations}) > 1}
 
@@ -350,7 +351,8 @@ def analyse(robot: RobotModel, config: CellConfig, rec: Recording) -> tuple[dict
                                        and e.event == "stale_command" and e.value is not None],
                                       np.array([c.stamp for c in rec.commands]), rec.t0)},
         "monitor_check": monitor_summary(rec, series, violations,
-                                         recount(robot, config, rec.joint_states, rec.human_states)),
+                                         recount(robot, config, rec.joint_states, rec.human_states,
+                                                 commands=rec.commands)),
         "tracker": tracker,
         "human_acceleration_m_s2": config.ssm.human_acceleration,
         "exceedances_after_reaction_time": int(np.count_nonzero(series["late_excess"] > 0)),

@@ -203,11 +203,12 @@ def test_the_independent_recount_counts_a_robot_that_does_not_brake_and_agrees_w
 def test_the_independent_recount_says_which_speed_ups_went_towards_a_velocity_it_did_not_know():
     """The link of the test above speeding up within T_r of its first exceedance (1.0 to 1.4 rad/s about the
     base): speed-ups, each at its joint state's stamp; towards the person whose velocity the tracker did not know,
-    all of them are counted as such, towards the same person with a known velocity none."""
+    all of them are counted as such, towards the same person with a known velocity none; and with the commands,
+    those a command made (the cell, knowing the velocity unknown, sped up), not the drives' lag."""
     from shared.config import CellConfig
     from shared.robot.model import default_robot
     from shared.wire.convert import humans_to_msg
-    from shared.wire.messages import JointState
+    from shared.wire.messages import JointCommand, JointState
     from tools.judge import recount
 
     robot, config = default_robot(), CellConfig()
@@ -226,6 +227,17 @@ def test_the_independent_recount_says_which_speed_ups_went_towards_a_velocity_it
         # newest and the one before it), the second pair's episode a state later
         assert judged.speedup_stamps[0] == pytest.approx(0.01)
         assert max(judged.speedup_stamps) <= config.ssm.reaction_time + 0.01 + 1e-9
+        assert judged.speedups_unknown_commanded is None                      # no commands: unchecked, not 0
+        # with the scaler's commands, each computed from the newest person state 1 ms before its joint state: the
+        # commands slowing (the joints a period behind them, still speeding up: the drives' lag) made none of them;
+        # the commands speeding up made every one towards the unknown velocity
+        for step, made in ((-0.05, 0), (0.1, judged.speedups_unknown)):
+            commands = [JointCommand(q=q, qd=np.array([1.4 + step * k, 0, 0, 0, 0, 0]), trajectory_version=1, s=0.0,
+                                     human_sample_stamp=0.01 * k - 0.002, human_wait=0.0, stamp=0.01 * k - 0.001)
+                        for k in range(10)]
+            with_commands = recount(robot, config, joints, people, tolerance=1e-3, commands=commands)
+            assert with_commands.speedups_unknown == judged.speedups_unknown
+            assert with_commands.speedups_unknown_commanded == made
 
 
 def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unknown():
