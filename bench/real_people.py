@@ -156,8 +156,9 @@ def _total(values) -> int | None:
 
 
 def means(rows: list[dict]) -> dict:
-    """Per placement: the mean shuttles per minute, the violations summed per counter, the unchecked states, and
-    the recordings whose robot completed no shuttle."""
+    """Per placement: the mean shuttles per minute, the violations summed per counter, the unchecked states, the
+    judge's speed-ups summed per count (all, towards an unknown velocity, of those a command's), and the recordings
+    whose robot completed no shuttle."""
     out = {}
     for placement in dict.fromkeys(r["placement"] for r in rows):
         mine = [r for r in rows if r["placement"] == placement and r["error"] is None]
@@ -169,6 +170,7 @@ def means(rows: list[dict]) -> dict:
             "progress_per_min": round(sum(parts) / len(parts), 2) if parts else None,
             "violations": [_total(r["violations"][k] for r in mine) for k in range(3)],
             "unchecked": _total(r["unchecked"] for r in mine),
+            "speedups": [_total(r["speedups"][k] for r in mine) for k in range(3)],
             "held": [r["recording"] for r in mine if not r["shuttles_per_min"]]}
     return out
 
@@ -246,6 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{placement}: {m['shuttles_per_min']} shuttles/min ({_cell(m['progress_per_min'])} with the last "
               f"leg's part) over {m['runs']} runs ({m['failed']} failed), "
               f"violations {_cell(m['violations'])}, unchecked {_cell(m['unchecked'])}, "
+              f"speed-ups {', '.join(_cell(v) for v in m['speedups'])} (all, velocity unknown, a command's), "
               f"no shuttle done: {', '.join(m['held']) or 'none'}")
     print(f"reports in {out}")
     print(json.dumps({"rows": rows, "means": summary, "sim": args.sim, "paper_formula": args.paper_formula,

@@ -95,6 +95,20 @@ def test_a_run_without_a_summary_is_a_row_with_its_error_and_the_table_goes_on()
     assert means["step_back"]["runs"] == 1 and means["step_back"]["failed"] == 1
     assert means["step_back"]["shuttles_per_min"] == 10.0 and means["step_back"]["violations"] == [0, None, None]
     assert row["progress_per_min"] is None and means["step_back"]["progress_per_min"] is None    # none measured
+    assert means["step_back"]["speedups"] == [None, None, None]                                  # nor these
+
+
+def test_the_speed_ups_are_summed_per_placement_by_each_count():
+    """The judge's speed-ups (all, towards an unknown velocity, of those a command's) summed over a placement's runs;
+    a count no run measured stays None (unchecked), never 0."""
+    bench = load_bench("real_people")
+    check = {"monitor_check": {"independent": {"speedups": 3, "speedups_unknown": 3, "speedups_unknown_commanded": 0}}}
+    older = {"monitor_check": {"independent": {"speedups": 2, "speedups_unknown": 1}}}        # before the commands
+    rows = [bench.row("a", "table_edge", {"shuttles_per_min": 8.0, **check}),
+            bench.row("b", "table_edge", {"shuttles_per_min": 9.0, **older})]
+    assert rows[0]["speedups"] == [3, 3, 0] and rows[1]["speedups"] == [2, 1, None]
+    assert bench.means(rows)["table_edge"]["speedups"] == [5, 4, 0]
+    assert bench.means(rows[1:])["table_edge"]["speedups"] == [2, 1, None]
 
 
 def test_a_row_says_the_machines_stalls_and_the_events_after_them():
