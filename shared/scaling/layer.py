@@ -475,7 +475,8 @@ class ScalingLayer:
                 if lowered:          # and where a stop from it leads: the SSM's bound too
                     method += "+lookahead"
                     safe_alpha = min(safe_alpha, alpha)
-            if rows.ssm is not None and alpha > 0.0:
+            # (the path sampled ahead only where some velocity is unknown: not every cycle with people in view)
+            if rows.ssm is not None and alpha > 0.0 and not humans.velocity_known.all():
                 kept = self._speed_kept(traj, dq)
                 if alpha > kept and unknown_within_reach(rows.ssm, humans.velocity_known):
                     alpha, method = kept, method + "+unknown"
