@@ -91,10 +91,14 @@ def clairvoyant_report(got: list[dict], kinds: list[str], args) -> dict:
         room = totals[max(SEARCHES)] - beside["scale_only"]
         share = {name: round((beside[name] - beside["scale_only"]) / room, 3) if room > 1e-9 else None
                  for name in names[1:]}
+        base = beside["scale_only"]          # the goals are ratios over scale_only: each, and the bound, so
+        ratio = {name: round(beside[name] / base, 4) if base > 1e-9 else None for name in names[1:]}
+        ratio["bound"] = round(totals[max(SEARCHES)] / base, 4) if base > 1e-9 else None
         used = Counter(SHAPES[k].name for r in rows for k in r["bound"][max(SEARCHES)][1])
         runs = [r["runs"] for r in rows]
         out["kinds"][kind] = {"bound": {str(k): round(v, 3) for k, v in totals.items()}, "fell_in": falls,
                               "beside": {k: round(v, 3) for k, v in beside.items()}, "share_of_room": share,
+                              "over_scale_only": ratio,
                               "shapes_used": dict(used.most_common()), "runs_median": float(sorted(runs)[len(runs) // 2])}
         print(f"{kind:<12} shuttles over {len(rows)} scenarios: scale_only {beside['scale_only']:.2f}, fixed_path "
               f"{beside['fixed_path']:.2f}, full {beside['full']:.2f}, foresight {beside['foresight']:.2f}; the bound at "
@@ -103,6 +107,7 @@ def clairvoyant_report(got: list[dict], kinds: list[str], args) -> dict:
               f"{share['fixed_path']}, full {share['full']}, foresight {share['foresight']} (above 1: beyond the bound, "
               f"by replanning within a leg); runs per scenario (median) "
               f"{out['kinds'][kind]['runs_median']:.0f}", flush=True)
+        print(f"{'':<12} over scale_only: " + ", ".join(f"{n} {v}" for n, v in ratio.items()), flush=True)
         print(f"{'':<12} the bound's legs: " + ", ".join(f"{n} {c}" for n, c in used.most_common()), flush=True)
         if args.greedy:
             print(f"{'':<12} the clairvoyant chooser one leg ahead: {beside['greedy']:.2f}, {share['greedy']} of the "

@@ -29,3 +29,18 @@ def test_bad_arguments_are_refused_with_exit_2(monkeypatch, name, args):
     with pytest.raises(SystemExit) as stop:
         bench.main()
     assert stop.value.code == 2
+
+
+def test_the_clairvoyant_report_gives_each_strategy_and_the_bound_over_scale_only():
+    """The issue's goals are ratios over scale_only: the report prints them beside the shares of the bound's room."""
+    from argparse import Namespace
+
+    from evidence.clairvoyant import SEARCHES
+    bench = load_bench("bound_search")
+    rows = [{"kind": "two_humans", "seed": s, "runs": 10,
+             "beside": {"scale_only": 4.0, "fixed_path": 4.2, "full": 4.4, "foresight": 4.6},
+             "bound": {size: (4.8 if size == max(SEARCHES) else 4.5, (0, 1)) for size in SEARCHES}} for s in (1, 2)]
+    out = bench.clairvoyant_report(rows, ["two_humans"], Namespace(paper=False, seeds=2, duration=12.0, greedy=False))
+    kind = out["kinds"]["two_humans"]
+    assert kind["over_scale_only"] == {"fixed_path": 1.05, "full": 1.1, "foresight": 1.15, "bound": 1.2}
+    assert kind["share_of_room"]["full"] == 0.5        # (8.8 - 8) / (9.6 - 8)
