@@ -17,7 +17,7 @@ from pathlib import Path
 import zenoh
 
 from shared.core.errors import MessageError
-from shared.scheduling import name_callback_thread, name_os_thread, realtime
+from shared.scheduling import name_callback_thread, name_os_thread, realtime, thaw_heap
 from shared.transport.pki import TlsIdentity
 from shared.transport.zenoh_session import open_session
 from shared.wire.keys import KeySpace
@@ -258,4 +258,5 @@ def serve(shell: ServiceShell, ready: str, loop, on_stop=None) -> int:
         code = loop(stop)
     finally:
         shell.close()
+        thaw_heap()
     return code or 0

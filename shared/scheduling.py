@@ -126,6 +126,16 @@ def watch_collections() -> None:
         gc.callbacks.append(_on_collection)
 
 
+def thaw_heap() -> None:
+    """Undo ``freeze_heap`` once a service has stopped: its objects collectable again, so that what it built is
+    freed at exit (frozen, the planner's OMPL objects outlived the interpreter's last collection and OMPL's
+    bindings reported them leaked in every run's planner.log), and the collections no longer watched (the exit's
+    one walks the whole heap, holding nothing up)."""
+    gc.unfreeze()
+    if _on_collection in gc.callbacks:
+        gc.callbacks.remove(_on_collection)
+
+
 def _threads() -> list[int]:
     """The native ids of every thread of this process (Linux: /proc/self/task); [0] (the caller) elsewhere."""
     try:
