@@ -261,3 +261,15 @@ def test_a_command_that_came_a_sync_late_is_logged_with_how_late(drives, caplog)
     (said,) = late(time.monotonic() - 0.040)
     assert said.startswith("a command came 4") and said.endswith(" ms after the scaler sent it")
     assert late(time.monotonic()) == [] and late(0.0) == []
+
+
+def test_a_stopped_driver_publishes_nothing_while_the_drives_still_answer(drives):
+    """The SYNC cycle ends, the shell's session closes next: the drives' late answers must not be published into it
+    (from the CAN thread it raised, and canopen logged 'ERROR session closed' at most stops of the cell)."""
+    master, _ = drives
+    shell, driver, answered = enabled_driver(master)
+    before = len(shell.published(shell.keys.joint_state, JointState))
+    driver.stop_publishing()
+    hold(shell, driver, answered, Q_START, 5)               # the drives answer five SYNCs more
+    assert len(shell.published(shell.keys.joint_state, JointState)) == before
+    assert driver.publishing is False
