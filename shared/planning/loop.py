@@ -80,6 +80,7 @@ class PlanningOutcome:
 
 IDLE_LONGEST = 0.2     # s: the longest the planner's loop waits between turns when nothing is asked of it
 PREPARE_AHEAD = 0.5    # s of nominal time before the goal: the next leg's plan is prepared from then on
+PREPARE_BUDGET = 0.25  # s of wall clock the preparing may take (nothing waits on it: the robot is still on its way)
 APPROACH_SPEED = 2.0   # m/s: the ISO 13855 approach speed near the robot, the fastest a person comes
 
 
@@ -217,6 +218,7 @@ class PlanningLoop:
             return None
         self.prepared_for, self.prepared = key, None
         remembered = self.replanner.remembered
+        self.replanner.widen(PREPARE_BUDGET)     # its search costs every candidate, as the simulation's does
         try:
             plan = self.replanner.plan_goal(trajectory.positions[-1], inputs.then, inputs.humans, 0, inputs.waited,
                                             trusted=self._trusted(now))

@@ -91,6 +91,7 @@ class PathSearch:
         # a search stops at the earlier of this and its own time_budget (set by Replanner.begin)
         self.deadline: float | None = None
         self.spent = 0.0                 # s of wall clock searched since the action began
+        self.widened = False             # the action's deadline alone bounds a search (``ActionBudget.widen``)
 
     def free(self, waypoints: np.ndarray, humans: HumanCapsules | None, inflation: float = 0.0) -> bool:
         """Every segment collision-free (static scene and the people, the planner's margin + inflation)."""
@@ -230,7 +231,7 @@ class PathSearch:
         up to a tenth (docs/measurements.md, session 73)."""
         q_from, q_goal = np.asarray(q_from, dtype=float), np.asarray(q_goal, dtype=float)
         started = time.perf_counter()
-        budget = self.options.time_budget
+        budget = None if self.widened else self.options.time_budget
         stop_at = min(started + budget if budget is not None else np.inf,
                       self.deadline if self.deadline is not None else np.inf)
         try:

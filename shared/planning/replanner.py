@@ -126,6 +126,10 @@ class Replanner:
         """The action is done (``ActionBudget.end``)."""
         self.budget.end()
 
+    def widen(self, seconds: float) -> None:
+        """This action may take `seconds`, its searches too (``ActionBudget.widen``)."""
+        self.budget.widen(seconds)
+
     @property
     def finishing(self) -> float:
         """s: the recent wall time of an action's work besides its searches (``ActionBudget``)."""

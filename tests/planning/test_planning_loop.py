@@ -75,6 +75,9 @@ class RecordingReplanner:
     def end(self) -> None:
         self.open_actions -= 1
 
+    def widen(self, seconds: float) -> None:
+        pass
+
     def forget(self, leg_start=None) -> None:
         self.forgotten += 1
         self.leg_start = leg_start
@@ -328,6 +331,53 @@ def test_an_action_budget_stops_the_searches_in_time_for_the_rest_of_the_action(
     assert deadline < 0.0
     assert cut.costed < SearchOptions().candidates and budgeted.search.free(cut.waypoints, someone)
     assert 0.0 <= budgeted.finishing < 0.02        # learnt from what the rest took (at most the budget)
+
+
+def test_a_widened_action_searches_until_its_own_deadline_past_the_search_budget_and_only_that_action():
+    """The next leg's plan, prepared while the robot is on its way (nothing waits on it), may take PREPARE_BUDGET:
+    its search runs past the cell's per-search bound to the widened deadline, costing the candidates the
+    simulation's counted search costs; the next action has the budget again. No-op without a budget."""
+    segments, radii = body_segments(-1.0, 0.0, 1.0, np.array([-0.4, 0.0, 0.8]))   # reaching over the shuttle
+    someone = HumanCapsules.from_arrays(segments, radii, np.zeros(segments.shape), np.ones(len(radii), bool))
+    direct = np.vstack([Q_START, Q_GOAL])
+    replanner = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), PAPER_SSM,
+                          options=ReplanOptions(seed=5, search=SearchOptions(time_budget=0.001), action_budget=0.002))
+
+    def costed(widen: float | None) -> int:
+        replanner.begin()
+        if widen is not None:
+            replanner.widen(widen)
+        found = replanner.search.search(Q_START, Q_GOAL, someone, np.random.default_rng(1), stay=5.0, seeds=(direct,))
+        out_of_time = replanner.budget.out_of_time()
+        replanner.end()
+        assert not replanner.search.widened and replanner.search.deadline is None    # nothing outlives its action
+        return found.costed, out_of_time
+
+    cut, _ = costed(None)
+    whole, spent = costed(60.0)                    # a minute: the counts end the search, not the clock
+    assert cut < SearchOptions().candidates <= whole and not spent
+    again, _ = costed(None)
+    assert again < SearchOptions().candidates     # the next action is bounded again
+    unbudgeted = Replanner(COLLISION, JointPlanner(COLLISION, PlannerOptions(seed=5)), PAPER_SSM,
+                           options=ReplanOptions(seed=5))
+    unbudgeted.begin()
+    unbudgeted.widen(0.25)
+    assert unbudgeted.search.deadline is None and not unbudgeted.search.widened
+    unbudgeted.end()
+
+
+def test_the_loop_widens_the_budget_of_its_prepare_action_only(monkeypatch):
+    """The loop widens the action that prepares the next leg to PREPARE_BUDGET, and no other."""
+    import shared.planning.loop as module
+    someone = reaching_over_the_shuttle()
+    loop = PlanningLoop(fresh_replanner(), slow_period=None)
+    widened = []
+    monkeypatch.setattr(loop.replanner, "widen", lambda seconds: widened.append(seconds))
+    leg = dict(humans=someone, then=Q_START)
+    loop.step(0.0, inputs(**leg, following=(OLD, 0.3)))
+    assert widened == []                                          # a horizon check: not widened
+    prepared = loop.step(0.1, inputs(**leg, following=(OLD, OLD.duration - 0.3), human_sample=1))
+    assert prepared.action == "prepare" and widened == [module.PREPARE_BUDGET]
 
 
 def test_the_learnt_finishing_time_rises_at_once_and_falls_slowly(monkeypatch):
