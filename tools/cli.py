@@ -83,7 +83,7 @@ def _demo_processes(args: argparse.Namespace) -> int:
         if server is not None:
             server.stop()
     from tools import silences, stalls
-    from tools.report import reaction_said, stale_said
+    from tools.report import plain_json, reaction_said, stale_said
 
     for line in (stalls.said(summary.get("machine") or {}), silences.said(summary.get("scaler_silences") or {}),
                  stale_said(summary.get("tracker") or {}), reaction_said(summary)):
@@ -92,7 +92,8 @@ def _demo_processes(args: argparse.Namespace) -> int:
     accepted = sum(1 for e in summary["replans"] if e["ok"])
     print(json.dumps({k: v for k, v in summary.items() if k not in ("replan_stall_ms", "replans")}
                      | {"replans_accepted": accepted, "replans_refused": len(summary["replans"]) - accepted,
-                        "replan_stall_ms": {k: summary["replan_stall_ms"][k] for k in ("median", "max", "goal_blocked")}}))
+                        "replan_stall_ms": {k: summary["replan_stall_ms"][k] for k in ("median", "max", "goal_blocked")}},
+                     default=plain_json))
     print(f"hrc demo: report in {args.out}/ (summary.json, trace.csv, figures: {', '.join(summary['figures'])})")
     if summary["violations"] is None:
         print("hrc demo: error: no summary from the safety monitor", file=sys.stderr)

@@ -93,7 +93,8 @@ class CommandRises:
             return False                       # no command was computed from it yet
         first = int(self.marked_index[k])
         last = int(np.searchsorted(self.stamps, until, side="right"))      # commands [first, last)
-        return last > first and self.rises[last] - self.rises[first] > 0
+        return bool(last > first and self.rises[last] - self.rises[first] > 0)     # (numpy's bool made the count
+        # numpy's int, and the report's JSON failed: the run's summary lost where a command had sped up)
 
 
 def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState], human_states: list[HumanState],

@@ -548,5 +548,16 @@ def write_report(out: Path, robot: RobotModel, config: CellConfig, rec: Recordin
                     + rec.statuses + rec.trajectories, rec.t0)
     summary["recording"] = "recording.rrd"
     summary["ros2_bag"] = write_bag(out, robot, config, rec)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=plain_json) + "\n")
     return summary
+
+
+def plain_json(value):
+    """json's `default` for the summary: numpy's numbers and arrays as Python's (a count that became numpy's int once
+    failed the report's JSON, and the run's summary was lost where the judge had found a command's speed-up);
+    anything else still refused."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")

@@ -91,3 +91,18 @@ def test_hrc_status_says_the_peoples_track_rate_and_way_from_capture():
     assert "rate not yet measured" in people_said(humans_to_msg(PERSON, True, 100.0, stamp=100.0))
     assert "not valid" in people_said(humans_to_msg(HumanCapsules.empty(), False, 100.0, stamp=100.0))
     assert people_said(None) == "no human state"
+
+
+def test_the_summary_writes_numpy_numbers_as_plain_ones_and_still_refuses_anything_else():
+    """A count that became numpy's int once failed the report's JSON and lost the run's summary.json."""
+    import json
+
+    import numpy as np
+    import pytest
+
+    from tools.report import plain_json
+    text = json.dumps({"count": np.int64(3), "flag": np.bool_(True), "lag": np.float64(0.5), "p": np.arange(2)},
+                      default=plain_json)
+    assert json.loads(text) == {"count": 3, "flag": True, "lag": 0.5, "p": [0, 1]}
+    with pytest.raises(TypeError, match="object is not JSON serializable"):
+        json.dumps({"what": object()}, default=plain_json)

@@ -3,6 +3,9 @@ tracker at a camera's rate, short person states counted by the monitor, and no s
 whose velocity is unknown."""
 
 
+import dataclasses
+import json
+
 import numpy as np
 import pytest
 
@@ -238,6 +241,9 @@ def test_the_independent_recount_says_which_speed_ups_went_towards_a_velocity_it
             with_commands = recount(robot, config, joints, people, tolerance=1e-3, commands=commands)
             assert with_commands.speedups_unknown == judged.speedups_unknown
             assert with_commands.speedups_unknown_commanded == made
+            # plain numbers, as the report writes them to JSON (numpy's once lost a run's summary.json)
+            assert type(with_commands.speedups_unknown_commanded) is int
+            json.dumps(dataclasses.asdict(with_commands))
 
 
 def test_in_the_loop_the_robot_holds_its_speed_while_a_velocity_near_it_is_unknown():
