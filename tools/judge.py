@@ -93,8 +93,9 @@ class CommandRises:
             return False                       # no command was computed from it yet
         first = int(self.marked_index[k])
         last = int(np.searchsorted(self.stamps, until, side="right"))      # commands [first, last)
-        return bool(last > first and self.rises[last] - self.rises[first] > 0)     # (numpy's bool made the count
-        # numpy's int, and the report's JSON failed: the run's summary lost where a command had sped up)
+        # a plain bool: numpy's made the count numpy's int, which the report's JSON refused, and the run's summary was
+        # lost wherever the judge found a speed-up towards an unknown velocity
+        return bool(last > first and self.rises[last] - self.rises[first] > 0)
 
 
 def recount(robot: RobotModel, config: CellConfig, joint_states: list[JointState], human_states: list[HumanState],

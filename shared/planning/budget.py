@@ -43,9 +43,9 @@ class ActionBudget:
     def widen(self, seconds: float) -> None:
         """This action may take `seconds` from its start, its searches too, past their own time_budget: for an action
         nothing waits on, the next leg's plan prepared while the robot is still on its way (``PlanningLoop``). Within
-        the cell's 0.1 s a search of the people at a table's edge costed 146 of the 241 candidates it costs
+        the cell's 80 ms a search of the people at a table's edge costed 146 of the 241 candidates it costs
         unbounded (125 ms on this 2-core VM, idle), and the prepared leg was more often the fold than the simulation's,
-        which charges every search the cell's budget whatever it costed. No-op without an action budget (the
+        which charges every search the cell's 80 ms whatever it costed. No-op without an action budget (the
         simulation's searches are bounded by their counts)."""
         if self._began is None:
             return
