@@ -20,10 +20,10 @@ import numpy as np
 
 from evidence.scenarios import Q_GOAL, Q_START
 from shared.core.errors import MessageError
-from shared.core.humans import HumanCapsules
+from shared.core.humans import HumanCapsules, standing
 from shared.robot.poses import leg_fraction
 from shared.safety.latency import DelayHistogram
-from shared.tracking.tracker import OLDEST_SAMPLE
+from shared.tracking.tracker import OLDEST_SAMPLE, TrackerParameters
 from shared.wire.convert import humans_to_msg
 from shared.wire.keys import KeySpace
 from shared.wire.messages import (
@@ -160,6 +160,20 @@ def schedule_of(human, rate: float | None = None, until: float | None = None) ->
     return FeedSchedule(getattr(human, "rate", None) or HUMAN_RATE, getattr(human, "times", None), until)
 
 
+# samples of a scripted run's first moment the feed sends before its start (``HumanFeed``'s lead_in, one sample
+# interval apart): the people as they stand at the start, seen by the tracker before the robot's first goal, as a
+# cell's tracker has seen them long before it (the velocity fit's min_samples: their velocity is known at t0, as the
+# simulation of a script knows it). Without it `hrc demo` began with the person's velocity unknown for the fit's
+# first samples, and the planning layer took its first leg for a person who may be moving (the fold, 2.50 s nominal,
+# where the simulation took the line, 2.45 s).
+LEAD_IN = TrackerParameters().min_samples
+
+
+def lead_in_time(rate: float, samples: int = LEAD_IN) -> float:
+    """How long (s) before a run's start a feed at `rate` (Hz) begins its lead-in."""
+    return samples / rate
+
+
 class HumanFeed(threading.Thread):
     """Publishes a scripted or recorded human (anything with ``at(t) -> HumanCapsules | None``; None: the
     tracker sees nobody, nothing is sent) as raw tracker data, time measured from t0, the way a tracker
@@ -174,15 +188,19 @@ class HumanFeed(threading.Thread):
     the cell counts it in the data's age (``shared.tracking.tracker.capture_stamp``).
 
     tracked=True stands in for the tracker instead (a cell without tracker_ingest): each sample goes out as a
-    valid HumanState with the capsules' own velocities, on the key the scaler reads."""
+    valid HumanState with the capsules' own velocities, on the key the scaler reads. lead_in: samples of the motion's
+    first moment sent before t0, one interval apart, stamped then (``LEAD_IN``), where the people stand at the start
+    (``standing``: every velocity known and below a walk); a lead-in sample the feed is late for by an interval is
+    not sent. Sample k goes out with seq k + lead_in."""
 
     def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo",
                  rate: float | None = None, tracked: bool = False, speed: float = 1.0,
-                 until: float | None = None, latency: float = 0.0) -> None:
+                 until: float | None = None, latency: float = 0.0, lead_in: int = 0) -> None:
         super().__init__(daemon=True, name="human-feed")
         if not 0.0 <= latency <= OLDEST_SAMPLE:
             raise ValueError(f"latency: from 0 to {OLDEST_SAMPLE} s (a sample older than that is stale), got {latency}")
         self.latency = float(latency)
+        self.lead_in = int(lead_in)
         self.tracked = tracked
         self.pub = session.declare_publisher(keys.human_state if tracked else keys.human_raw)
         self.human, self.t0, self.source, self.running = human, t0, source, True
@@ -214,6 +232,7 @@ class HumanFeed(threading.Thread):
                 "latency_ms": round(1e3 * self.latency, 1), **self.lateness_figures()}
 
     def run(self) -> None:
+        self._lead()
         schedule, k = self.schedule, 0
         while self.running and not schedule.done(k):
             due = self.t0 + schedule.offset(k) / self.speed          # its capture; it goes out `latency` later
@@ -232,6 +251,21 @@ class HumanFeed(threading.Thread):
             k += 1
         self.finished = schedule.done(k)
 
+    def _lead(self) -> None:
+        """The lead-in: the motion's first moment, `lead_in` intervals before t0 on, each on time or not at all; only
+        where the people stand at the start, so that they stood there before it is what the motion itself says (a
+        walker's, or a recording's first frame, whose velocity nothing gives: none, the track starts at t0)."""
+        first = self.human.at(0.0) if self.lead_in > 0 else None
+        if first is None or not standing(first):
+            return
+        for i in range(self.lead_in, 0, -1):
+            due = self.t0 - i / self.rate
+            time.sleep(max(0.0, due + self.latency - time.monotonic()))
+            if not self.running:
+                return
+            if time.monotonic() - due - self.latency < 1.0 / self.rate:
+                self._send(-i, due, first)
+
     def _send(self, k: int, due: float, caps: HumanCapsules | None) -> None:
         """Sample k, due at `due` (monotonic s), as the fault in force makes it (nothing when silent or nobody)."""
         fault = self.fault
@@ -241,11 +275,11 @@ class HumanFeed(threading.Thread):
         segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
         if self.tracked:
             shown = HumanCapsules(segments, caps.radii, caps.velocities, caps.velocity_known)
-            payload = encode(humans_to_msg(shown, True, due, seq=k, stamp=time.monotonic(),
+            payload = encode(humans_to_msg(shown, True, due, seq=k + self.lead_in, stamp=time.monotonic(),
                                            sample_interval=1.0 / self.rate))
         else:
             payload = encode(HumanRaw(source=self.source, sample_time=due, segments=segments, radii=caps.radii,
-                                      seq=k, stamp=time.monotonic()))
+                                      seq=k + self.lead_in, stamp=time.monotonic()))
         self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)
         self.last_sent = time.monotonic()
         self.sent += 1

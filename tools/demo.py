@@ -30,7 +30,7 @@ from shared.tracking.motion import RecordedMotion
 from shared.transport.zenoh_session import open_session
 from shared.wire.keys import KeySpace
 from shared.wire.messages import JointState, ScalerStatus
-from tools.actors import Recorder, Shuttle
+from tools.actors import Recorder, Shuttle, lead_in_time, schedule_of
 from tools.cell import choose_bus
 from tools.feed import READY
 from tools.launch import CellProcesses, LaunchError, free_port
@@ -40,6 +40,7 @@ from tools.stalls import READY as WITNESS_READY
 from tools.stalls import in_run
 
 PREFIX = "hrc/demo"
+START_MARGIN = 0.02   # s: the feed's first lead-in sample is due this long after it is told the start
 
 
 def reexec_in_namespace(argv: list[str], pass_fds: tuple[int, ...] = ()) -> int | None:
@@ -134,7 +135,8 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
             f"{' (no beta replans)' if no_beta else ''}")
         recorder = Recorder(session, keys, rec)
         rec.phase = human.phase
-        rec.t0 = time.monotonic()
+        # the run starts once the feed's lead-in has shown the tracker the people as they stand at the start
+        rec.t0 = time.monotonic() + lead_in_time(schedule_of(human).rate) + START_MARGIN
         if view_fd is not None:
             from tools.view import CellLogger, pipe_stream
 
@@ -145,6 +147,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
         except OSError:                                  # it ended after saying it was ready
             raise LaunchError(f"the person feed ended before its start (exit {feed.poll()}); "
                               f"see {out / 'logs' / 'human_feed.log'}") from None
+        time.sleep(max(0.0, rec.t0 - time.monotonic()))   # the first goal at the start, not in the lead-in
         _direct(session, keys, recorder, rec, duration, say)
         # the monitor's last summary (once a second), the person still tracked: a feed stopped first would end
         # every run with a tracker dropout, a stopped robot and a second of states the monitor cannot check

@@ -7,9 +7,11 @@ tracker_ingest declared a dropout with the person in view. Here the same ``Human
 
 The protocol with the parent (``tools.demo.start_feed``): the child opens its Zenoh session, waits until
 tracker_ingest is reachable, prints READY, and reads one line from stdin: the monotonic time t0 (s; one
-clock for every process of the machine) the motion starts at. It then publishes until SIGTERM (or stdin
-closed before a start), and writes ``{"rate_hz", "skipped", "sent", "late_ms_p99", "late_ms_max"}`` as JSON to
---stats on the way out.
+clock for every process of the machine) the motion starts at. Where the people stand at the start it sends
+that first moment for ``LEAD_IN`` sample intervals before t0 (``tools.actors``: the tracker has seen them before
+the run, as in a cell; the parent gives a t0 at least ``lead_in_time`` ahead), then the motion from t0, until
+SIGTERM (or stdin closed before a start), and writes ``{"rate_hz", "skipped", "sent", "late_ms_p99",
+"late_ms_max"}`` as JSON to --stats on the way out.
 
 It runs in SCHED_FIFO below the safety chain (``shared.scheduling.PRIORITY``), as the emulated drives do: it
 stands for hardware outside the machine. In the normal class a busy planner, monitor and recorder held it off
@@ -51,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     from shared.tracking.motion import RecordedMotion
     from shared.transport.zenoh_session import await_liveliness, open_session
     from shared.wire.keys import KeySpace
-    from tools.actors import HumanFeed
+    from tools.actors import LEAD_IN, HumanFeed
     from tools.launch import free_port
 
     try:
@@ -65,20 +67,22 @@ def main(argv: list[str] | None = None) -> int:
         if not await_liveliness(session, keys.alive("tracker_ingest"), 30.0):
             print("human_feed: error: tracker_ingest is not reachable", file=sys.stderr)
             return 1
+        # everything that takes time before READY: the first sample is due at the t0 the parent sends, and
+        # realtime()'s full collection alone took 60-70 ms (the cell stood without a person for that long)
+        feed = HumanFeed(session, keys, human, 0.0, source=args.source, latency=args.latency, lead_in=LEAD_IN)
+        signal.signal(signal.SIGTERM, lambda *_: setattr(feed, "running", False))
+        human.at(0.0)                                 # its first evaluation before SCHED_FIFO, not under it
+        scheduling = realtime("human_feed")
         print(READY, flush=True)
         line = sys.stdin.readline()
         if not line.strip():                          # the parent went away before the start
             return 0
         try:
-            t0 = float(line)
+            feed.t0 = float(line)
         except ValueError:
             print(f"human_feed: error: the start must be a monotonic time in s, not {line.strip()[:40]!r}",
                   file=sys.stderr)
             return 2
-        feed = HumanFeed(session, keys, human, t0, source=args.source, latency=args.latency)
-        signal.signal(signal.SIGTERM, lambda *_: setattr(feed, "running", False))
-        human.at(0.0)                                 # its first evaluation before SCHED_FIFO, not under it
-        scheduling = realtime("human_feed")
         print(f"human_feed: sending at {feed.rate:.1f} Hz, {scheduling}", flush=True)
         feed.run()                                    # this thread, until SIGTERM
         args.stats.write_text(json.dumps(feed.figures()))

@@ -1,6 +1,7 @@
 """The demo's person feed as a process of its own (tools.feed): it waits for tracker_ingest, starts at the t0 it
-is given, sends the motion at its rate with each sample stamped with the moment it shows, and on SIGTERM stops
-and writes its figures; a bad motion file is a clear error and nothing is sent."""
+is given, the scripted person as they stand at the start shown for its lead-in before it, sends the motion at its
+rate with each sample stamped with the moment it shows, and on SIGTERM stops and writes its figures; a bad motion
+file is a clear error and nothing is sent."""
 
 import json
 import subprocess
@@ -12,6 +13,7 @@ from shared.transport.zenoh_session import open_session
 from shared.wire.keys import KeySpace
 from shared.wire.messages import HumanRaw, decode
 from tests.util import ROOT, free_port
+from tools.actors import LEAD_IN, lead_in_time
 from tools.feed import READY
 
 KEYS = KeySpace("t/feed")
@@ -34,7 +36,7 @@ def test_sends_the_motion_from_t0_and_reports_what_it_sent(tmp_path):
         assert proc.stdout.readline().strip() == READY
         time.sleep(0.3)
         assert not samples                                           # nothing before its start
-        t0 = time.monotonic()
+        t0 = time.monotonic() + lead_in_time(120.0) + 0.05       # a start ahead of the lead-in, as hrc demo gives
         proc.stdin.write(f"{t0!r}\n")
         proc.stdin.close()
         said = proc.stdout.readline()
@@ -52,11 +54,18 @@ def test_sends_the_motion_from_t0_and_reports_what_it_sent(tmp_path):
     stats = json.loads((tmp_path / "stats.json").read_text())
     assert stats["rate_hz"] == 120.0 and stats["sent"] >= len(samples) > 100
     assert 0.0 <= stats["late_ms_p99"] <= stats["late_ms_max"] + 0.1        # how late it woke, said
+    human = paper_phases(2.0)
+    lead = [s for s in samples if s.sample_time < t0]            # the person standing at the start, seen before it
+    assert 1 <= len(lead) <= LEAD_IN, [s.sample_time - t0 for s in lead]
+    for s in lead:
+        before = (t0 - s.sample_time) * 120
+        assert abs(before - round(before)) < 1e-6 and 1 <= round(before) <= LEAD_IN
+        assert (s.segments == human.at(0.0).segments).all()
+    samples = samples[len(lead):]
     times = [s.sample_time - t0 for s in samples]
     assert times == sorted(times) and 0.0 <= times[0] < 0.05
     frames = [(b - a) * 120 for a, b in zip(times, times[1:])]
     assert all(abs(f - round(f)) < 1e-6 and f > 0.5 for f in frames)      # whole frames, each once, skipped or not
-    human = paper_phases(2.0)
     expected = human.at(times[50])
     assert (samples[50].segments == expected.segments).all()          # the script's person at that moment
 

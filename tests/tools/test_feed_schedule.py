@@ -11,7 +11,7 @@ from shared.core.humans import HumanCapsules
 from shared.tracking.motion import RecordedMotion, parse_csv
 from shared.wire.keys import KeySpace
 from shared.wire.messages import decode
-from tools.actors import FeedSchedule, HumanFeed, MovingCapsule, schedule_of
+from tools.actors import LEAD_IN, FeedSchedule, HumanFeed, MovingCapsule, lead_in_time, schedule_of
 
 
 class _Publisher:
@@ -80,6 +80,29 @@ def test_a_replay_sends_each_frame_once_at_its_time_and_nothing_in_a_dropout():
     assert [float(m.segments[0, 0, 1]) for _, m in sent] == pytest.approx([0.0, 0.05, 0.08, 0.25])
     for at, message in sent:                                  # each went out when it was due, not before
         assert at >= message.sample_time - 1e-6
+
+
+def test_a_person_standing_at_the_start_is_shown_for_the_lead_in_before_it_and_a_walker_or_a_recording_is_not():
+    """The lead-in (hrc demo's feed): where the people stand at t0, their first moment LEAD_IN intervals before it,
+    stamped then, so the tracker knows their velocity at t0; a walker at t0, or a recording's first frame (whose
+    velocity nothing gives), gets none: the track starts at t0, as the simulation of a recording starts it."""
+    rate = 20.0                            # 50 ms apart: on time on a loaded machine too
+    standing = MovingCapsule([-1.5, 0.0, 0.9], [-1.5, 0.0, 1.4], 0.2, [0.0, 0.0, 0.0])
+    session = _Session()
+    t0 = time.monotonic() + lead_in_time(rate) + 0.02
+    feed = HumanFeed(session, KeySpace("t/feed"), standing, t0, rate=rate, until=0.1, lead_in=LEAD_IN)
+    feed.run()
+    sent = [m for _, m in session.publisher.sent]
+    lead = [m for m in sent if m.sample_time < t0]
+    assert [round((m.sample_time - t0) * rate) for m in lead] == list(range(-LEAD_IN, 0))      # none skipped here
+    assert all((m.segments == standing.at(0.0).segments).all() for m in lead)
+    assert [m.seq for m in sent] == list(range(len(sent))) and sent[len(lead)].sample_time == t0
+    walker = MovingCapsule([-1.5, 0.0, 0.9], [-1.5, 0.0, 1.4], 0.2, [0.5, 0.0, 0.0])
+    for person in (walker, _motion([0.0, 0.05, 0.1])):
+        session = _Session()
+        t0 = time.monotonic() + lead_in_time(rate) + 0.02
+        HumanFeed(session, KeySpace("t/feed"), person, t0, rate=rate, until=0.1, lead_in=LEAD_IN).run()
+        assert min(m.sample_time for _, m in session.publisher.sent) == t0
 
 
 def test_a_late_feed_skips_to_the_newest_sample_instead_of_a_burst():
