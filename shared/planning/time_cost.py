@@ -77,10 +77,13 @@ def _stretched_time(qs, dqs, dts, velocity_limit, placement, parent, local, join
     (within a sample too) at full speed. A sample that would take longer than wait_step is waited at in
     steps of wait_step, each with the people as forecast by then (up to extrapolation, the forecast's
     horizon): someone walking away clears the robot's way after a moment, not after the whole stretch
-    their position of now would give (a sample at the alpha floor stands for 50 times its nominal time)."""
+    their position of now would give (a sample at the alpha floor stands for 50 times its nominal time). Where the
+    forecast does not move anyone (every frame and its velocities the first one's: people standing, or held), a
+    look again would see the same people: a sample's bound is taken once and waited out in one step."""
     n_links = radii.shape[0]
     n_f, n_h = frames.shape[0], frames.shape[1]
     moved = np.empty_like(frames[0])
+    still = _unmoving(frames, frame_vel)
     total = 0.0
     for k in range(qs.shape[0]):
         if n_h == 0 or total >= stay:
@@ -116,12 +119,24 @@ def _stretched_time(qs, dqs, dts, velocity_limit, placement, parent, local, join
                 alpha = max(alpha, floor)
                 need = left * dts[k] / alpha
             step = min(need, stay - total)
-            if shift < extrapolation:          # the people still move in the prediction: look again soon
+            if shift < extrapolation and not still:    # the people still move in the prediction: look again soon
                 step = min(step, wait_step)
             total += step
             left = 0.0 if step >= need else left - step * alpha / dts[k]
         ends[k] = total
     return total
+
+
+@numba.njit(cache=True)
+def _unmoving(frames, frame_vel):
+    """Whether every frame of a forecast, and its velocities, are the first one's (the people do not move in it)."""
+    for f in range(1, frames.shape[0]):
+        for j in range(frames.shape[1]):
+            for e in range(2):
+                for c in range(3):
+                    if frames[f, j, e, c] != frames[0, j, e, c] or frame_vel[f, j, e, c] != frame_vel[0, j, e, c]:
+                        return False
+    return True
 
 
 @numba.njit(cache=True)

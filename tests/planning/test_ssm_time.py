@@ -188,6 +188,20 @@ def test_a_forecast_of_many_frames_is_interpolated_between_them():
     assert turning.trajectory_time(OLD, 0.0, WALKING) < COST.trajectory_time(OLD, 0.0, WALKING) - 0.05
 
 
+def test_people_the_forecast_does_not_move_are_waited_out_at_once_with_the_prediction_of_looking_again():
+    """A forecast in which nobody moves (every frame the first one's: people standing) would show the same people
+    at every look again, so a slow sample is waited out in one step (session 85: the search's costing 2-3x faster
+    beside standing people); it predicts what looking again every wait_step predicts, a forecast moved by a
+    picometre (which looks again) the same to 1e-9; a stay that ends mid-wait ends it there too."""
+    held = np.stack([NEAR.segments] * 3)
+    nudged = held.copy()
+    nudged[-1] += 1e-12
+    for stay in (np.inf, 2.0, 6.0):
+        still = SsmTimeCost(ROBOT, SSM, forecaster=Frames(held, 1.0)).trajectory_time(OLD, 0.0, NEAR, stay)
+        looked = SsmTimeCost(ROBOT, SSM, forecaster=Frames(nudged, 1.0)).trajectory_time(OLD, 0.0, NEAR, stay)
+        assert still == pytest.approx(looked, rel=1e-9) and still > OLD.duration + 0.5, stay
+
+
 def test_one_forecast_serves_a_search_and_a_wrong_one_is_refused():
     frames = Frames(NEAR.segments[None], 1.0)
     cost = SsmTimeCost(ROBOT, SSM, forecaster=frames)
