@@ -191,17 +191,12 @@ def stop_of_speed(alpha, fraction, stop_full, stop_min):
 
 
 @numba.njit(cache=True)
-def _speed_allowed(alpha, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop, static,
-                   near_d, v_near, v_far, a_h, lead, margin):
+def _pair_allows(alpha, i, k, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop, static,
+                 near_d, v_near, v_far, a_h, lead, margin):
+    """Whether pair (i, k), approaching, keeps path speed alpha within its limit at that speed's T_s, less margin."""
     stop = stop_of_speed(alpha, fraction, stop_full, stop_min)
-    for i in range(robot_speed.shape[0]):
-        for k in range(robot_speed.shape[1]):
-            if robot_speed[i, k] > NEGLIGIBLE_SPEED:
-                lim = limit_at(dist[i, k], human_speed[i, k], stop, reaction, a_stop, static, near_d, v_near,
-                               v_far, a_h, lead)
-                if alpha * robot_speed[i, k] > max(lim - margin, 0.0):
-                    return False
-    return True
+    lim = limit_at(dist[i, k], human_speed[i, k], stop, reaction, a_stop, static, near_d, v_near, v_far, a_h, lead)
+    return alpha * robot_speed[i, k] <= max(lim - margin, 0.0)
 
 
 @numba.njit(cache=True)
@@ -212,24 +207,52 @@ def speed_alpha_bound(dist, robot_speed, human_speed, limit, fraction, stop_full
     fraction the fastest joint's share of its velocity limit at alpha = 1 (pairs: dist, robot_speed, human_speed
     from ``_pair_ssm_kernel`` at alpha = 1, limit its limit at stop_full). The limit falls as alpha rises, so the
     alphas allowed are [0, bound]: the one-T_s bound at the longest stopping time those alphas can have is
-    allowed, then bisection up to 1 (the allowed end returned). With stop_min = stop_full, the one-T_s bound."""
+    allowed, then bisection up to 1 (the allowed end returned). With stop_min = stop_full, the one-T_s bound.
+
+    The bisection's points are the 2^BISECTIONS steps from that one-T_s bound to 1, each the float that halving
+    [low, 1] again and again computes, and the bound is the highest of them every pair allows. Each pair allows the
+    points up to its own highest, so the pairs are asked in turn, the ones with the lowest one-T_s bound first (they
+    most often decide): a pair that allows the highest point found so far is passed after one question; one that does
+    not is bisected alone, with the points above that one taken as refused. The same point, to the last bit, as a
+    bisection that asks every pair at each of its 14 steps; that took as long as the pairs' kinematics beside a
+    person (2-5 us of a sample's 4-7 us in the planning layer's time cost at a table's edge, docs/measurements.md,
+    session 85)."""
     low = fixed_stop_alpha_bound(robot_speed, limit - margin)
     if stop_min >= stop_full or low >= 1.0:
         return low
     if fraction > 1.0:                     # beyond the velocity limit T_s grows past stop_full: not below it
         low = min(low, 1.0 / fraction)
-    if _speed_allowed(1.0, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop, static,
-                      near_d, v_near, v_far, a_h, lead, margin):
-        return 1.0
-    high = 1.0
-    for _ in range(BISECTIONS):
-        middle = 0.5 * (low + high)
-        if _speed_allowed(middle, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction, a_stop,
-                          static, near_d, v_near, v_far, a_h, lead, margin):
-            low = middle
-        else:
-            high = middle
-    return low
+    cols = robot_speed.shape[1]
+    order = np.empty(robot_speed.size, dtype=np.int64)
+    keys = np.empty(robot_speed.size)
+    n = 0
+    for i in range(robot_speed.shape[0]):
+        for k in range(cols):
+            if robot_speed[i, k] > NEGLIGIBLE_SPEED:
+                order[n], keys[n] = i * cols + k, (limit[i, k] - margin) / robot_speed[i, k]
+                n += 1
+    order = order[:n][np.argsort(keys[:n])]
+    top = 1 << BISECTIONS
+    best, best_alpha = top, 1.0            # the highest point every pair asked so far allows: its index, its alpha
+    for m in range(n):
+        if best == 0:                      # low: every pair allows it
+            break
+        i, k = order[m] // cols, order[m] % cols
+        if _pair_allows(best_alpha, i, k, dist, robot_speed, human_speed, fraction, stop_full, stop_min, reaction,
+                        a_stop, static, near_d, v_near, v_far, a_h, lead, margin):
+            continue
+        below, below_alpha, above_alpha, step = 0, low, 1.0, top     # down the halving's tree from [low, 1]
+        while step > 1:
+            step //= 2
+            middle, middle_alpha = below + step, 0.5 * (below_alpha + above_alpha)
+            if middle < best and _pair_allows(middle_alpha, i, k, dist, robot_speed, human_speed, fraction, stop_full,
+                                              stop_min, reaction, a_stop, static, near_d, v_near, v_far, a_h, lead,
+                                              margin):
+                below, below_alpha = middle, middle_alpha
+            else:
+                above_alpha = middle_alpha
+        best, best_alpha = below, below_alpha
+    return best_alpha
 
 
 @dataclass(slots=True)

@@ -210,6 +210,59 @@ def test_the_path_speed_bound_is_where_the_limit_at_its_own_stop_holds(seed):
             assert bound == one_stop
 
 
+def _every_pair_bisection(dist, robot_speed, human_speed, limit, fraction, stop_full, stop_min, reaction, a_stop, static,
+                          near_d, v_near, v_far, a_h, lead, margin):
+    """speed_alpha_bound as it was written before session 85: every approaching pair asked at 1, then at each of
+    the 14 halvings of [the one-T_s bound, 1]."""
+    from shared.safety.ssm import BISECTIONS, fixed_stop_alpha_bound, limit_at, stop_of_speed
+
+    def allowed(alpha):
+        stop = stop_of_speed(alpha, fraction, stop_full, stop_min)
+        moving = np.argwhere(robot_speed > 1e-12)
+        return all(alpha * robot_speed[i, k] <= max(limit_at(dist[i, k], human_speed[i, k], stop, reaction, a_stop,
+                                                              static, near_d, v_near, v_far, a_h, lead) - margin, 0.0)
+                   for i, k in moving)
+
+    low = fixed_stop_alpha_bound(robot_speed, limit - margin)
+    if stop_min >= stop_full or low >= 1.0:
+        return low
+    if fraction > 1.0:
+        low = min(low, 1.0 / fraction)
+    if allowed(1.0):
+        return 1.0
+    high = 1.0
+    for _ in range(BISECTIONS):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if allowed(middle) else (low, middle)
+    return low
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_path_speed_bound_asks_pair_by_pair_for_the_point_every_pair_bisection_finds(seed):
+    """speed_alpha_bound asks the pairs in turn, bisecting only one that refuses the highest point found so far: the
+    same float, to the last bit, as asking every pair at every halving, for robots and people drawn at random near
+    each other (a bound of 0, of 1 and in between among them), with and without T_s following the speed."""
+    from shared.safety.ssm import _pair_ssm_kernel, speed_alpha_bound
+
+    rng = np.random.default_rng(100 + seed)
+    seen = set()
+    for _ in range(150):
+        robot = rng.uniform(-0.4, 0.4, (5, 2, 3))
+        robot_vel = rng.normal(scale=1.0, size=(5, 2, 3))
+        known = rng.uniform(size=4) < 0.8
+        humans = HumanCapsules.from_arrays(rng.uniform(0.0, 1.2, (4, 2, 3)), rng.uniform(0.04, 0.12, 4),
+                                           rng.normal(scale=0.6, size=(4, 2, 3)), known)
+        fraction = float(rng.uniform(0.1, 1.2))
+        for ssm in (BY_HAND, BY_HAND.paper_formula()):
+            k = _pair_ssm_kernel(robot, np.full(5, 0.05), robot_vel, humans.segments, humans.radii,
+                                 humans.velocities, humans.velocity_known, *ssm.kernel_constants)
+            args = (*k, fraction, *ssm.stop_constants, *ssm.kernel_constants[2:], ssm.tracking_margin)
+            bound = speed_alpha_bound(*args)
+            assert bound == _every_pair_bisection(*args)
+            seen.add(0.0 if bound == 0.0 else 1.0 if bound == 1.0 else 0.5)
+    assert seen == {0.0, 0.5, 1.0}
+
+
 def test_a_robot_that_creeps_may_pass_a_person_where_one_at_full_speed_may_not():
     """A link 0.6 m from a person standing, approaching at 1 m/s at full path speed: with one T_s the link may
     not approach at all (0.6 m is inside the 0.91 m no-approach distance); with T_s following the speed it may,
