@@ -39,6 +39,11 @@ def test_runs_to_the_end_with_zero_violations(report):
     assert summary["mode"] == "processes" and all(summary["services_alive_at_end"].values())
     feed = summary["human_feed"]                   # the person came from a process of its own, at 120 Hz
     assert feed["rate_hz"] == 120.0 and feed["sent"] > 2000 and summary["exit_codes"]["human_feed"] == 0, feed
+    # standing at the start, the person was shown to the tracker before it (the feed's lead-in): tracked from
+    # before 0 s, so the first goal is planned for a person of known velocity, as the simulation plans it
+    with (out / "events.csv").open() as f:
+        tracked = [float(e["t"]) for e in csv.DictReader(f) if e["event"] == "tracker_ok"]
+    assert tracked and tracked[0] < 0.0, tracked
     machine = summary["machine"]                   # the machine's own stalls, witnessed at FIFO 99 beside the cell
     assert machine["wakeups"] > 3000 and summary["exit_codes"]["stall_witness"] == 0, machine
     assert set(machine["after_stall"]) <= set(summary["events"]) and machine["stalls"] >= len(machine["longest"])
