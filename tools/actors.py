@@ -190,8 +190,9 @@ class HumanFeed(threading.Thread):
     tracked=True stands in for the tracker instead (a cell without tracker_ingest): each sample goes out as a
     valid HumanState with the capsules' own velocities, on the key the scaler reads. lead_in: samples of the motion's
     first moment sent before t0, one interval apart, stamped then (``LEAD_IN``), where the people stand at the start
-    (``standing``: every velocity known and below a walk); a lead-in sample the feed is late for by an interval is
-    not sent. Sample k goes out with seq k + lead_in."""
+    (``standing``: every velocity known and below a walk), and as many more as the latency spans (so that lead_in of
+    them have reached the cell by t0: ``leading`` in all); a lead-in sample the feed is late for by an interval is
+    not sent. Sample k goes out with seq k + leading."""
 
     def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo",
                  rate: float | None = None, tracked: bool = False, speed: float = 1.0,
@@ -200,13 +201,15 @@ class HumanFeed(threading.Thread):
         if not 0.0 <= latency <= OLDEST_SAMPLE:
             raise ValueError(f"latency: from 0 to {OLDEST_SAMPLE} s (a sample older than that is stale), got {latency}")
         self.latency = float(latency)
-        self.lead_in = int(lead_in)
         self.tracked = tracked
         self.pub = session.declare_publisher(keys.human_state if tracked else keys.human_raw)
         self.human, self.t0, self.source, self.running = human, t0, source, True
         self.schedule = schedule_of(human, rate, until)
         self.speed = float(speed)
         self.rate = self.schedule.rate * self.speed      # Hz on the wall clock
+        # the lead-in's samples: with a latency the cell has, at t0, what was captured by t0 - latency, so lead_in
+        # samples before that, and as many as the latency spans after them
+        self.leading = int(lead_in) + int(np.ceil(self.latency * self.rate - 1e-9)) if lead_in > 0 else 0
         self.fault = FeedFault()
         self.skipped = 0                  # samples not sent because the feed was late for them
         self.sent = 0                     # samples put
@@ -255,10 +258,10 @@ class HumanFeed(threading.Thread):
         """The lead-in: the motion's first moment, `lead_in` intervals before t0 on, each on time or not at all; only
         where the people stand at the start, so that they stood there before it is what the motion itself says (a
         walker's, or a recording's first frame, whose velocity nothing gives: none, the track starts at t0)."""
-        first = self.human.at(0.0) if self.lead_in > 0 else None
+        first = self.human.at(0.0) if self.leading > 0 else None
         if first is None or not standing(first):
             return
-        for i in range(self.lead_in, 0, -1):
+        for i in range(self.leading, 0, -1):
             due = self.t0 - i / self.rate
             time.sleep(max(0.0, due + self.latency - time.monotonic()))
             if not self.running:
@@ -275,11 +278,11 @@ class HumanFeed(threading.Thread):
         segments = caps.segments + np.asarray(fault.offset) if shifted else caps.segments
         if self.tracked:
             shown = HumanCapsules(segments, caps.radii, caps.velocities, caps.velocity_known)
-            payload = encode(humans_to_msg(shown, True, due, seq=k + self.lead_in, stamp=time.monotonic(),
+            payload = encode(humans_to_msg(shown, True, due, seq=k + self.leading, stamp=time.monotonic(),
                                            sample_interval=1.0 / self.rate))
         else:
             payload = encode(HumanRaw(source=self.source, sample_time=due, segments=segments, radii=caps.radii,
-                                      seq=k + self.lead_in, stamp=time.monotonic()))
+                                      seq=k + self.leading, stamp=time.monotonic()))
         self.pub.put(with_nan_segments(payload) if fault.kind == "nan" else payload)
         self.last_sent = time.monotonic()
         self.sent += 1

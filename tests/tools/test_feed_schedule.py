@@ -84,8 +84,9 @@ def test_a_replay_sends_each_frame_once_at_its_time_and_nothing_in_a_dropout():
 
 def test_a_person_standing_at_the_start_is_shown_for_the_lead_in_before_it_and_a_walker_or_a_recording_is_not():
     """The lead-in (hrc demo's feed): where the people stand at t0, their first moment LEAD_IN intervals before it,
-    stamped then, so the tracker knows their velocity at t0; a walker at t0, or a recording's first frame (whose
-    velocity nothing gives), gets none: the track starts at t0, as the simulation of a recording starts it."""
+    stamped then, so the tracker knows their velocity at t0 (with a latency, that many captured before t0 minus it);
+    a walker at t0, or a recording's first frame (whose velocity nothing gives), gets none: the track starts at t0,
+    as the simulation of a recording starts it."""
     rate = 20.0                            # 50 ms apart: on time on a loaded machine too
     standing = MovingCapsule([-1.5, 0.0, 0.9], [-1.5, 0.0, 1.4], 0.2, [0.0, 0.0, 0.0])
     session = _Session()
@@ -97,6 +98,14 @@ def test_a_person_standing_at_the_start_is_shown_for_the_lead_in_before_it_and_a
     assert [round((m.sample_time - t0) * rate) for m in lead] == list(range(-LEAD_IN, 0))      # none skipped here
     assert all((m.segments == standing.at(0.0).segments).all() for m in lead)
     assert [m.seq for m in sent] == list(range(len(sent))) and sent[len(lead)].sample_time == t0
+    # 60 ms late, as a camera pipeline: the cell has at t0 what was captured by t0 - 60 ms, so the lead-in starts
+    # that much earlier too (LEAD_IN samples captured before then)
+    session = _Session()
+    t0 = time.monotonic() + lead_in_time(rate) + 0.06 + 0.02
+    HumanFeed(session, KeySpace("t/feed"), standing, t0, rate=rate, until=0.1, lead_in=LEAD_IN, latency=0.06).run()
+    lead = [m for _, m in session.publisher.sent if m.sample_time < t0]
+    assert [round((m.sample_time - t0) * rate) for m in lead] == list(range(-LEAD_IN - 2, 0))
+    assert sum(m.sample_time <= t0 - 0.06 for m in lead) >= LEAD_IN
     walker = MovingCapsule([-1.5, 0.0, 0.9], [-1.5, 0.0, 1.4], 0.2, [0.5, 0.0, 0.0])
     for person in (walker, _motion([0.0, 0.05, 0.1])):
         session = _Session()
