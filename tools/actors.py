@@ -169,9 +169,15 @@ def schedule_of(human, rate: float | None = None, until: float | None = None) ->
 LEAD_IN = TrackerParameters().min_samples
 
 
-def lead_in_time(rate: float, samples: int = LEAD_IN) -> float:
-    """How long (s) before a run's start a feed at `rate` (Hz) begins its lead-in."""
-    return samples / rate
+def lead_in_samples(rate: float, latency: float = 0.0, samples: int = LEAD_IN) -> int:
+    """The lead-in's samples of a feed at `rate` (Hz) whose samples reach the cell `latency` s after their capture:
+    `samples` captured by t0 - latency (what the cell has at t0), and as many more as the latency spans."""
+    return samples + int(np.ceil(latency * rate - 1e-9))
+
+
+def lead_in_time(rate: float, latency: float = 0.0, samples: int = LEAD_IN) -> float:
+    """How long (s) before a run's start a feed at `rate` (Hz), `latency` s late, sends its first lead-in sample."""
+    return lead_in_samples(rate, latency, samples) / rate - latency
 
 
 class HumanFeed(threading.Thread):
@@ -191,8 +197,8 @@ class HumanFeed(threading.Thread):
     valid HumanState with the capsules' own velocities, on the key the scaler reads. lead_in: samples of the motion's
     first moment sent before t0, one interval apart, stamped then (``LEAD_IN``), where the people stand at the start
     (``standing``: every velocity known and below a walk), and as many more as the latency spans (so that lead_in of
-    them have reached the cell by t0: ``leading`` in all); a lead-in sample the feed is late for by an interval is
-    not sent. Sample k goes out with seq k + leading."""
+    them have reached the cell by t0: ``leading``, ``lead_in_samples``); a lead-in sample the feed is late for by an
+    interval is not sent. Sample k goes out with seq k + leading."""
 
     def __init__(self, session, keys: KeySpace, human, t0: float, source: str = "hrc demo",
                  rate: float | None = None, tracked: bool = False, speed: float = 1.0,
@@ -207,9 +213,7 @@ class HumanFeed(threading.Thread):
         self.schedule = schedule_of(human, rate, until)
         self.speed = float(speed)
         self.rate = self.schedule.rate * self.speed      # Hz on the wall clock
-        # the lead-in's samples: with a latency the cell has, at t0, what was captured by t0 - latency, so lead_in
-        # samples before that, and as many as the latency spans after them
-        self.leading = int(lead_in) + int(np.ceil(self.latency * self.rate - 1e-9)) if lead_in > 0 else 0
+        self.leading = lead_in_samples(self.rate, self.latency, int(lead_in)) if lead_in > 0 else 0
         self.fault = FeedFault()
         self.skipped = 0                  # samples not sent because the feed was late for them
         self.sent = 0                     # samples put

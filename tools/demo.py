@@ -137,7 +137,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
         rec.phase = human.phase
         # the run starts once the feed's lead-in has shown the tracker the people as they stand at the start (each
         # sample reaching the cell `latency` after its capture)
-        rec.t0 = time.monotonic() + lead_in_time(schedule_of(human).rate) + latency + START_MARGIN
+        rec.t0 = time.monotonic() + lead_in_time(schedule_of(human).rate, latency) + START_MARGIN
         if view_fd is not None:
             from tools.view import CellLogger, pipe_stream
 

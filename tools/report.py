@@ -555,8 +555,7 @@ def write_report(out: Path, robot: RobotModel, config: CellConfig, rec: Recordin
 def plain_json(value):
     """json's `default` for the summary: numpy's numbers and arrays as Python's (a count that became numpy's int once
     failed the report's JSON, and the run's summary was lost wherever the judge found a speed-up towards an unknown
-    velocity);
-    anything else still refused."""
+    velocity); anything else still refused."""
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, np.ndarray):

@@ -101,7 +101,7 @@ def test_a_person_standing_at_the_start_is_shown_for_the_lead_in_before_it_and_a
     # 60 ms late, as a camera pipeline: the cell has at t0 what was captured by t0 - 60 ms, so the lead-in starts
     # that much earlier too (LEAD_IN samples captured before then)
     session = _Session()
-    t0 = time.monotonic() + lead_in_time(rate) + 0.06 + 0.02
+    t0 = time.monotonic() + lead_in_time(rate, 0.06) + 0.02
     HumanFeed(session, KeySpace("t/feed"), standing, t0, rate=rate, until=0.1, lead_in=LEAD_IN, latency=0.06).run()
     lead = [m for _, m in session.publisher.sent if m.sample_time < t0]
     assert [round((m.sample_time - t0) * rate) for m in lead] == list(range(-LEAD_IN - 2, 0))
