@@ -40,6 +40,7 @@ from shared.planning.replanner import Replanner, ReplanOptions
 from shared.planning.scene import DEFAULT_SCENE, load_scene
 from shared.robot.model import default_robot
 from shared.tracking.tracker import mean_age
+from shared.transport.zenoh_session import warm_up_transport
 from shared.wire.convert import capture_delay, humans_from_msg, report_from_status, trajectory_to_msg
 from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, ScalerStatus, encode
 
@@ -215,6 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     replanner = Replanner(collision, JointPlanner(collision, PlannerOptions(seed=args.seed)), config.ssm,
                           options=options, scaling=config.scaling)
     warm_up(replanner)               # every kind of action once: no kernel is loaded when it counts
+    warm_up_transport()              # Zenoh's one slow large message of a process: not the second trajectory's
     service = PlannerService(shell, PlanningLoop(replanner, beta_replans=not args.no_beta))
     return serve(shell, f"planner: SSM-aware path search, scene with {len(scene.names)} obstacles, "
                         f"keys {shell.keys.prefix}/",

@@ -378,5 +378,21 @@ class Shuttle:
             self.recover(now)
             self.say(f"t={now - self.rec.t0:6.2f}s  robot stopped ({js.drive_state}): asking the driver to recover")
 
+    def enable(self, wait: float, clock=time.monotonic, sleep=time.sleep) -> bool:
+        """Before the run: where the drives are stopped (a fault at start-up, e.g. the drives' SYNC watchdog on a
+        slow machine's start), ask the driver to recover them, every RECOVER_EVERY, until they run or `wait` s have
+        passed (False then; the run's own recovery goes on asking). Why: a first plan that comes while the drives
+        still enable is dropped by the scaler, and the robot stood a goal retry (1 s) at the start (session 86)."""
+        deadline, asked = clock() + wait, -1e9
+        while (now := clock()) < deadline:
+            js = self.recorder.get(JointState)
+            if js is not None and js.drive_state.startswith("running"):
+                return True
+            if js is not None and js.drive_state.startswith("stopped") and now - asked >= RECOVER_EVERY:
+                asked = now
+                self.recover(now)
+            sleep(0.01)
+        return False
+
     def recover(self, now: float) -> None:
         self.req_pub.put(encode(DriverRequest(action="recover", source=self.source, stamp=now)))

@@ -41,6 +41,7 @@ from tools.stalls import in_run
 
 PREFIX = "hrc/demo"
 START_MARGIN = 0.02   # s: the feed's first lead-in sample is due this long after it is told the start
+ENABLE_WAIT = 5.0     # s: the most the run waits for drives stopped at its start to be recovered (Shuttle.enable)
 
 
 def reexec_in_namespace(argv: list[str], pass_fds: tuple[int, ...] = ()) -> int | None:
@@ -135,6 +136,9 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
             f"{' (no beta replans)' if no_beta else ''}")
         recorder = Recorder(session, keys, rec)
         rec.phase = human.phase
+        shuttle = Shuttle(session, keys, recorder, rec, say)
+        if not shuttle.enable(ENABLE_WAIT):
+            say(f"hrc demo: the drives do not run after {ENABLE_WAIT:.0f} s; starting all the same (recovery goes on)")
         # the run starts once the feed's lead-in has shown the tracker the people as they stand at the start (each
         # sample reaching the cell `latency` after its capture)
         rec.t0 = time.monotonic() + lead_in_time(schedule_of(human).rate, latency) + START_MARGIN
@@ -149,7 +153,7 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
             raise LaunchError(f"the person feed ended before its start (exit {feed.poll()}); "
                               f"see {out / 'logs' / 'human_feed.log'}") from None
         time.sleep(max(0.0, rec.t0 - time.monotonic()))   # the first goal at the start, not in the lead-in
-        _direct(session, keys, recorder, rec, duration, say)
+        _direct(shuttle, recorder, rec, duration, say)
         # the monitor's last summary (once a second), the person still tracked: a feed stopped first would end
         # every run with a tracker dropout, a stopped robot and a second of states the monitor cannot check
         time.sleep(1.2)
@@ -171,9 +175,8 @@ def run(out: Path, duration: float, phase_length: float, config_path: Path | Non
     return write_report(out, robot, config, rec, extra)
 
 
-def _direct(session, keys: KeySpace, recorder: Recorder, rec: Recording, duration: float, say) -> None:
+def _direct(shuttle: Shuttle, recorder: Recorder, rec: Recording, duration: float, say) -> None:
     """Shuttle goals, recovery requests and progress until duration has passed."""
-    shuttle = Shuttle(session, keys, recorder, rec, say)
     shuttle.start(time.monotonic())
     seen_events = 0
     last_print = -1e9

@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import json
 import re
+import socket
+import threading
+import time
 
 import zenoh
 
@@ -76,11 +79,56 @@ def open_session(mode: str = "peer", listen: list[str] = (), connect: list[str] 
 def await_liveliness(session: zenoh.Session, key: str, timeout: float) -> bool:
     """Wait until a liveliness token on key is visible to this session; False after timeout seconds.
     Peers do not forward, so a service's token is visible exactly when a one-off put would reach it."""
-    import time
-
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if list(session.liveliness().get(key, timeout=0.3)):
             return True
         time.sleep(0.05)
     return False
+
+
+WARM_SIZE = 32_768      # bytes: a message as large as the cell's largest (a trajectory: about 26 KB)
+WARM_MESSAGES = 2       # delivered over a link: the second is the one Zenoh holds up
+WARM_WAIT = 2.0         # s: the most the warm-up takes (the link's set-up included); then it gives up
+
+
+def _ephemeral_port() -> int:
+    """A loopback port from the kernel's ephemeral range, free now: never one a launcher hands out to the cell's
+    services (``tools.launch.free_port`` keeps below that range), so a warm-up cannot take a service's port."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def warm_up_transport(size: int = WARM_SIZE, messages: int = WARM_MESSAGES, wait: float = WARM_WAIT) -> int:
+    """Send `messages` messages of `size` bytes over a throwaway loopback link between two sessions of this process,
+    then close both: how many were delivered (0 where the link could not be made in `wait` seconds; never raises).
+
+    Why: in a process of eclipse-zenoh 1.10.2, the second message larger than about 4 KB that goes over any link
+    blocks its ``put`` 10-40 ms and arrives 13-90 ms late, once (every earlier and later one: 0.1-2 ms). In the cell
+    that was the planner's second trajectory, and the robot stood at its first goal 50-191 ms where it stands 10-52
+    ms at every other. It is the process's, not the link's: after this, a new session's first large messages to
+    another process go at once (``bench/transport.py``; docs/measurements.md, session 86). Call it before serving."""
+    deadline = time.monotonic() + wait
+    delivered = threading.Semaphore(0)
+    count = 0
+    sessions: list[zenoh.Session] = []
+    try:
+        port = _ephemeral_port()
+        sessions.append(open_session("peer", listen=[f"tcp/127.0.0.1:{port}"]))
+        sessions.append(open_session("peer", listen=[f"tcp/127.0.0.1:{_ephemeral_port()}"],
+                                     connect=[f"tcp/127.0.0.1:{port}"]))
+        sessions[1].declare_subscriber("hrc/warm-up", lambda _sample: delivered.release())
+        publisher = sessions[0].declare_publisher("hrc/warm-up")
+        payload = bytes(size)
+        while count < messages and time.monotonic() < deadline:
+            publisher.put(payload)              # not delivered until the link and the subscriber are known: again
+            if delivered.acquire(timeout=0.05):
+                count += 1
+                time.sleep(0.05)
+    except (ConfigError, zenoh.ZError, OSError):
+        return count
+    finally:
+        for session in sessions:
+            session.close()
+    return count

@@ -169,3 +169,35 @@ def test_the_report_says_how_long_the_robot_stood_at_each_goal_before_the_next_l
     summary, _ = analyse(default_robot(), CellConfig(), rec)
     assert summary["goal_changeover_ms"] == {"legs": 2, "p50": pytest.approx(30.0), "p95": pytest.approx(30.0),
                                              "max": pytest.approx(30.0)}
+
+
+class Clock:
+    """A simulated clock: sleep moves it on, and after `running_at` s the fake driver reports running."""
+
+    def __init__(self, recorder: Recorder, running_at: float | None) -> None:
+        self.now, self.recorder, self.running_at = 0.0, recorder, running_at
+
+    def __call__(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.now += seconds
+        if self.running_at is not None and self.now >= self.running_at:
+            self.recorder.latest[JointState] = joint_state(Q_START)
+
+
+def test_drives_stopped_at_the_start_are_recovered_before_the_run_and_only_they(cell):
+    from tools.actors import RECOVER_EVERY
+
+    shuttle, recorder, rec, goals = cell
+    requests = shuttle.req_pub.sent
+    recorder.latest[JointState] = SimpleNamespace(q=Q_START, drive_state="stopped:fault")   # a fault at start-up
+    clock = Clock(recorder, running_at=0.06)                 # the drives run once recovered
+    assert shuttle.enable(5.0, clock, clock.sleep)
+    assert len(requests) == 1 and decode(requests[0]).action == "recover" and clock.now < 0.1 and not goals
+    recorder.latest[JointState] = SimpleNamespace(q=Q_START, drive_state="stopped:fault")   # never recovered:
+    clock = Clock(recorder, running_at=None)                 # asked again every RECOVER_EVERY, then given up
+    assert not shuttle.enable(2.5 * RECOVER_EVERY, clock, clock.sleep)
+    assert len(requests) == 1 + 3 and not goals
+    recorder.latest[JointState] = joint_state(Q_START)       # running: nothing asked
+    assert shuttle.enable(1.0, clock, clock.sleep) and len(requests) == 4
