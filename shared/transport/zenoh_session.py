@@ -118,7 +118,7 @@ def warm_up_transport(size: int = WARM_SIZE, messages: int = WARM_MESSAGES, wait
         sessions.append(open_session("peer", listen=[f"tcp/127.0.0.1:{port}"]))
         sessions.append(open_session("peer", listen=[f"tcp/127.0.0.1:{_ephemeral_port()}"],
                                      connect=[f"tcp/127.0.0.1:{port}"]))
-        sessions[1].declare_subscriber("hrc/warm-up", lambda _sample: delivered.release())
+        subscriber = sessions[1].declare_subscriber("hrc/warm-up", lambda _sample: delivered.release())
         publisher = sessions[0].declare_publisher("hrc/warm-up")
         payload = bytes(size)
         while count < messages and time.monotonic() < deadline:
@@ -126,6 +126,7 @@ def warm_up_transport(size: int = WARM_SIZE, messages: int = WARM_MESSAGES, wait
             if delivered.acquire(timeout=0.05):
                 count += 1
                 time.sleep(0.05)
+        subscriber.undeclare()
     except (ConfigError, zenoh.ZError, OSError):
         return count
     finally:
