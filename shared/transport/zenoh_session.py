@@ -125,7 +125,7 @@ def warm_up_transport(size: int = WARM_SIZE, messages: int = WARM_MESSAGES, wait
             publisher.put(payload)              # not delivered until the link and the subscriber are known: again
             if delivered.acquire(timeout=0.05):
                 count += 1
-                time.sleep(0.05)
+                time.sleep(0.05)            # sent back to back, the second did not take the delay, and the next did
         subscriber.undeclare()
     except (ConfigError, zenoh.ZError, OSError):
         return count
