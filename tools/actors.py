@@ -372,6 +372,10 @@ class Shuttle:
             self.send_goal(now)
         if js is not None:      # a shuttle's part done counts, as the simulation counts it (evidence.sim)
             self.rec.progress = self.rec.shuttles + leg_fraction(js.q, self.ends[self.leg % 2], self.target)
+        self._ask_recovery(js, now)
+
+    def _ask_recovery(self, js: JointState | None, now: float) -> None:
+        """Ask a stopped driver to recover, at most every RECOVER_EVERY (unless this shuttle leaves it stopped)."""
         if self.recovering and js is not None and js.drive_state.startswith("stopped") \
                 and now - self.last_recover > RECOVER_EVERY:
             self.last_recover = now
@@ -380,17 +384,16 @@ class Shuttle:
 
     def enable(self, wait: float, clock=time.monotonic, sleep=time.sleep) -> bool:
         """Before the run: where the drives are stopped (a fault at start-up, e.g. the drives' SYNC watchdog on a
-        slow machine's start), ask the driver to recover them, every RECOVER_EVERY, until they run or `wait` s have
-        passed (False then; the run's own recovery goes on asking). Why: a first plan that comes while the drives
-        still enable is dropped by the scaler, and the robot stood a goal retry (1 s) at the start (session 86)."""
-        deadline, asked = clock() + wait, -1e9
+        slow machine's start), ask the driver to recover them (``_ask_recovery``, as the run does) until they run or
+        `wait` s have passed (False then; the run's own recovery goes on asking). Why: a first plan that comes while
+        the drives still enable is dropped by the scaler, and the robot stood a goal retry (1 s) at the start
+        (session 86)."""
+        deadline = clock() + wait
         while (now := clock()) < deadline:
             js = self.recorder.get(JointState)
             if js is not None and js.drive_state.startswith("running"):
                 return True
-            if js is not None and js.drive_state.startswith("stopped") and now - asked >= RECOVER_EVERY:
-                asked = now
-                self.recover(now)
+            self._ask_recovery(js, now)
             sleep(0.01)
         return False
 

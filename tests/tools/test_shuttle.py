@@ -174,8 +174,8 @@ def test_the_report_says_how_long_the_robot_stood_at_each_goal_before_the_next_l
 class Clock:
     """A simulated clock: sleep moves it on, and after `running_at` s the fake driver reports running."""
 
-    def __init__(self, recorder: Recorder, running_at: float | None) -> None:
-        self.now, self.recorder, self.running_at = 0.0, recorder, running_at
+    def __init__(self, recorder: Recorder, running_at: float | None, now: float = 0.0) -> None:
+        self.now, self.recorder, self.running_at = now, recorder, running_at
 
     def __call__(self) -> float:
         return self.now
@@ -196,7 +196,7 @@ def test_drives_stopped_at_the_start_are_recovered_before_the_run_and_only_they(
     assert shuttle.enable(5.0, clock, clock.sleep)
     assert len(requests) == 1 and decode(requests[0]).action == "recover" and clock.now < 0.1 and not goals
     recorder.latest[JointState] = SimpleNamespace(q=Q_START, drive_state="stopped:fault")   # never recovered:
-    clock = Clock(recorder, running_at=None)                 # asked again every RECOVER_EVERY, then given up
+    clock = Clock(recorder, running_at=None, now=clock.now + RECOVER_EVERY)   # asked every RECOVER_EVERY, given up
     assert not shuttle.enable(2.5 * RECOVER_EVERY, clock, clock.sleep)
     assert len(requests) == 1 + 3 and not goals
     recorder.latest[JointState] = joint_state(Q_START)       # running: nothing asked
