@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 
 import pytest
 
@@ -47,6 +48,23 @@ def log_tails(prefix, lines=15):
     return "\n".join(tails)
 
 
+def recover_a_start_up_stop(prefix):
+    """Do what the status tells a user when the robot came up stopped: `hrc recover`, then wait until it runs.
+
+    The driver stops the drives when no command came for 55 ms, standing still too: a stall of the machine while
+    the cell starts (six processes compiling their kernels on two cores on a fresh machine; CI once: the scaler held
+    120 ms, 60 s into the start) stops it before the user's first goal, and a goal sent to a stopped robot is planned
+    and dropped. `hrc demo` recovers such a stop before its start the same way (``tools.actors.Shuttle.enable``).
+    Said as a warning in the test summary, so a cell that comes up stopped every time is seen."""
+    text = status(prefix)
+    if not re.search(r"robot:\s+stopped", text):
+        return
+    warnings.warn(f"the cell came up stopped; `hrc recover` as its status says:\n{text}", stacklevel=2)
+    out = hrc("recover", "--prefix", prefix)
+    assert out.returncode == 0, out.stderr
+    wait_status(prefix, r"robot:\s+running", timeout=30)
+
+
 @pytest.fixture
 def cell():
     require_namespace("the services are covered one by one in tests/cell/test_system.py")
@@ -68,6 +86,7 @@ def test_a_user_session(cell):
     # processes on two cores: the whole cell was up after 51.5 s on a cold cache here (a few s on a warm one)
     wait_status(prefix, r"tracker_ingest up.*planner up.*scaler up.*robot_driver up.*safety_monitor up.*running",
                 timeout=120)
+    recover_a_start_up_stop(prefix)
     person = subprocess.Popen([sys.executable, "-m", "tools.cli", "human", "inject", "-2.5", "0", "0.9", "-2.5", "0",
                                "1.45", "--radius", "0.17", "--velocity", "0", "0", "0", "--duration", "25",
                                "--prefix", prefix], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
