@@ -48,21 +48,33 @@ def log_tails(prefix, lines=15):
     return "\n".join(tails)
 
 
-def recover_a_start_up_stop(prefix):
-    """Do what the status tells a user when the robot came up stopped: `hrc recover`, then wait until it runs.
+REACHED_Q_G = r"q = \[-1\.5[67]"            # the status's robot line at q_g = [-1.57, ...]
+TIMING_STOP = re.compile(r"stopped:\s+(no command for \d+ ms|.*EMCY 0x8100)")
+RECOVERIES = 2                              # in one session, at most
 
-    The driver stops the drives when no command came for 55 ms, standing still too: a stall of the machine while
-    the cell starts (six processes compiling their kernels on two cores on a fresh machine; CI once: the scaler held
-    120 ms, 60 s into the start) stops it before the user's first goal, and a goal sent to a stopped robot is planned
-    and dropped. `hrc demo` recovers such a stop before its start the same way (``tools.actors.Shuttle.enable``).
-    Said as a warning in the test summary, so a cell that comes up stopped every time is seen."""
-    text = status(prefix)
+
+def recover_a_timing_stop(prefix, text):
+    """Do what the status tells a user when the robot stopped for the machine's timing: `hrc recover`, then wait
+    until it runs; True if it did, False if `text` (a status) shows the robot not stopped.
+
+    The driver stops the drives when no command came for 55 ms, standing still too, and the drives stop themselves
+    when no SYNC came within their watchdog (EMCY 0x8100). On this kind of machine a CPU is now and then taken away
+    for 100 ms (the scaler's log: "no tick for 109 ms ... woke with no new joint state", the tracker's sample late at
+    the same time, the driver on the other CPU on time). CI once: 120 ms, 60 s into a fresh machine's start, before
+    the first goal (a goal sent to a stopped robot is planned and dropped); here, with a CPU-bound process beside
+    the cell, 3 sessions of 8 stopped once, at the start or in the motion. The stop is the cell doing its job; the
+    session goes on as a user's would. `hrc demo` recovers a start-up stop the same way (``Shuttle.enable``). Any
+    other cause fails the test, and each recovery is a warning in the test summary, so a cell that stops every
+    time is seen (and the session allows RECOVERIES)."""
     if not re.search(r"robot:\s+stopped", text):
-        return
-    warnings.warn(f"the cell came up stopped; `hrc recover` as its status says:\n{text}", stacklevel=2)
+        return False
+    assert TIMING_STOP.search(text), f"stopped for another cause than the machine's timing:\n{text}"
+    warnings.warn(f"the robot stopped on the machine's timing; `hrc recover` as its status says:\n{text}",
+                  stacklevel=2)
     out = hrc("recover", "--prefix", prefix)
     assert out.returncode == 0, out.stderr
     wait_status(prefix, r"robot:\s+running", timeout=30)
+    return True
 
 
 @pytest.fixture
@@ -84,17 +96,22 @@ def test_a_user_session(cell):
     prefix = cell
     # on a fresh machine every service compiles its kernels into numba's empty cache at its first start, six
     # processes on two cores: the whole cell was up after 51.5 s on a cold cache here (a few s on a warm one)
-    wait_status(prefix, r"tracker_ingest up.*planner up.*scaler up.*robot_driver up.*safety_monitor up.*running",
-                timeout=120)
-    recover_a_start_up_stop(prefix)
+    text = wait_status(prefix, r"tracker_ingest up.*planner up.*scaler up.*robot_driver up.*safety_monitor up"
+                               r".*robot:\s+(running|stopped)", timeout=120)
+    recoveries = int(recover_a_timing_stop(prefix, text))
     person = subprocess.Popen([sys.executable, "-m", "tools.cli", "human", "inject", "-2.5", "0", "0.9", "-2.5", "0",
                                "1.45", "--radius", "0.17", "--velocity", "0", "0", "0", "--duration", "25",
                                "--prefix", prefix], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        out = hrc("goal", "q_g", "--prefix", prefix)
-        assert out.returncode == 0, out.stderr
-        wait_status(prefix, r"q = \[-1\.5[67]", timeout=20)            # reached q_g = [-1.57, ...]
+        while True:
+            out = hrc("goal", "q_g", "--prefix", prefix)
+            assert out.returncode == 0, out.stderr
+            text = wait_status(prefix, rf"{REACHED_Q_G}|robot:\s+stopped", timeout=20)
+            if re.search(REACHED_Q_G, text):
+                break
+            assert recoveries < RECOVERIES, f"stopped {recoveries + 1} times in one session:\n{text}"
+            recoveries += recover_a_timing_stop(prefix, text)      # and the goal again, as a user would
         # kill -9 the scaler: the driver stops the drives (stale commands), supervisord restarts it
         env = dict(os.environ, HRC_RUN=str(run_dir(prefix)), HRC_PYTHON=sys.executable, HRC_CAN="udp_multicast",
                    HRC_PREFIX=prefix, **{f"HRC_PORT{k if k else ''}": "0" for k in range(6)})
