@@ -32,7 +32,7 @@ from shared.core.trajectory import Trajectory
 from shared.planning.collision import CollisionModel
 from shared.planning.decision import HoldClock
 from shared.planning.horizon import reach_gap
-from shared.planning.inputs import planning_inputs
+from shared.planning.inputs import goal_dropped, planning_inputs
 from shared.planning.loop import PlanningLoop, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions
 from shared.planning.path_search import ACTION_BUDGET, CELL_BUDGET, SearchOptions
@@ -62,12 +62,15 @@ class PlannerService:
         self.human_seq = -1
         self.human_delay = 0.0             # s: the newest people's age as the scaler counts it on average (mean_age)
         self.q = None
+        self.enabled = False               # the driver follows commands (the newest joint state says so)
         self.status: ScalerStatus | None = None
         self.highest_seen = 0              # the highest trajectory version the scaler reported following
         self.held = HoldClock()            # how long the scaler has been asking for a replan (s)
         self.trajectory: Trajectory | None = None       # the newest published
         self.published: dict[int, Trajectory] = {}      # the last few, by version: the scaler may still follow one
         self.published_at = -float("inf")
+        self.planned_goal: int | None = None             # the goal the newest published trajectory was for
+        self.resumed_at = -float("inf")
         self.goal_id = 0
         self.seq = 0
         self.traj_pub = shell.session.declare_publisher(shell.keys.trajectory)
@@ -93,7 +96,7 @@ class PlannerService:
                 self.humans, self.human_seq = humans_from_msg(humans), self.human_seq + 1
                 self.human_delay = mean_age(capture_delay(humans), humans.sample_interval)
             if joints is not None:
-                self.q = np.asarray(joints.q)
+                self.q, self.enabled = np.asarray(joints.q), joints.enabled
             if status is not None:
                 self.status = status
                 self.held.update(now, status.beta)
@@ -109,7 +112,7 @@ class PlannerService:
 
     def _publish(self, now: float, traj: Trajectory, reason: str, junction: float, base_version: int, ms: float,
                  detail: str = "") -> None:
-        self.trajectory = traj
+        self.trajectory, self.planned_goal = traj, self.goal_id
         self.published = {v: t for v, t in self.published.items() if v >= traj.version - 8}
         self.published[traj.version], self.published_at = traj, now
         self.seq += 1
@@ -127,11 +130,24 @@ class PlannerService:
         return (self.trajectory is not None and (st is None or st.received < self.trajectory.version)
                 and now < self.published_at + TAKE_WAIT)
 
+    def _dropped(self, now: float) -> bool:
+        """The goal's plan was dropped while the robot was stopped and it runs again short of the goal
+        (``goal_dropped``); at most once per TAKE_WAIT, so a plan dropped again is not asked for at every turn."""
+        goal = self.goal
+        return (goal is not None and not self.new_goal and now >= self.resumed_at + TAKE_WAIT
+                and goal_dropped(goal=goal.q, q=self.q, enabled=self.enabled,
+                                 followed_version=None if self.status is None else self.status.trajectory_version,
+                                 planned=self.planned_goal == goal.goal_id, in_flight=self._in_flight(now)))
+
     def work_once(self, now: float) -> None:
         """One turn of the planning loop on the latest inputs; its outcome published (a trajectory, or an
         event saying why there is none)."""
         self.poll(now)
         with self.lock:
+            if self._dropped(now):
+                self.new_goal, self.resumed_at = True, now
+                self._event("goal_resumed", f"goal {self.goal.goal_id} planned again from where the robot stands: "
+                                            "its plan was dropped while the robot was stopped")
             goal, new_goal, humans, q, status = self.goal, self.new_goal, self.humans, self.q, self.status
             if goal is None:
                 return

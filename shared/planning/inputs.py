@@ -15,6 +15,7 @@ from shared.core.trajectory import Trajectory
 from shared.scaling.report import ScalerReport
 
 FINISHED_WITHIN = 1e-6     # s of path parameter: a trajectory followed to within this of its end is finished
+AT_GOAL_WITHIN = 0.01      # rad, every joint: a robot this near its goal has arrived (nothing is left to plan for)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -81,3 +82,22 @@ def planning_inputs(*, goal: np.ndarray | None, new_goal: bool, q: np.ndarray | 
                           version=max(newest_version, -1 if report is None else report.version) + 1,
                           held=report is not None and report.held,
                           stop_at=None if report is None else report.awaiting, then=then, human_delay=human_delay)
+
+
+def goal_dropped(*, goal: np.ndarray | None, q: np.ndarray | None, enabled: bool, followed_version: int | None,
+                 planned: bool, in_flight: bool) -> bool:
+    """Whether the goal's plan was dropped and the robot, able to move again, stands short of the goal: then the
+    goal is planned anew from where the robot stands, as a new goal is.
+
+    The scaling layer drops the trajectory it follows when the driver stops the robot (a drive fault, a stale
+    command, the drives' SYNC watchdog) and holds where the robot stands, following none of the planner's
+    (version -1). Nothing else plans again (the loop acts on a new goal or along a followed trajectory), so a goal
+    sent to a stopped robot, or the rest of a leg a stop cut short, was lost: after `hrc recover` the robot stood.
+
+    goal, q: the goal and the measured position (rad; None: not known); enabled: the driver follows commands (the
+    newest joint state); followed_version: the version the scaler reports following (-1: none of the planner's;
+    None: no report yet); planned: a trajectory was published for this goal; in_flight: the newest one published
+    has not been decided on by the scaler yet (it may still be taken)."""
+    if goal is None or q is None or not enabled or not planned or in_flight or followed_version != -1:
+        return False
+    return float(np.max(np.abs(np.asarray(q, dtype=float) - np.asarray(goal, dtype=float)))) > AT_GOAL_WITHIN

@@ -1,5 +1,6 @@
 """The whole cell under supervisord, as a user runs it: hrc up (udp_multicast in a private namespace),
-hrc status, hrc human inject, hrc goal, a service killed and restarted by the supervisor, hrc down."""
+hrc status, hrc human inject, hrc goal, a service killed and restarted by the supervisor, a goal sent to the
+stopped robot and reached once `hrc recover` has it running, hrc down."""
 
 import os
 import re
@@ -49,23 +50,24 @@ def log_tails(prefix, lines=15):
 
 
 REACHED_Q_G = r"q = \[-1\.5[67]"            # the status's robot line at q_g = [-1.57, ...]
-TIMING_STOP = re.compile(r"stopped:\s+(no command for \d+ ms|.*EMCY 0x8100)")
-RECOVERIES = 2                              # in one session, at most
+TIMING_STOP = re.compile(r"stopped:\s+(no command for \d+ ms|.*EMCY 0x8100|.*frames are being lost)")
+RECOVERIES = 3                              # in one session, at most
 
 
 def recover_a_timing_stop(prefix, text):
     """Do what the status tells a user when the robot stopped for the machine's timing: `hrc recover`, then wait
     until it runs; True if it did, False if `text` (a status) shows the robot not stopped.
 
-    The driver stops the drives when no command came for 55 ms, standing still too, and the drives stop themselves
-    when no SYNC came within their watchdog (EMCY 0x8100). On this kind of machine a CPU is now and then taken away
-    for 100 ms (the scaler's log: "no tick for 109 ms ... woke with no new joint state", the tracker's sample late at
+    The driver stops the drives when no command came for 55 ms (standing still too) or when the drives' answers to
+    10 SYNCs of 100 were late, and the drives stop themselves when no SYNC came within their watchdog (EMCY 0x8100).
+    On this kind of machine a CPU is now and then taken away for 100 ms (the FIFO 99 stall witness sees 97-101 ms
+    with as much steal when the machine is busy; the scaler's log "no tick for 109 ms", the tracker's sample late at
     the same time, the driver on the other CPU on time). CI once: 120 ms, 60 s into a fresh machine's start, before
-    the first goal (a goal sent to a stopped robot is planned and dropped); here, with a CPU-bound process beside
-    the cell, 3 sessions of 8 stopped once, at the start or in the motion. The stop is the cell doing its job; the
-    session goes on as a user's would. `hrc demo` recovers a start-up stop the same way (``Shuttle.enable``). Any
-    other cause fails the test, and each recovery is a warning in the test summary, so a cell that stops every
-    time is seen (and the session allows RECOVERIES)."""
+    the first goal; here, with a CPU-bound process beside the cell, 3 sessions of 8 stopped once, at the start or in
+    the motion, and a later one three times. The stop is the cell doing its job; the session goes on as a user's
+    would, and the planner plans the goal again once the robot runs. `hrc demo` recovers a start-up stop the same
+    way (``Shuttle.enable``). Any other cause fails the test, and each recovery is a warning in the test summary,
+    so a cell that stops every time is seen (a session allows RECOVERIES)."""
     if not re.search(r"robot:\s+stopped", text):
         return False
     assert TIMING_STOP.search(text), f"stopped for another cause than the machine's timing:\n{text}"
@@ -100,18 +102,22 @@ def test_a_user_session(cell):
                                r".*robot:\s+(running|stopped)", timeout=120)
     recoveries = int(recover_a_timing_stop(prefix, text))
     person = subprocess.Popen([sys.executable, "-m", "tools.cli", "human", "inject", "-2.5", "0", "0.9", "-2.5", "0",
-                               "1.45", "--radius", "0.17", "--velocity", "0", "0", "0", "--duration", "25",
+                               "1.45", "--radius", "0.17", "--velocity", "0", "0", "0", "--duration", "90",
                                "--prefix", prefix], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
+        out = hrc("goal", "q_g", "--prefix", prefix)
+        assert out.returncode == 0, out.stderr
         while True:
-            out = hrc("goal", "q_g", "--prefix", prefix)
-            assert out.returncode == 0, out.stderr
             text = wait_status(prefix, rf"{REACHED_Q_G}|robot:\s+stopped", timeout=20)
             if re.search(REACHED_Q_G, text):
                 break
             assert recoveries < RECOVERIES, f"stopped {recoveries + 1} times in one session:\n{text}"
-            recoveries += recover_a_timing_stop(prefix, text)      # and the goal again, as a user would
+            recoveries += recover_a_timing_stop(prefix, text)      # the planner plans the goal again once it runs
+        text = status(prefix)
+        if re.search(r"robot:\s+stopped", text):       # stopped at the goal: running again before the kill below
+            assert recoveries < RECOVERIES, f"stopped {recoveries + 1} times in one session:\n{text}"
+            recoveries += recover_a_timing_stop(prefix, text)
         # kill -9 the scaler: the driver stops the drives (stale commands), supervisord restarts it
         env = dict(os.environ, HRC_RUN=str(run_dir(prefix)), HRC_PYTHON=sys.executable, HRC_CAN="udp_multicast",
                    HRC_PREFIX=prefix, **{f"HRC_PORT{k if k else ''}": "0" for k in range(6)})
@@ -134,6 +140,14 @@ def test_a_user_session(cell):
         wait_status(prefix, r"scaler up", timeout=20)
         text = status(prefix)
         assert re.search(r"monitor:\s+\d+ checks, 0 violations", text), text
+        # a goal sent to the stopped robot is planned, and dropped by the scaler; once `hrc recover` has the drives
+        # running again the planner plans it anew from where the robot stands, and the robot goes there
+        out = hrc("goal", "q_s", "--prefix", prefix)
+        assert out.returncode == 0, out.stderr
+        assert re.search(r"robot:\s+stopped", status(prefix))
+        out = hrc("recover", "--prefix", prefix)
+        assert out.returncode == 0, out.stderr
+        wait_status(prefix, r"q = \[1\.5[67]", timeout=30)             # reached q_s = [1.57, ...]
     finally:
         person.terminate()
         person.wait(10)

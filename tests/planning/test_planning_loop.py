@@ -18,7 +18,7 @@ from shared.planning.collision import CollisionModel
 from shared.planning.decision import ReplanFailed, ReplanResult, keep_or_replace, required_gain
 from shared.planning.forecast import ConstantVelocity
 from shared.planning.horizon import reach_gap
-from shared.planning.inputs import planning_inputs
+from shared.planning.inputs import AT_GOAL_WITHIN, goal_dropped, planning_inputs
 from shared.planning.loop import APPROACH_SPEED, IDLE_LONGEST, PlanningInputs, PlanningLoop, idle_time, warm_up
 from shared.planning.ompl_planner import JointPlanner, PlannerOptions, PlanningError
 from shared.planning.path_search import SearchOptions
@@ -723,6 +723,63 @@ def test_the_planner_goes_on_with_the_version_the_scaler_follows_when_a_plan_was
     shell.deliver(keys.scaler_status, status(first.version, first.version + 1))        # decided on: refused
     service.poll(1.6)
     assert not service._in_flight(1.6)
+
+
+def test_a_goal_whose_plan_was_dropped_while_the_robot_was_stopped_is_planned_again_once_it_runs(replanner):
+    """A goal sent to a stopped robot (a stale command, a drive's watchdog): planned, dropped by the scaler, which
+    holds and follows none of the planner's (version -1). Nothing is planned while the robot stays stopped; once
+    the driver runs again (``hrc recover``) the goal is planned anew from where the robot stands, once, with an
+    event saying so; a plan dropped again is not asked for at every turn."""
+    shell, service = planner_given_a_goal(replanner, 5)
+    keys = shell.keys
+    first = shell.published(keys.trajectory, TrajectoryMsg)[-1]
+
+    def scaler(version: int, received: int) -> ScalerStatus:
+        return ScalerStatus(s=0.0, alpha=1.0, safe_alpha=1.0, beta=False, q_command=Q_START, trajectory_version=version,
+                            status="finished", method="piqp", min_separation=None, min_margin=None, compute_us=50.0,
+                            received=received)
+
+    def robot(enabled: bool) -> JointState:
+        return JointState(q=Q_START, qd=np.zeros(6), drive_state="running" if enabled else "stopped:fault",
+                          enabled=enabled, fault=not enabled)
+
+    shell.deliver(keys.human_state, humans_to_msg(HumanCapsules.empty(), True, 1.9))
+    shell.deliver(keys.joint_state, robot(False))
+    shell.deliver(keys.scaler_status, scaler(-1, first.version))          # decided on: dropped, holding
+    for now in (2.0, 2.5, 4.0):
+        service.work_once(now)
+    assert len(shell.published(keys.trajectory, TrajectoryMsg)) == 1      # stopped: nothing to plan for
+    shell.deliver(keys.joint_state, robot(True))                           # recovered
+    service.work_once(4.1)
+    again = shell.published(keys.trajectory, TrajectoryMsg)
+    assert len(again) == 2 and again[-1].goal_id == 5 and again[-1].reason == "goal" and again[-1].base_version == -1
+    assert again[-1].version > first.version and np.allclose(again[-1].positions[0], Q_START)
+    assert np.allclose(again[-1].positions[-1], Q_GOAL)
+    resumed = [e for e in shell.published(keys.safety_events, SafetyEvent) if e.event == "goal_resumed"]
+    assert len(resumed) == 1 and "goal 5" in resumed[0].text
+    shell.deliver(keys.scaler_status, scaler(-1, again[-1].version))      # dropped again at once
+    service.work_once(4.2)
+    assert len(shell.published(keys.trajectory, TrajectoryMsg)) == 2      # not within TAKE_WAIT of the last
+    service.work_once(4.1 + TAKE_WAIT)
+    assert len(shell.published(keys.trajectory, TrajectoryMsg)) == 3
+    shell.deliver(keys.scaler_status, scaler(again[-1].version + 1, again[-1].version + 1))   # followed now
+    shell.deliver(keys.joint_state, JointState(q=Q_GOAL, qd=np.zeros(6), drive_state="running", enabled=True,
+                                               fault=False))
+    service.work_once(9.0)
+    assert len(shell.published(keys.trajectory, TrajectoryMsg)) == 3
+
+
+def test_a_dropped_goal_is_planned_again_only_where_the_robot_runs_short_of_it_and_nothing_else_is_on_its_way():
+    common = dict(goal=Q_GOAL, q=Q_START, enabled=True, followed_version=-1, planned=True, in_flight=False)
+    assert goal_dropped(**common)
+    assert not goal_dropped(**{**common, "enabled": False})               # stopped: wait for the recovery
+    assert not goal_dropped(**{**common, "followed_version": 4})          # the scaler follows one of ours
+    assert not goal_dropped(**{**common, "followed_version": None})       # no report yet
+    assert not goal_dropped(**{**common, "planned": False})               # never planned: the loop's own goal
+    assert not goal_dropped(**{**common, "in_flight": True})              # the newest may still be taken
+    assert not goal_dropped(**{**common, "goal": None}) and not goal_dropped(**{**common, "q": None})
+    assert not goal_dropped(**{**common, "q": Q_GOAL + AT_GOAL_WITHIN / 2})      # arrived: nothing left
+    assert goal_dropped(**{**common, "q": Q_GOAL + 2 * AT_GOAL_WITHIN})
 
 
 def test_the_planning_inputs_follow_what_the_scaler_reports_and_nothing_while_a_plan_is_on_its_way():
