@@ -17,6 +17,7 @@ from shared.core.errors import ConfigError, HrcError
 from tools.arguments import NAMED, build_parser
 
 PAPER_CONFIG = Path(__file__).resolve().parents[1] / "deploy" / "cell-paper.yaml"   # the paper's formula
+ROBOT_WAIT = 0.3        # s: how long `hrc goal` waits for a joint state to say whether the robot runs (100 Hz)
 
 
 def _scene(path: Path | None):
@@ -248,9 +249,10 @@ def cmd_goal(args: argparse.Namespace) -> int:
     import time
 
     import numpy as np
+    import zenoh
 
     from shared.robot.model import default_robot
-    from shared.wire.messages import Goal, encode
+    from shared.wire.messages import Goal, JointState, encode
 
     lim = default_robot().limits
 
@@ -275,10 +277,38 @@ def cmd_goal(args: argparse.Namespace) -> int:
     name, q = configuration(args.q, "goal")
     then = np.zeros((0, 6)) if args.then is None else configuration(args.then, "--then")[1][None]
     with _client(args, "planner") as (session, keys):
+        robot = session.declare_subscriber(keys.joint_state, zenoh.handlers.RingChannel(1))
         goal_id = args.id if args.id is not None else int(time.time() * 1000) % (2 ** 31)
         session.put(keys.goal, encode(Goal(goal_id=goal_id, name=name, q=q, then=then, stamp=time.monotonic())))
+        state = _newest(robot, JointState, ROBOT_WAIT)
+        robot.undeclare()
     print(f"hrc goal: sent goal {goal_id} {name or ''} {np.round(q, 4).tolist()}".replace("  ", " "))
+    if state is None:
+        print(f"hrc goal: no joint state from the robot driver within {ROBOT_WAIT:.1f} s: the goal is planned once "
+              "the robot's position is known")
+    elif not state.enabled:
+        print(f"hrc goal: the robot is {state.drive_state}: the goal is planned again once it runs (`hrc status` "
+              "says why it stopped; `hrc recover` once its cause is gone)")
     return 0
+
+
+def _newest(subscriber, kind, wait: float):
+    """The newest well-formed message of `kind` a ring subscriber holds within `wait` s (None: none came)."""
+    import time
+
+    from shared.core.errors import MessageError
+    from shared.wire.messages import decode
+
+    deadline = time.monotonic() + wait
+    while time.monotonic() < deadline:
+        sample = subscriber.try_recv()
+        if sample is not None:
+            try:
+                return decode(sample.payload.to_bytes(), kind)
+            except MessageError:
+                pass
+        time.sleep(0.01)
+    return None
 
 
 def cmd_recover(args: argparse.Namespace) -> int:
@@ -752,6 +782,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:      # `hrc status | grep -q running`: the reader has what it wanted and left
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())     # nor a traceback at the interpreter's exit
+        return 0
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ that declares the services' liveliness tokens and records what arrives)."""
 import re
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -61,6 +62,33 @@ def test_goal_by_name_and_by_angles(cell):
     assert out.returncode == 0, out.stderr
     assert wait_for(lambda: len(received["goal"]) == 3)
     assert np.allclose(received["goal"][2].then, [[1.57, -0.4, 1.17, 0, 1.57, 0]])
+
+
+def test_a_goal_sent_to_a_stopped_robot_says_so_and_what_to_do(cell):
+    """`hrc goal` reads the robot's state beside sending the goal: to a robot the driver stopped it says so, and that
+    the goal is planned again once it runs; with no driver in the cell, that the goal waits for its position."""
+    port, received, session = cell
+    out = hrc(port, "goal", "q_g")
+    assert out.returncode == 0 and "no joint state from the robot driver" in out.stdout, out.stdout
+    publisher = session.declare_publisher(KEYS.joint_state)
+    stopping = threading.Event()
+
+    def driver():
+        while not stopping.is_set():
+            publisher.put(encode(JointState(q=np.zeros(6), qd=np.zeros(6), drive_state="stopped:fault",
+                                            enabled=False, fault=True, stamp=time.monotonic())))
+            time.sleep(0.01)
+
+    feed = threading.Thread(target=driver)
+    feed.start()
+    try:
+        out = hrc(port, "goal", "q_s")
+    finally:
+        stopping.set()
+        feed.join()
+    assert out.returncode == 0, out.stderr
+    assert "the robot is stopped:fault: the goal is planned again once it runs" in out.stdout, out.stdout
+    assert "`hrc recover`" in out.stdout and wait_for(lambda: len(received["goal"]) == 2)
 
 
 @pytest.mark.parametrize("q, text", [(["1", "2", "3"], "six joint angles"), (["q_x"], "six joint angles"),
@@ -211,3 +239,15 @@ def test_view_serves_the_viewer_on_loopback_only(cell):
     assert proc.returncode == 0, err
     assert f"http://127.0.0.1:{web}/" in out
     assert wait_for(lambda: not listening(web), timeout=5)                         # the viewer is gone too
+
+
+def test_a_reader_that_leaves_early_is_no_error(cell):
+    """`hrc status | grep -q running`: grep leaves at the first match, and the command's next line meets a closed
+    pipe; that ends it quietly, with no traceback."""
+    port = cell[0]
+    proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "status", "--connect", f"tcp/127.0.0.1:{port}",
+                             "--prefix", KEYS.prefix, "--timeout", "1"], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()                     # the reader is gone before the first line
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and "Traceback" not in err and "BrokenPipe" not in err, err
