@@ -19,6 +19,7 @@ found by then is used).
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import threading
 import time
@@ -46,6 +47,22 @@ from shared.wire.messages import Goal, HumanState, JointState, SafetyEvent, Scal
 
 TAKE_WAIT = 1.0      # s: a trajectory the scaler has not reported on by then was lost on the way (or the scaler restarted)
 POLL = 0.02          # s: the worker's cadence (the planning loop's horizon period); a goal wakes it at once
+
+
+def unique_version(traj: Trajectory, newest: Trajectory | None, highest_seen: int) -> Trajectory:
+    """`traj`, renumbered above `newest` (the last one published; None: none yet) and `highest_seen` (the highest
+    version the scaler reported) where it is not already: every trajectory the scaler is handed has a number of its
+    own.
+
+    Why: a replan is numbered the followed trajectory's version + 1. Where the scaler refused one (its start a
+    millimetre off where the robot stands, under load) and the planner answered the next request on the same
+    followed trajectory, the next was numbered the same: the scaler's ``received`` said the new one decided on
+    before it arrived, so the planner planned on again while it was on its way, and where the scaler took one of
+    two equal numbers and ignored the other (not above the followed), the planner took the other for the followed:
+    its next merge, built on a path the robot was not on, passed the scaler's check of the base version (the paper's
+    demo on the processes, loaded: four plans numbered 7 in 1.5 s, docs/measurements.md, session 87)."""
+    floor = max(highest_seen, -1 if newest is None else newest.version)
+    return traj if traj.version > floor else dataclasses.replace(traj, version=floor + 1)
 
 
 class PlannerService:
@@ -112,6 +129,9 @@ class PlannerService:
 
     def _publish(self, now: float, traj: Trajectory, reason: str, junction: float, base_version: int, ms: float,
                  detail: str = "") -> None:
+        """Publish a trajectory, numbered above every one published before and every one the scaler reported
+        (``unique_version``)."""
+        traj = unique_version(traj, self.trajectory, self.highest_seen)
         self.trajectory, self.planned_goal = traj, self.goal_id
         self.published = {v: t for v, t in self.published.items() if v >= traj.version - 8}
         self.published[traj.version], self.published_at = traj, now

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from evidence.scenarios import Q_GOAL, Q_START, body_segments
-from services.planner import POLL, TAKE_WAIT, PlannerService
+from services.planner import POLL, TAKE_WAIT, PlannerService, unique_version
 from shared.core.humans import HumanCapsules
 from shared.core.trajectory import straight_line_trajectory
 from shared.planning.collision import CollisionModel
@@ -767,6 +767,26 @@ def test_a_goal_whose_plan_was_dropped_while_the_robot_was_stopped_is_planned_ag
                                                fault=False))
     service.work_once(9.0)
     assert len(shell.published(keys.trajectory, TrajectoryMsg)) == 3
+
+
+def test_every_trajectory_the_planner_publishes_has_a_number_of_its_own(replanner):
+    """Two replans on the same followed trajectory (the scaler refused the first) were both numbered its version + 1:
+    the scaler's `received` then said the second decided on before it arrived, and where it took one of the two and
+    ignored the other, the planner took the other for the one followed. Published, each is numbered above every one
+    before it and every one the scaler reported; a number already above them is kept."""
+    shell, service = planner_given_a_goal(replanner, 2)
+    keys = shell.keys
+    goal = shell.published(keys.trajectory, TrajectoryMsg)[-1]
+    replan = dataclasses.replace(OLD, version=goal.version + 1)
+    service._publish(2.0, replan, "beta", 0.0, -1, 100.0)
+    service._publish(2.5, replan, "beta", 0.0, -1, 100.0)          # the same number again: renumbered
+    sent = [m.version for m in shell.published(keys.trajectory, TrajectoryMsg)]
+    assert sent == [goal.version, goal.version + 1, goal.version + 2]
+    assert service.published[goal.version + 2].version == goal.version + 2 and service.trajectory.version == sent[-1]
+    events = shell.published(keys.safety_events, SafetyEvent)
+    assert f"version {goal.version + 2} " in events[-1].text           # the event names the number sent
+    assert unique_version(replan, None, 40).version == 41            # above what the scaler reported
+    assert unique_version(dataclasses.replace(OLD, version=50), replan, 40).version == 50     # already above: kept
 
 
 def test_a_dropped_goal_is_planned_again_only_where_the_robot_runs_short_of_it_and_nothing_else_is_on_its_way():
