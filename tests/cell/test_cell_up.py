@@ -50,6 +50,7 @@ def log_tails(prefix, lines=15):
 
 
 REACHED_Q_G = r"q = \[-1\.5[67]"            # the status's robot line at q_g = [-1.57, ...]
+REACHED_Q_S = r"q = \[1\.5[67]"             # and at q_s = [1.57, ...]
 TIMING_STOP = re.compile(r"stopped:\s+(no command for \d+ ms|.*EMCY 0x8100|.*frames are being lost)")
 RECOVERIES = 3                              # in one session, at most
 
@@ -77,6 +78,17 @@ def recover_a_timing_stop(prefix, text):
     assert out.returncode == 0, out.stderr
     wait_status(prefix, r"robot:\s+running", timeout=30)
     return True
+
+
+def reach(prefix, reached, recoveries, timeout=20):
+    """Wait until the status matches `reached`, recovering a stop for the machine's timing on the way (the planner
+    plans the goal again once the robot runs); the recoveries of the session so far, counted on."""
+    while True:
+        text = wait_status(prefix, rf"{reached}|robot:\s+stopped", timeout=timeout)
+        if re.search(reached, text):
+            return recoveries
+        assert recoveries < RECOVERIES, f"stopped {recoveries + 1} times in one session:\n{text}"
+        recoveries += recover_a_timing_stop(prefix, text)
 
 
 @pytest.fixture
@@ -108,12 +120,7 @@ def test_a_user_session(cell):
     try:
         out = hrc("goal", "q_g", "--prefix", prefix)
         assert out.returncode == 0, out.stderr
-        while True:
-            text = wait_status(prefix, rf"{REACHED_Q_G}|robot:\s+stopped", timeout=20)
-            if re.search(REACHED_Q_G, text):
-                break
-            assert recoveries < RECOVERIES, f"stopped {recoveries + 1} times in one session:\n{text}"
-            recoveries += recover_a_timing_stop(prefix, text)      # the planner plans the goal again once it runs
+        recoveries = reach(prefix, REACHED_Q_G, recoveries)
         text = status(prefix)
         if re.search(r"robot:\s+stopped", text):       # stopped at the goal: running again before the kill below
             assert recoveries < RECOVERIES, f"stopped {recoveries + 1} times in one session:\n{text}"
@@ -147,7 +154,8 @@ def test_a_user_session(cell):
         assert re.search(r"robot:\s+stopped", status(prefix))
         out = hrc("recover", "--prefix", prefix)
         assert out.returncode == 0, out.stderr
-        wait_status(prefix, r"q = \[1\.5[67]", timeout=30)             # reached q_s = [1.57, ...]
+        wait_status(prefix, r"robot:\s+running", timeout=30)
+        reach(prefix, REACHED_Q_S, recoveries, timeout=30)
     finally:
         person.terminate()
         person.wait(10)
