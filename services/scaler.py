@@ -22,9 +22,10 @@ behind the commands at its velocity limit, and the catch-up overshot a stop towa
   ssm.drive_lag (``SsmParameters.covering_lag``);
 * human data that never came, is marked invalid, or is older than the configured bound stops the robot
   (the core's rule; the bound at a slow source's rate is shared.tracking.tracker.stale_bound); an invalid
-  or malformed message counts as no message. No joint state for scaling.robot_timeout (counted from when the
-  last one reached this process) stops it too, along its path (the core's rule, status stale_joint_state): the
-  path is not run open loop for a robot that is not heard from;
+  or malformed message counts as no message. No joint state for scaling.robot_timeout (counted from the
+  newest one's stamp, or from its arrival where that is later: ``state_age``) stops it too, along its path
+  (the core's rule, status stale_joint_state): the path is not run open loop for a robot that is not heard
+  from, nor on states that waited in a queue;
 * a tick more than ``GAP_PERIODS`` control periods after the last one (a SYNC passed without a command) is
   logged with how long the first joint state since the last tick had waited in this process and how long the
   last tick took (the report's ``scaler_silences``, ``tools.silences``, has only the stamps);
@@ -72,6 +73,16 @@ def merge_human_states(msgs: list[HumanState]) -> HumanCapsules | None:
     return HumanCapsules.union([humans_from_msg(m) for m in reversed(msgs) if m.valid])
 
 
+def state_age(now: float, arrived: float, stamp: float) -> float:
+    """s: how old the newest joint state is at `now`: since the driver published it (its stamp, on this host's
+    monotonic clock) or since it reached this process (arrived), whichever is longer. States that waited in a
+    queue are as old as their stamps say: after the scaler was held up 1.5 s (SIGSTOP), Zenoh delivered the
+    states of that time at once, the oldest first, and the scaler, judging them fresh by their arrival, ran on
+    along its old path on states from before the driver had stopped the robot. A stamp ahead of the arrival
+    (not this host's clock) counts from the arrival."""
+    return now - min(arrived, stamp)
+
+
 class Scaler:
     def __init__(self, shell: ServiceShell, layer: ScalingLayer, arrival_clock=time.monotonic) -> None:
         """arrival_clock: what says when a joint state came (s, on the clock ticks are given on; a test's own).
@@ -84,7 +95,8 @@ class Scaler:
         self.human_interval = 0.0                         # s: the source's sample interval, as the tracker measured
         self.reported_stamp = None         # the sample whose latency chain the last command carried
         self.joint_q = None
-        self.joint_arrived = -np.inf       # when the newest joint state reached this process (monotonic s)
+        self.joint_arrived = -np.inf       # when the newest joint state reached this process (monotonic s) ...
+        self.joint_stamp = -np.inf         # ... and when the driver published it (its stamp, the host's monotonic s)
         self.robot_following = False       # the driver runs and follows commands (JointState.enabled)
         self.joint_state_arrived = threading.Event()       # wakes the tick: one a SYNC
         self.woken_by: tuple[float, float] | None = None   # the first state due since the last tick: (came, stamp)
@@ -152,6 +164,7 @@ class Scaler:
         with self.lock:
             self.joint_q = np.asarray(msg.q)
             self.joint_arrived = self.arrival_clock()
+            self.joint_stamp = msg.stamp
             self.robot_following = msg.enabled
             self.state_lag = msg.drive_lag or 0.0
             due = self.clock.arrived(msg.sync)
@@ -216,7 +229,7 @@ class Scaler:
             if self.pending is not None:
                 self._take_pending()
             humans, age, q_meas = self.humans, now - self.human_stamp, self.joint_q
-            robot_age = now - self.joint_arrived
+            robot_age = state_age(now, self.joint_arrived, self.joint_stamp)
             stamp, published, following = self.human_stamp, self.human_published, self.robot_following
         if q_meas is not None and (self.layer.trajectory is None or not following):
             if not following and self.layer.trajectory is not None and self.layer.trajectory.version != -1:

@@ -269,6 +269,8 @@ def _add_faults(sub) -> None:
     faults.add_argument("--only", nargs="+", default=None, metavar="FAULT",
                         help="these faults only (default: all, in order)")
     faults.add_argument("--out", type=Path, default=None, metavar="DIR", help="write faults.json and faults.md here")
+    faults.add_argument("--trace", action="store_true", help="with --out: write the campaign's trace (every message, "
+                        "trace/) even when every verdict holds (it is written whenever one fails)")
     faults.add_argument("--config", type=Path, default=None, metavar="FILE", help="the cell configuration the "
                         "services run with (default: built in)")
     cell_options(faults)

@@ -736,7 +736,7 @@ def cmd_faults(args: argparse.Namespace) -> int:
     if args.connect is None:
         args.connect = cell_endpoint(args.prefix)
     verdicts = faults.run_campaign(args.prefix, args.connect, interface, channel, config, default_robot(), names,
-                                   args.out, say=lambda text: print(text, flush=True))
+                                   args.out, say=lambda text: print(text, flush=True), trace=args.trace)
     return 0 if all(v.ok for v in verdicts) else 1
 
 

@@ -75,6 +75,12 @@ JUMP_FROM = 1.6
 
 HELD_FOR = 1.0                  # s: a human state older than this no longer says the tracker's interval
 HUMAN_STOPS = ("kill_tracker_ingest", "tracker_silent", "tracker_nan")    # faults of the human data: a stale-data stop
+# faults that leave nothing behind when lifted at once: injected into a robot that, by the recorded joint states,
+# stood at that instant (it paused between the check that it moves and the injection: a plan taken at rest, this
+# process descheduled), they are lifted and injected again, at most INJECTIONS times. (A person's jump injected
+# into a robot that had stood for 40 ms was judged "not moving at the injection" on a loaded machine.)
+REVERSIBLE = ("tracker_silent", "tracker_nan", "human_jump", "human_glitch")
+INJECTIONS = 3
 
 
 @dataclass(frozen=True)
@@ -315,39 +321,65 @@ class Campaign:
             return [js for js in self.rec.joint_states if js.stamp >= t_from]
 
     # ------------------------------------------------------------------------------------------ one fault
+    def _await_motion(self, verdict: FaultVerdict, name: str) -> None:
+        """Wait until the robot moves (``wait_moving``) and the recorded joint states agree that it does, or the
+        verdict cannot judge it (3 tries, each disagreement noted); verdict.moving_at_injection says whether it
+        does."""
+        for attempt in range(3):
+            verdict.moving_at_injection = self.wait_moving(person_beyond=JUMP_FROM if name == "human_jump" else 0.0)
+            now = time.monotonic()
+            if not verdict.moving_at_injection or self._recorded_moving(now):
+                return
+            verdict.notes.append(f"attempt {attempt + 1}: moving by the latest joint state, not by the recorded "
+                                 f"ones before now: {self._samples_around(now)}")
+
+    def _moved_at(self, t: float, wait: float = 0.2) -> bool:
+        """Whether the recorded joint states say the robot moved at time t, once one stamped after t has come
+        (at most `wait` s: then by those recorded so far)."""
+        deadline = time.monotonic() + wait
+        while time.monotonic() < deadline:
+            latest = self.recorder.get(JointState)
+            if latest is not None and latest.stamp > t:
+                break
+            time.sleep(0.005)
+        return self._recorded_moving(t)
+
     def run(self, name: str) -> FaultVerdict:
         if name not in FAULT_NAMES:
             raise ValueError(f"unknown fault {name!r}; known: {', '.join(FAULT_NAMES)}")
         exp = self.expect[name]
         verdict = FaultVerdict(name, exp.expect, exp.bound_s, exp.why)
-        for attempt in range(3):   # the recorded joint states must agree that it moves, or the verdict cannot
-            verdict.moving_at_injection = self.wait_moving(person_beyond=JUMP_FROM if name == "human_jump" else 0.0)
-            now = time.monotonic()
-            if not verdict.moving_at_injection or self._recorded_moving(now):
-                break
-            verdict.notes.append(f"attempt {attempt + 1}: moving by the latest joint state, not by the recorded "
-                                 f"ones before now: {self._samples_around(now)}")
-        verdict.t_inject = round(time.monotonic() - self.rec.t0, 3)
         service = name.split("_", 1)[1] if name.startswith(("kill_", "freeze_")) else None
+        # asked of supervisorctl before the wait for motion, not between it and the injection (a subprocess)
         old_pid = service_info(self.prefix, service)[0] if service else 0
         if service and old_pid <= 0:              # never signal pid 0 (that is this whole process group)
             verdict.notes.append(f"{service} was not running under supervisord: nothing injected")
             return verdict
-        before = self.recorder.get(ScalerStatus)
-        if name in HUMAN_STOPS:    # the stale bound at the source's rate as the cell held it at the injection
-            now = time.monotonic()
-            with self.recorder.lock:
-                interval = held_interval(self.rec.human_states[-64:], now)
-            exp = human_stop(self.config, self.robot, interval)
-            verdict.bound_s, verdict.bound_why = exp.bound_s, exp.why
-        self.shuttle.recovering = False
-        t_inject = time.monotonic()
-        try:
-            lift = self._inject(name, old_pid)
-        except InjectionError as exc:           # nothing was injected: no verdict to give, said so
-            self.shuttle.recovering = True
-            verdict.notes.append(f"not injected: {exc}")
-            return verdict
+        for attempt in range(INJECTIONS):
+            self._await_motion(verdict, name)        # (not moving after SETTLE: injected all the same, judged)
+            before = self.recorder.get(ScalerStatus)
+            if name in HUMAN_STOPS:    # the stale bound at the source's rate as the cell held it at the injection
+                now = time.monotonic()
+                with self.recorder.lock:
+                    interval = held_interval(self.rec.human_states[-64:], now)
+                exp = human_stop(self.config, self.robot, interval)
+                verdict.bound_s, verdict.bound_why = exp.bound_s, exp.why
+            self.shuttle.recovering = False
+            t_inject = time.monotonic()
+            verdict.t_inject = round(t_inject - self.rec.t0, 3)
+            try:
+                lift = self._inject(name, old_pid)
+            except InjectionError as exc:           # nothing was injected: no verdict to give, said so
+                self.shuttle.recovering = True
+                verdict.notes.append(f"not injected: {exc}")
+                return verdict
+            if name not in REVERSIBLE or attempt == INJECTIONS - 1 or not verdict.moving_at_injection \
+                    or self._moved_at(t_inject):
+                break
+            lift()                  # the robot paused (a plan taken at rest) as it came: a fault that leaves
+            self.shuttle.recovering = True          # nothing behind is lifted at once and injected again
+            verdict.notes.append(f"injection {attempt + 1}: the robot stood at the injection, lifted at once: "
+                                 f"{self._samples_around(t_inject)}")
         time.sleep(HOLD)
         try:
             lift()
@@ -463,7 +495,9 @@ def time_left(done: int, total: int, elapsed: float) -> str:
 
 def run_campaign(prefix: str, endpoint: str, interface: str, channel: str | None, config: CellConfig,
                  robot: RobotModel, names: list[str], out: Path | None,
-                 say: Callable[[str], None] = print) -> list[FaultVerdict]:
+                 say: Callable[[str], None] = print, trace: bool = False) -> list[FaultVerdict]:
+    """Inject each fault of `names` in turn and judge it; with `out`, write faults.json, faults.md and, when a
+    verdict failed (or `trace`), the campaign's trace (every message it recorded, ``write_trace``)."""
     campaign = Campaign(prefix, endpoint, interface, channel, config, robot, say)
     verdicts = []
     started = time.monotonic()
@@ -481,10 +515,11 @@ def run_campaign(prefix: str, endpoint: str, interface: str, channel: str | None
         out.mkdir(parents=True, exist_ok=True)
         (out / "faults.json").write_text(json.dumps([v.as_dict() for v in verdicts], indent=1))
         (out / "faults.md").write_text(table + "\n")
-        if not all(v.ok for v in verdicts):        # where a failed verdict's stop went: the whole campaign's messages
-            trace = out / "trace"
-            trace.mkdir(exist_ok=True)
+        failed = not all(v.ok for v in verdicts)
+        if failed or trace:           # where a failed verdict's stop went: the whole campaign's messages
+            where = out / "trace"
+            where.mkdir(exist_ok=True)
             with campaign.recorder.lock:
-                write_trace(trace, campaign.rec)
-            say(f"hrc faults: a verdict failed; the campaign's trace is in {trace}")
+                write_trace(where, campaign.rec)
+            say(f"hrc faults: {'a verdict failed; ' if failed else ''}the campaign's trace is in {where}")
     return verdicts

@@ -5,7 +5,7 @@ velocity, heartbeat age, EMCY) and returns the controlword and the position setp
 plus safety events. States:
 
 * ENABLING: walk every drive to operation enabled (CiA 402, fault reset edges where needed), holding the
-  setpoints at the actual positions; then RUNNING once a fresh command starts where the robot is.
+  setpoints at the actual positions; then RUNNING once a fresh command at rest starts where the robot is.
 * RUNNING: setpoint = the latest command, passed through ``follow_step``: clamped to the joint limits
   and to what the drive follows, its velocity and acceleration limits (``shared.drives.prbt``), so no
   command, however abrupt, gives the drive a setpoint it cannot follow (each clamp is a 'warning' safety
@@ -278,7 +278,7 @@ class DriverCore:
             self._setpoint_velocity = np.zeros_like(self._setpoint_velocity)
         if self.mode is Mode.ENABLING:
             if all(st is State.OPERATION_ENABLED for st in states) and self._fresh(now):
-                if np.abs(self._command - actual).max() <= self.start_tolerance:
+                if self._starts_here(actual):
                     self.mode, self._setpoint = Mode.RUNNING, actual.copy()
                     self._answers.clear()           # the frames lost are counted while it runs, from now
                     events.append(Event("running", "info", "all drives enabled, following commands"))
@@ -296,6 +296,16 @@ class DriverCore:
                             else next_controlword(st, State.SWITCH_ON_DISABLED) for st in states]
         return CycleOutput(controlwords, self._setpoint.copy(), self._setpoint_velocity.copy(), events, self.mode,
                            states)
+
+    def _starts_here(self, actual: np.ndarray) -> bool:
+        """Whether the latest command is one the drives may start following from `actual` (rad): where the robot
+        is (start_tolerance) and at rest (every joint's commanded velocity below RECOVER_BELOW). A command that
+        moves is a path already under way, which the robot at rest would chase at its limits, faster than any
+        command an SSM check has seen: a scaler held up 1.5 s ran its old path on for a few ticks on the joint
+        states of that time, and a recovery taking such a command as it passed by would start the robot mid-
+        motion (the scaler holds the robot where it stands, velocity 0, whenever the driver does not run)."""
+        return bool(np.abs(self._command - actual).max() <= self.start_tolerance
+                    and np.abs(self._command_velocity).max() < RECOVER_BELOW)
 
     def _fresh(self, now: float) -> bool:
         return self._command is not None and now - self._command_time <= self.command_timeout

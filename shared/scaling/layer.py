@@ -104,9 +104,10 @@ class ScalingInputs:
     person's side); q_measured: where the robot really is
     (rad; the SSM rows are written there and its offset from the path is carried to the commanded point; None:
     where the path says); stale_after: the age at which this source's data is stale (s; None: the layer's
-    human_timeout; a slower source's bound is ``shared.tracking.tracker.stale_bound``); robot_age: how long since
-    the last joint state came (s; beyond the layer's robot_timeout, or NaN, the robot is stopped along its path:
-    where it is and whether it follows is no longer known; 0 where the caller is the robot, as the simulation)."""
+    human_timeout; a slower source's bound is ``shared.tracking.tracker.stale_bound``); robot_age: how old the
+    newest joint state is (s: since it was published, or came where that is later; beyond the layer's
+    robot_timeout, or NaN, the robot is stopped along its path: where it is and whether it follows is no longer
+    known; 0 where the caller is the robot, as the simulation)."""
 
     humans: HumanCapsules | None
     human_age: float = 0.0

@@ -150,6 +150,21 @@ def test_frames_lost_stop_the_drives_and_a_late_answer_now_and_then_does_not():
     assert out.mode is Mode.RUNNING
 
 
+def test_a_command_that_moves_past_the_robot_is_not_started():
+    """A path under way that passes where the robot stands (a scaler's old path, run on for a few ticks after it
+    was held up) is not a start: the robot at rest would chase it at its limits. The same command at rest is."""
+    cell = Cell()
+    for k in range(-10, 11):              # 1 rad/s on joint 1, through Q0 at k = 0 (within start_tolerance at |k| <= 2)
+        q = Q0 + np.array([0.01 * k, 0, 0, 0, 0, 0])
+        cell.core.command(q, cell.t, qd=np.array([1.0, 0, 0, 0, 0, 0]))
+        out = cell.step()
+        assert out.mode is Mode.ENABLING
+    assert np.allclose(cell.q, Q0, atol=1e-4)
+    cell.core.command(Q0 + 0.005, cell.t, qd=np.zeros(6))
+    out = cell.step()
+    assert out.mode is Mode.RUNNING
+
+
 def test_recovery_only_when_asked_and_safe():
     cell = Cell()
     enable(cell)

@@ -48,9 +48,10 @@ LIM = ROBOT.limits
 FAR = HumanCapsules.from_arrays([[[-3.0, 0.0, 0.9], [-3.0, 0.0, 1.5]]], [0.2], np.zeros((1, 2, 3)), [True])
 
 
-def joint_state(q, enabled: bool = True) -> JointState:
+def joint_state(q, enabled: bool = True, stamp: float | None = None) -> JointState:
+    """A driver's joint state, published at `stamp` (s, monotonic; default now)."""
     return JointState(q=np.asarray(q, float), qd=np.zeros(6), drive_state="running:operation_enabled",
-                      enabled=enabled, fault=False, stamp=time.monotonic())
+                      enabled=enabled, fault=False, stamp=time.monotonic() if stamp is None else stamp)
 
 
 # ---------------------------------------------------------------------------------------------- scaler
@@ -70,7 +71,7 @@ def robot_follows(shell: FakeShell, scaler: Scaler, at: float) -> None:
     robot_timeout."""
     commands = shell.published(shell.keys.command, JointCommand)
     scaler.arrival_clock.now = at
-    shell.deliver(shell.keys.joint_state, joint_state(commands[-1].q if commands else Q_START))
+    shell.deliver(shell.keys.joint_state, joint_state(commands[-1].q if commands else Q_START, stamp=at))
 
 
 def scaler_at_start(scaling: ScalingParameters = CONFIG.scaling) -> tuple[FakeShell, Scaler, object]:
@@ -293,6 +294,42 @@ def test_the_scaler_stops_the_robot_along_its_path_when_the_driver_falls_silent(
     shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
     scaler.tick(now)
     assert shell.published(keys.scaler_status, ScalerStatus)[-1].status == "running"
+
+
+def test_joint_states_that_waited_in_a_queue_are_as_old_as_their_stamps():
+    """The scaler held up for 1.5 s (SIGSTOP; the fault campaign's freeze_scaler): Zenoh then delivers the joint
+    states of that time at once, the oldest first, those from before the driver stopped the robot saying it
+    follows. Judged fresh by their arrival, they set the old path going again towards a robot its driver had
+    stopped, and the driver, recovering, could take a command that moves. By their stamps they are stale: the path
+    only brakes, and the state that says the robot is stopped brings the hold where it stands."""
+    shell, scaler, keys = scaler_at_start()
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    for k in range(60):                               # under way, a state each SYNC
+        robot_follows(shell, scaler, now)
+        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+        scaler.tick(now)
+        now += 0.01
+    frozen_at, now = now, now + 1.5                   # held up for 1.5 s
+    last = shell.published(keys.command, JointCommand)[-1]
+    shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
+    statuses = []
+    for k in range(5):                                # the queue: states from the first 50 ms of the hold, "following"
+        scaler.arrival_clock.now = now
+        shell.deliver(keys.joint_state, joint_state(last.q, enabled=True, stamp=frozen_at + 0.01 * k))
+        scaler.tick(now)
+        statuses.append(shell.published(keys.scaler_status, ScalerStatus)[-1])
+        now += 0.002
+    assert [st.status for st in statuses] == ["stale_joint_state"] * 5
+    speeds = [st.speed for st in statuses]
+    assert np.all(np.diff(speeds) <= 1e-12)          # braking, never speeding up again
+    scaler.arrival_clock.now = now                   # the driver's newest: stopped, the robot stands further on
+    stood = last.q + 0.05 * np.sign(Q_GOAL - Q_START)
+    shell.deliver(keys.joint_state, joint_state(stood, enabled=False, stamp=now - 0.003))
+    scaler.tick(now)
+    command = shell.published(keys.command, JointCommand)[-1]
+    assert np.allclose(command.q, stood) and np.all(command.qd == 0.0)
 
 
 def test_the_scaler_refuses_a_merge_into_a_trajectory_it_does_not_follow_and_drops_garbage():
