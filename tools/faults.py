@@ -90,6 +90,13 @@ class Expectation:
     why: str
 
 
+def inject_again(name: str, attempt: int, moving: bool, moved_at_injection: Callable[[], bool]) -> bool:
+    """Whether the fault just injected (attempt 0, 1, ...) is to be lifted at once and injected again: a
+    ``REVERSIBLE`` one, with attempts left, into a robot seen moving before (`moving`) that by the recorded joint
+    states stood at the injection (moved_at_injection(), asked last: it waits for the states)."""
+    return name in REVERSIBLE and attempt < INJECTIONS - 1 and moving and not moved_at_injection()
+
+
 def braking_time(robot: RobotModel) -> float:
     """s: the longest stop from full speed at the drives' deceleration (the fastest joint's)."""
     return float(np.max(robot.limits.velocity / robot.limits.monitor_acceleration))
@@ -355,6 +362,7 @@ class Campaign:
         if service and old_pid <= 0:              # never signal pid 0 (that is this whole process group)
             verdict.notes.append(f"{service} was not running under supervisord: nothing injected")
             return verdict
+        first_inject: float | None = None
         for attempt in range(INJECTIONS):
             self._await_motion(verdict, name)        # (not moving after SETTLE: injected all the same, judged)
             before = self.recorder.get(ScalerStatus)
@@ -366,6 +374,7 @@ class Campaign:
                 verdict.bound_s, verdict.bound_why = exp.bound_s, exp.why
             self.shuttle.recovering = False
             t_inject = time.monotonic()
+            first_inject = t_inject if first_inject is None else first_inject
             verdict.t_inject = round(t_inject - self.rec.t0, 3)
             try:
                 lift = self._inject(name, old_pid)
@@ -373,8 +382,7 @@ class Campaign:
                 self.shuttle.recovering = True
                 verdict.notes.append(f"not injected: {exc}")
                 return verdict
-            if name not in REVERSIBLE or attempt == INJECTIONS - 1 or not verdict.moving_at_injection \
-                    or self._moved_at(t_inject):
+            if not inject_again(name, attempt, verdict.moving_at_injection, lambda: self._moved_at(t_inject)):
                 break
             lift()                  # the robot paused (a plan taken at rest) as it came: a fault that leaves
             self.shuttle.recovering = True          # nothing behind is lifted at once and injected again
@@ -391,7 +399,7 @@ class Campaign:
         verdict.back = self._service_back(service, old_pid, name.startswith("kill_"), 40.0) if service else True
         done = self._wait_shuttle(shuttles, t_lift + RESUME)
         verdict.resumed_s = None if done is None else round(done - t_lift, 2)
-        self._judge(verdict, t_inject, t_lift, before)
+        self._judge(verdict, t_inject, t_lift, before, first_inject)
         return verdict
 
     def _inject(self, name: str, pid: int) -> Callable[[], None]:
@@ -418,15 +426,19 @@ class Campaign:
             self.feed.fault = FeedFault()
         return healthy
 
-    def _judge(self, v: FaultVerdict, t_inject: float, t_lift: float, before: ScalerStatus | None) -> None:
-        states = self._joint_samples(t_inject - 1.0)
+    def _judge(self, v: FaultVerdict, t_inject: float, t_lift: float, before: ScalerStatus | None,
+               first_inject: float | None = None) -> None:
+        """The verdict of the fault injected at t_inject and lifted at t_lift; violations are counted from
+        first_inject on (an injection lifted at once and made again, ``REVERSIBLE``, counts too)."""
+        first_inject = t_inject if first_inject is None else first_inject
+        states = self._joint_samples(min(t_inject, first_inject) - 1.0)
         times, speeds = stamps_and_speeds(states)
         during = times <= t_lift
         if v.moving_at_injection and not moving_at(times, speeds, t_inject):
             v.notes.append(f"not moving at the injection by the recorded joint states: {self._samples_around(t_inject)}")
             v.moving_at_injection = False
         with self.recorder.lock:
-            events = [e for e in self.rec.events if e.stamp >= t_inject - 0.5]
+            events = [e for e in self.rec.events if e.stamp >= first_inject - 0.5]
             statuses = [s for s in self.rec.statuses if s.stamp >= t_inject]
         reactions = [(e.stamp - t_inject, f"{e.source}: {e.event}") for e in events
                      if e.severity == "stop" and e.stamp >= t_inject and e.source != "safety_monitor"]
@@ -467,7 +479,7 @@ class Campaign:
         reported = [e for e in events if e.source == "safety_monitor" and e.event == "ssm_violation"]
         v.monitor_violations = len(reported)
         v.notes += [f"monitor: t+{e.stamp - t_inject:.2f}s {e.text}" for e in reported[:3]]
-        samples = [(js.stamp, js.q, js.qd) for js in states if js.stamp >= t_inject - 0.5]
+        samples = [(js.stamp, js.q, js.qd) for js in states if js.stamp >= first_inject - 0.5]
         found = truth_violations(self.monitor, samples, lambda t: self.human.at(t - self.rec.t0))
         v.truth_violations = len(found)
         v.notes += [f"truth: t+{t - t_inject:.2f}s {text}" for t, text in found[:3]]

@@ -21,7 +21,7 @@ from shared.safety.monitor import SafetyMonitor
 from tests.util import ROOT, free_port, require_namespace
 from tools.cell import cell_pid, run_dir
 from tools.faultcheck import FaultVerdict, moving_at, standstill_after, stop_timeline, truth_violations
-from tools.faults import FAULT_NAMES
+from tools.faults import FAULT_NAMES, INJECTIONS, inject_again
 
 
 def hrc(*args, timeout=60):
@@ -88,6 +88,16 @@ def test_standstill_is_the_first_still_sample_after_the_injection():
     assert standstill_after(times, speeds, 0.2) == pytest.approx(0.22)
     assert standstill_after(times, np.ones_like(times), 0.2) is None
     assert moving_at(times, speeds, 0.3) and not moving_at(times, speeds, 0.5) and not moving_at(times, speeds, -1)
+
+
+def test_only_a_fault_that_leaves_nothing_behind_is_injected_again_into_a_robot_that_stood():
+    stood, moved = (lambda: False), (lambda: True)
+    assert inject_again("human_jump", 0, True, stood) and inject_again("tracker_nan", 0, True, stood)
+    assert not inject_again("human_jump", 0, True, moved)                  # it moved: judged as injected
+    assert not inject_again("human_jump", INJECTIONS - 1, True, stood)     # the last try is judged as it is
+    assert not inject_again("human_jump", 0, False, stood)                 # never seen moving: nothing to wait for
+    asked = []
+    assert not inject_again("kill_scaler", 0, True, lambda: asked.append(1) or False) and not asked   # no undo
 
 
 def test_a_late_stop_comes_with_what_the_scaler_did_and_how_fast_the_robot_went():
