@@ -83,6 +83,7 @@ EXACT = 1e-9                  # rad: a setpoint this close to the command is the
 # robot on the drives' own ramp; enabled again before it ends, a drive follows a setpoint where it was, overruns it
 # by its braking distance (0.1 rad from 1.2 rad/s) and faults (EMCY 0x8611, seen in a loaded run on 2026-12-05)
 RECOVER_BELOW = 0.02
+START_WAIT = 2.0              # s the drives stand enabled without a command to start on before the driver says why
 # rad: a setpoint further than this from the command is a clamp worth a warning. Below it the limiter
 # absorbs timing (the scaler's ticks and the SYNC on two clocks: a late command costs one period's
 # extrapolation, an early one a catch-up a few mrad long), which is not a command beyond the drives.
@@ -184,6 +185,8 @@ class DriverCore:
         self._setpoint: np.ndarray | None = None
         self._setpoint_velocity = np.zeros(limits.lower.size)
         self._reset_phase = False
+        self._enabled_since: float | None = None    # while enabling: since when every drive is enabled
+        self._start_told = False                     # ... and why it has not started, said (once per wait)
         self._clamping = False
         self._recover = False
         self.stop_reason = ""
@@ -277,11 +280,16 @@ class DriverCore:
         if self.mode is not Mode.RUNNING:
             self._setpoint_velocity = np.zeros_like(self._setpoint_velocity)
         if self.mode is Mode.ENABLING:
-            if all(st is State.OPERATION_ENABLED for st in states) and self._fresh(now):
-                if self._starts_here(actual):
-                    self.mode, self._setpoint = Mode.RUNNING, actual.copy()
-                    self._answers.clear()           # the frames lost are counted while it runs, from now
-                    events.append(Event("running", "info", "all drives enabled, following commands"))
+            enabled = all(st is State.OPERATION_ENABLED for st in states)
+            if enabled and self._fresh(now) and self._starts_here(actual):
+                self.mode, self._setpoint = Mode.RUNNING, actual.copy()
+                self._answers.clear()           # the frames lost are counted while it runs, from now
+                self._enabled_since, self._start_told = None, False
+                events.append(Event("running", "info", "all drives enabled, following commands"))
+            elif enabled:
+                events += self._not_started(now, actual)
+            else:
+                self._enabled_since, self._start_told = None, False
         if self.mode is Mode.RUNNING:
             events += self._follow()
             controlwords = [next_controlword(st, State.OPERATION_ENABLED) for st in states]
@@ -296,6 +304,26 @@ class DriverCore:
                             else next_controlword(st, State.SWITCH_ON_DISABLED) for st in states]
         return CycleOutput(controlwords, self._setpoint.copy(), self._setpoint_velocity.copy(), events, self.mode,
                            states)
+
+    def _not_started(self, now: float, actual: np.ndarray) -> list[Event]:
+        """Once the drives have stood enabled for START_WAIT without a command to start on: why (a warning, once
+        per wait): no fresh command, one away from the robot, or one that moves (``_starts_here``)."""
+        if self._enabled_since is None:
+            self._enabled_since = now
+        if now - self._enabled_since < START_WAIT or self._start_told:
+            return []
+        self._start_told = True
+        if not self._fresh(now):
+            why = ("no command yet" if self._command is None
+                   else f"the last command came {(now - self._command_time) * 1e3:.0f} ms ago")
+        else:
+            off = float(np.abs(self._command - actual).max())
+            speed = float(np.abs(self._command_velocity).max())
+            why = (f"the command is {off * 1e3:.1f} mrad from the robot (at most {self.start_tolerance * 1e3:.0f})"
+                   if off > self.start_tolerance else
+                   f"the command moves at {speed:.3f} rad/s (a start is a command at rest, below {RECOVER_BELOW})")
+        return [Event("not_started", "warning", f"drives enabled for {now - self._enabled_since:.1f} s, not "
+                                                f"started: {why}")]
 
     def _starts_here(self, actual: np.ndarray) -> bool:
         """Whether the latest command is one the drives may start following from `actual` (rad): where the robot

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hwsim.drive import Drive, DriveLimits
-from shared.drives.driver_core import CLAMP_TOLERANCE, EXACT, DriverCore, Feedback, Mode, follow_step
+from shared.drives.driver_core import CLAMP_TOLERANCE, EXACT, START_WAIT, DriverCore, Feedback, Mode, follow_step
 from shared.drives.prbt import to_counts, to_rad
 from shared.robot.model import default_robot
 
@@ -163,6 +163,21 @@ def test_a_command_that_moves_past_the_robot_is_not_started():
     cell.core.command(Q0 + 0.005, cell.t, qd=np.zeros(6))
     out = cell.step()
     assert out.mode is Mode.RUNNING
+
+
+@pytest.mark.parametrize("command, said", [(lambda t: (Q0 + 0.3, None), "mrad from the robot"),
+                                           (lambda t: (Q0, np.full(6, 0.5)), "moves at 0.500 rad/s"),
+                                           (None, "no command yet")])
+def test_drives_enabled_without_a_command_to_start_on_say_why_once(command, said):
+    cell = Cell()
+    told = []
+    for _ in range(int(2 * START_WAIT / T)):
+        if command is not None:
+            q, qd = command(cell.t)
+            cell.core.command(q, cell.t, qd=qd)
+        told += [e for e in cell.step().events if e.event == "not_started"]
+    assert len(told) == 1 and said in told[0].text and told[0].severity == "warning"
+    assert cell.core.mode is Mode.ENABLING
 
 
 def test_recovery_only_when_asked_and_safe():
