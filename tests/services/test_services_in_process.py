@@ -266,19 +266,26 @@ def test_the_scaler_stops_the_robot_on_stale_human_data():
     assert last.alpha == 0.0 and last.status == "stale_human_data"
 
 
+def under_way(shell: FakeShell, scaler: Scaler, ticks: int = 60) -> tuple[object, float]:
+    """A straight leg q_s -> q_g (version 1) followed for `ticks` SYNCs with the person far: the leg and the time
+    (s) of the next tick."""
+    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
+    shell.deliver(shell.keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
+    now = time.monotonic()
+    for k in range(ticks):                            # a state each SYNC
+        robot_follows(shell, scaler, now)
+        shell.deliver(shell.keys.human_state, humans_to_msg(FAR, True, now))
+        scaler.tick(now)
+        now += 0.01
+    return traj, now
+
+
 def test_the_scaler_stops_the_robot_along_its_path_when_the_driver_falls_silent():
     """No joint state for scaling.robot_timeout (by when they reach the scaler): the path is braked to rest,
     not run open loop to 'finished' (a driver whose SYNC cycle had died once left the robot standing mid-path
     while the scaler reported the goal reached); the next state from a following robot sets it going again."""
     shell, scaler, keys = scaler_at_start()
-    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
-    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
-    now = time.monotonic()
-    for k in range(60):                               # under way, a state each SYNC
-        robot_follows(shell, scaler, now)
-        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
-        scaler.tick(now)
-        now += 0.01
+    traj, now = under_way(shell, scaler)
     silent_from = scaler.joint_arrived
     for k in range(100):                              # then nothing from the driver for a second
         shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
@@ -303,14 +310,7 @@ def test_joint_states_that_waited_in_a_queue_are_as_old_as_their_stamps():
     stopped, and the driver, recovering, could take a command that moves. By their stamps they are stale: the path
     only brakes, and the state that says the robot is stopped brings the hold where it stands."""
     shell, scaler, keys = scaler_at_start()
-    traj = straight_line_trajectory(Q_START, Q_GOAL, LIM.velocity, LIM.acceleration, version=1)
-    shell.deliver(keys.trajectory, trajectory_to_msg(traj, 1, "goal", 0.0, -1))
-    now = time.monotonic()
-    for k in range(60):                               # under way, a state each SYNC
-        robot_follows(shell, scaler, now)
-        shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
-        scaler.tick(now)
-        now += 0.01
+    traj, now = under_way(shell, scaler)
     frozen_at, now = now, now + 1.5                   # held up for 1.5 s
     last = shell.published(keys.command, JointCommand)[-1]
     shell.deliver(keys.human_state, humans_to_msg(FAR, True, now))
