@@ -5,6 +5,8 @@ tracker data, tools.actors), and, while the robot moves, injects one fault after
 
   kill_<service>     kill -9 of scaler, tracker_ingest, planner, safety_monitor, robot_driver
   freeze_<service>   SIGSTOP of the scaler or the robot driver for HOLD seconds, then SIGCONT
+  freeze_scaler_recover  the scaler's freeze, with the driver asked to recover while the scaler is held: the
+                     drives stand enabled, waiting for a command to start on, when it comes back with its old path
   can_drop           one drive loses a tenth of its CAN frames both ways (emulator, SDO 0x2F00:1)
   heartbeat_stop     one drive's heartbeat stops (SDO 0x2F00:2)
   tracker_silent     the raw tracker stream stops
@@ -51,6 +53,7 @@ from tools.launch import free_port
 from tools.report import Recording, write_trace
 
 HOLD = 1.5                      # s a fault stays active (kills: until the supervisor restarts the service)
+RECOVER_DURING = 0.75           # s into freeze_scaler_recover: the driver is asked to recover while the scaler is held
 # s: the joint state wait_moving goes by must be this recent. The latest one kept could be older: the stream
 # paused (a driver or bus just back from the previous fault), and a fault was injected into a robot that
 # had stood still for a while, judged "not moving at the injection" (4 of 8 campaigns)
@@ -60,7 +63,8 @@ AHEAD = 1.2                     # rad still to go on the leg when a fault is inj
 SETTLE = 25.0                   # s to wait for the robot to move before a fault
 RESUME = 45.0                   # s after a fault for the next shuttle to complete
 FAULT_NAMES = ("kill_scaler", "kill_tracker_ingest", "kill_planner", "kill_safety_monitor", "kill_robot_driver",
-               "freeze_scaler", "freeze_robot_driver", "can_drop", "heartbeat_stop", "tracker_silent", "tracker_nan",
+               "freeze_scaler", "freeze_scaler_recover", "freeze_robot_driver", "can_drop", "heartbeat_stop",
+               "tracker_silent", "tracker_nan",
                "human_jump", "human_glitch")
 DROP_NODE, HEARTBEAT_NODE = 4, 5
 # the person shown nearer by this much (m): from 1.2-1.7 m to 0.9-1.4 m off the robot's axis, still beyond
@@ -88,6 +92,13 @@ class Expectation:
     expect: str              # stop | slow | any
     bound_s: float | None
     why: str
+
+
+def fault_service(name: str) -> str | None:
+    """The service a kill or a freeze acts on (None for the other faults)."""
+    if name == "freeze_scaler_recover":
+        return "scaler"
+    return name.split("_", 1)[1] if name.startswith(("kill_", "freeze_")) else None
 
 
 def inject_again(name: str, attempt: int, moving: bool, moved_at_injection: Callable[[], bool]) -> bool:
@@ -142,7 +153,7 @@ def expectations(config: CellConfig, robot: RobotModel) -> dict[str, Expectation
                                                   f"{brake * 1e3:.0f} ms")
     carry_on = Expectation("any", None, "not in the chain that stops the robot: the motion stays scaled")
     return {
-        "kill_scaler": command_stop, "freeze_scaler": command_stop,
+        "kill_scaler": command_stop, "freeze_scaler": command_stop, "freeze_scaler_recover": command_stop,
         **{name: human_data for name in HUMAN_STOPS},
         "kill_robot_driver": driver_stop, "freeze_robot_driver": driver_stop,
         "heartbeat_stop": Expectation("stop", hb + 2 * p + brake, f"heartbeat timeout {hb * 1e3:.0f} ms + SYNC and "
@@ -356,7 +367,7 @@ class Campaign:
             raise ValueError(f"unknown fault {name!r}; known: {', '.join(FAULT_NAMES)}")
         exp = self.expect[name]
         verdict = FaultVerdict(name, exp.expect, exp.bound_s, exp.why)
-        service = name.split("_", 1)[1] if name.startswith(("kill_", "freeze_")) else None
+        service = fault_service(name)
         # asked of supervisorctl before the wait for motion, not between it and the injection (a subprocess)
         old_pid = service_info(self.prefix, service)[0] if service else 0
         if service and old_pid <= 0:              # never signal pid 0 (that is this whole process group)
@@ -410,6 +421,8 @@ class Campaign:
             return nothing
         if name.startswith("freeze_"):
             os.kill(pid, signal.SIGSTOP)
+            if name == "freeze_scaler_recover":     # the robot at rest by then (the stop takes 0.1-0.3 s)
+                threading.Timer(RECOVER_DURING, lambda: self.shuttle.recover(time.monotonic())).start()
             return lambda: os.kill(pid, signal.SIGCONT)
         if name == "can_drop":
             self.can.inject(DROP_NODE, INJECT_DROP, 100)

@@ -21,7 +21,7 @@ from shared.safety.monitor import SafetyMonitor
 from tests.util import ROOT, free_port, require_namespace
 from tools.cell import cell_pid, run_dir
 from tools.faultcheck import FaultVerdict, moving_at, standstill_after, stop_timeline, truth_violations
-from tools.faults import FAULT_NAMES, INJECTIONS, inject_again
+from tools.faults import FAULT_NAMES, INJECTIONS, fault_service, inject_again
 
 
 def hrc(*args, timeout=60):
@@ -88,6 +88,13 @@ def test_standstill_is_the_first_still_sample_after_the_injection():
     assert standstill_after(times, speeds, 0.2) == pytest.approx(0.22)
     assert standstill_after(times, np.ones_like(times), 0.2) is None
     assert moving_at(times, speeds, 0.3) and not moving_at(times, speeds, 0.5) and not moving_at(times, speeds, -1)
+
+
+def test_each_kill_and_freeze_names_the_service_it_acts_on():
+    assert fault_service("kill_tracker_ingest") == "tracker_ingest"
+    assert fault_service("freeze_robot_driver") == "robot_driver"
+    assert fault_service("freeze_scaler_recover") == "scaler" and fault_service("can_drop") is None
+    assert all(fault_service(n) is not None for n in FAULT_NAMES if n.startswith(("kill_", "freeze_")))
 
 
 def test_only_a_fault_that_leaves_nothing_behind_is_injected_again_into_a_robot_that_stood():
