@@ -320,7 +320,7 @@ class DriverCore:
             off = float(np.abs(self._command - actual).max())
             speed = float(np.abs(self._command_velocity).max())
             why = (f"the command is {off * 1e3:.1f} mrad from the robot (at most {self.start_tolerance * 1e3:.0f})"
-                   if off > self.start_tolerance else
+                   if not off <= self.start_tolerance else                # (NaN: a drive's position unknown)
                    f"the command moves at {speed:.3f} rad/s (a start is a command at rest, below {RECOVER_BELOW})")
         return [Event("not_started", "warning", f"drives enabled for {now - self._enabled_since:.1f} s, not "
                                                 f"started: {why}")]
