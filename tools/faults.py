@@ -64,8 +64,7 @@ SETTLE = 25.0                   # s to wait for the robot to move before a fault
 RESUME = 45.0                   # s after a fault for the next shuttle to complete
 FAULT_NAMES = ("kill_scaler", "kill_tracker_ingest", "kill_planner", "kill_safety_monitor", "kill_robot_driver",
                "freeze_scaler", "freeze_scaler_recover", "freeze_robot_driver", "can_drop", "heartbeat_stop",
-               "tracker_silent", "tracker_nan",
-               "human_jump", "human_glitch")
+               "tracker_silent", "tracker_nan", "human_jump", "human_glitch")
 DROP_NODE, HEARTBEAT_NODE = 4, 5
 # the person shown nearer by this much (m): from 1.2-1.7 m to 0.9-1.4 m off the robot's axis, still beyond
 # d_min of every link on the path. A jump further in (0.6 m was tried) teleports the person next to the
